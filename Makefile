@@ -1,0 +1,68 @@
+# Two commands do all set-up on a fresh Debian 12 machine (run as root):
+#   make demo   install what is missing, then run the default scene end to end
+#   make test   install what is missing, then run the test-suite
+# Both are idempotent: on a warm machine they only check stamps.
+
+SHELL       := /bin/bash
+PY_SYS      := /usr/bin/python3
+VENV        := .venv
+PY          := $(VENV)/bin/python
+DEB_PKGS    := python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh \
+               python3-scipy python3-venv libopenblas0-pthread
+# numpy<2: Debian's dolfinx/petsc4py are compiled against NumPy 1.x.
+PIP_PKGS    := "numpy<2" matplotlib pyvista vtk pytest hypothesis
+STAMP_DEB   := $(VENV)/.deb-ok
+STAMP_PIP   := $(VENV)/.pip-ok
+SCENE       ?= workflow/scenes/quick.toml
+OUT         ?= results/demo
+PYTEST_ARGS ?=
+
+export PYVISTA_OFF_SCREEN := true
+export OMP_NUM_THREADS ?= 2
+
+.PHONY: all install demo test test-slow test-all bench clean-venv
+
+all: test
+
+install: $(STAMP_PIP)
+
+# Debian packages: install only those dpkg does not report as installed.
+$(STAMP_DEB):
+	@missing=""; for p in $(DEB_PKGS); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:$$missing"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; \
+	fi
+	@mkdir -p $(VENV) && touch $@
+
+# The venv sees Debian's dolfinx through --system-site-packages.
+$(STAMP_PIP): $(STAMP_DEB) pyproject.toml
+	@[ -x $(PY) ] || $(PY_SYS) -m venv --system-site-packages $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check $(PIP_PKGS)
+	$(PY) -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
+	@$(PY) -c "import dolfinx, petsc4py, slepc4py, gmsh, scipy, pyvista, numpy; assert int(numpy.__version__.split('.')[0]) < 2"
+	@touch $@
+
+demo: install
+	$(VENV)/bin/bladewear run $(SCENE) --out $(OUT)
+
+test: install
+	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+test-slow: install
+	$(PY) -m pytest -q -m slow $(PYTEST_ARGS)
+
+test-all: install
+	$(PY) -m pytest -q -m "slow or not slow" $(PYTEST_ARGS)
+
+# Benchmarks write their timings and errors under results/bench/.
+bench: install
+	$(VENV)/bin/bladewear run workflow/scenes/reduction-check.toml --out results/bench/reduction-check
+	$(VENV)/bin/bladewear run workflow/scenes/paper-frf.toml --out results/bench/paper-frf
+	$(VENV)/bin/bladewear run workflow/scenes/paper-wear.toml --out results/bench/paper-wear
+	$(VENV)/bin/bladewear run workflow/scenes/stiff-extreme.toml --out results/bench/stiff-extreme
+
+clean-venv:
+	rm -rf $(VENV)
