@@ -1,0 +1,202 @@
+"""The model bundle: the folder that separates the FE half from the dynamics.
+
+Anything that writes a bundle (our assembly, or a user's own matrices) can be
+reduced and solved; anything the dynamics needs is in it. Layout and meaning
+of every array are in ``docs/contracts.md`` §2; this module is the only code
+that knows the file names. All quantities are SI (m, kg, s, N).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from workflow.errors import BundleError
+from workflow.io import atomic_dir
+
+MATRICES = ("M", "K", "C")
+CONTACT_KEYS = ("blade_dofs", "disk_dofs", "normal", "t1", "t2", "area", "gap")
+LOAD_KEYS = ("fixed", "static", "harmonic", "observe")
+
+
+@dataclass
+class Contact:
+    """Node-to-node contact pairs (p pairs).
+
+    ``blade_dofs``/``disk_dofs``: (p, 3) int DOF indices of the x, y, z
+    components; -1 marks a grounded side. ``normal``, ``t1``, ``t2``: (p, 3)
+    unit vectors, n from the disk into the blade. ``area``: (p,) tributary
+    area [m²]. ``gap``: (p,) initial normal gap [m] (>0 open). ``flank``: (p,)
+    0 intrados, 1 extrados. ``position``: (p, 3) pair coordinates [m].
+    """
+
+    blade_dofs: np.ndarray
+    disk_dofs: np.ndarray
+    normal: np.ndarray
+    t1: np.ndarray
+    t2: np.ndarray
+    area: np.ndarray
+    gap: np.ndarray
+    flank: np.ndarray | None = None
+    position: np.ndarray | None = None
+
+    @property
+    def n_pairs(self) -> int:
+        return int(self.blade_dofs.shape[0])
+
+    def frames(self) -> np.ndarray:
+        """(p, 3, 3) rotation R with rows (n, t1, t2): u_local = R @ u_global."""
+        return np.stack([self.normal, self.t1, self.t2], axis=1)
+
+
+@dataclass
+class Loads:
+    """Boundary conditions and loads on the full DOF vector (n DOFs).
+
+    ``fixed``: clamped DOF indices. ``static``: (n,) static force [N]
+    (centrifugal plus any applied). ``harmonic``: (n,) amplitude of the
+    cos(ωt) excitation [N]. ``observe``: DOF indices reported as the response.
+    """
+
+    fixed: np.ndarray
+    static: np.ndarray
+    harmonic: np.ndarray
+    observe: np.ndarray
+
+
+@dataclass
+class Bundle:
+    """Full-model matrices [SI], contact pairs, loads and provenance."""
+
+    M: sp.csr_matrix
+    K: sp.csr_matrix
+    C: sp.csr_matrix
+    contact: Contact
+    loads: Loads
+    meta: dict = field(default_factory=dict)
+    coords: np.ndarray | None = None  # (n/3, 3) coordinates of each DOF block [m]
+    path: Path | None = None
+
+    @property
+    def n_dofs(self) -> int:
+        return int(self.M.shape[0])
+
+    @property
+    def free_dofs(self) -> np.ndarray:
+        """Indices of the DOFs that are not clamped."""
+        mask = np.ones(self.n_dofs, dtype=bool)
+        mask[self.loads.fixed] = False
+        return np.flatnonzero(mask)
+
+
+def write_bundle(bundle: Bundle, path: str | Path, extra_files: dict[str, Path] | None = None) -> Path:
+    """Validate and write ``bundle`` to the folder ``path`` atomically.
+
+    ``extra_files`` maps a file name in the bundle (e.g. ``mesh.xdmf``) to an
+    existing file that is moved in with it.
+    """
+    validate(bundle)
+    path = Path(path)
+    with atomic_dir(path) as tmp:
+        for name in MATRICES:
+            sp.save_npz(tmp / f"{name}.npz", getattr(bundle, name).tocsr())
+        c = bundle.contact
+        arrays = {k: getattr(c, k) for k in CONTACT_KEYS}
+        for k in ("flank", "position"):
+            if getattr(c, k) is not None:
+                arrays[k] = getattr(c, k)
+        np.savez(tmp / "contact.npz", **arrays)
+        np.savez(tmp / "loads.npz", **{k: getattr(bundle.loads, k) for k in LOAD_KEYS})
+        if bundle.coords is not None:
+            np.savez(tmp / "nodes.npz", coords=bundle.coords)
+        (tmp / "meta.json").write_text(json.dumps(bundle.meta, indent=2, default=_jsonable) + "\n")
+        for name, src in (extra_files or {}).items():
+            Path(src).replace(tmp / name)
+    bundle.path = path
+    return path
+
+
+def read_bundle(path: str | Path) -> Bundle:
+    """Read and validate the bundle folder ``path``; errors name the file at fault."""
+    path = Path(path)
+    if not path.is_dir():
+        raise BundleError(f"model bundle {path} is not a folder")
+    missing = [f for f in ("M.npz", "K.npz", "C.npz", "contact.npz", "loads.npz") if not (path / f).is_file()]
+    if missing:
+        raise BundleError(f"model bundle {path} lacks {', '.join(missing)}")
+    try:
+        mats = {name: sp.load_npz(path / f"{name}.npz").tocsr() for name in MATRICES}
+        with np.load(path / "contact.npz") as z:
+            absent = [k for k in CONTACT_KEYS if k not in z]
+            if absent:
+                raise BundleError(f"model bundle {path}/contact.npz lacks {', '.join(absent)}")
+            contact = Contact(**{k: z[k] for k in CONTACT_KEYS},
+                              flank=z["flank"] if "flank" in z else None,
+                              position=z["position"] if "position" in z else None)
+        with np.load(path / "loads.npz") as z:
+            absent = [k for k in LOAD_KEYS if k not in z]
+            if absent:
+                raise BundleError(f"model bundle {path}/loads.npz lacks {', '.join(absent)}")
+            loads = Loads(**{k: z[k] for k in LOAD_KEYS})
+        coords = None
+        if (path / "nodes.npz").is_file():
+            with np.load(path / "nodes.npz") as z:
+                coords = z["coords"]
+        meta = json.loads((path / "meta.json").read_text()) if (path / "meta.json").is_file() else {}
+    except BundleError:
+        raise
+    except (OSError, ValueError, KeyError) as exc:
+        raise BundleError(f"model bundle {path} cannot be read: {exc}") from exc
+    bundle = Bundle(**mats, contact=contact, loads=loads, meta=meta, coords=coords, path=path)
+    validate(bundle)
+    return bundle
+
+
+def validate(b: Bundle) -> None:
+    """Raise :class:`BundleError` naming the first inconsistent array."""
+    n = b.M.shape[0]
+    for name in MATRICES:
+        m = getattr(b, name)
+        if m.shape != (n, n):
+            raise BundleError(f"bundle matrix {name} is {m.shape[0]}x{m.shape[1]}, expected {n}x{n}")
+        if not np.all(np.isfinite(m.data)):
+            raise BundleError(f"bundle matrix {name} has non-finite entries")
+    c = b.contact
+    p = c.blade_dofs.shape[0]
+    for k in ("blade_dofs", "disk_dofs", "normal", "t1", "t2"):
+        if np.shape(getattr(c, k)) != (p, 3):
+            raise BundleError(f"bundle contact.{k} has shape {np.shape(getattr(c, k))}, expected ({p}, 3)")
+    for k in ("area", "gap"):
+        if np.shape(getattr(c, k)) != (p,):
+            raise BundleError(f"bundle contact.{k} has shape {np.shape(getattr(c, k))}, expected ({p},)")
+    for k in ("blade_dofs", "disk_dofs"):
+        d = getattr(c, k)
+        if d.size and (d.max() >= n or d.min() < -1):
+            raise BundleError(f"bundle contact.{k} indexes outside 0..{n - 1} (or -1 for grounded)")
+    if np.any((c.blade_dofs < 0) & (c.disk_dofs < 0)):
+        raise BundleError("bundle contact pair grounded on both sides (blade_dofs and disk_dofs both -1)")
+    if p and not np.allclose(np.einsum("pij,pkj->pik", c.frames(), c.frames()), np.eye(3), atol=1e-8):
+        raise BundleError("bundle contact frames (normal, t1, t2) are not orthonormal")
+    if np.any(c.area <= 0) or not np.all(np.isfinite(c.area)):
+        raise BundleError("bundle contact.area must be positive and finite")
+    L = b.loads
+    for k in ("static", "harmonic"):
+        if np.shape(getattr(L, k)) != (n,):
+            raise BundleError(f"bundle loads.{k} has shape {np.shape(getattr(L, k))}, expected ({n},)")
+    for k in ("fixed", "observe"):
+        d = np.asarray(getattr(L, k))
+        if d.size and (d.min() < 0 or d.max() >= n):
+            raise BundleError(f"bundle loads.{k} indexes outside 0..{n - 1}")
+    if b.coords is not None and b.coords.shape != (n // 3, 3):
+        raise BundleError(f"bundle nodes.coords has shape {b.coords.shape}, expected ({n // 3}, 3)")
+
+
+def _jsonable(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)

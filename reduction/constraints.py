@@ -1,0 +1,42 @@
+"""Constraint maps on the full DOF vector: clamping and tying the interface.
+
+``u = T v``: ``T`` keeps the free DOFs and, when tying, writes every blade
+contact DOF as its disk partner's (or 0 for a grounded partner). Then
+``TᵀKT``, ``TᵀMT`` are the constrained operators.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from reduction.bundle import Bundle
+
+
+def constraint_map(bundle: Bundle, tied: bool) -> sp.csr_matrix:
+    """(n, n_kept) sparse 0/1 map from kept DOFs to all DOFs.
+
+    Clamped DOFs are dropped. With ``tied``, blade contact DOFs are dropped and
+    follow their disk partners (node-to-node bonding: the interface as one
+    body, the paper's "tied" limit).
+    """
+    n = bundle.n_dofs
+    follow = np.arange(n)  # DOF i takes the value of DOF follow[i]; -1 → zero
+    follow[bundle.loads.fixed] = -1
+    if tied:
+        b, d = bundle.contact.blade_dofs.ravel(), bundle.contact.disk_dofs.ravel()
+        on_blade = b >= 0
+        follow[b[on_blade]] = np.where(d[on_blade] >= 0, follow[np.maximum(d[on_blade], 0)], -1)
+    kept = np.flatnonzero(follow == np.arange(n))
+    col_of = -np.ones(n, dtype=np.int64)
+    col_of[kept] = np.arange(kept.size)
+    rows = np.flatnonzero(follow >= 0)
+    cols = col_of[follow[rows]]
+    if np.any(cols < 0):  # a chain blade→disk→clamped: resolve the clamped end
+        good = cols >= 0
+        rows, cols = rows[good], cols[good]
+    return sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n, kept.size))
+
+
+def constrain(A: sp.spmatrix, T: sp.spmatrix) -> sp.csr_matrix:
+    """``Tᵀ A T`` as CSR."""
+    return (T.T @ A @ T).tocsr()

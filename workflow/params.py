@@ -1,0 +1,162 @@
+"""Scene sections: one dataclass per TOML table, every key with unit and doc.
+
+Light on purpose (no numerical imports) so that reading and validating a scene
+costs nothing. The geometry section is ``geometry.params.SectorParams``. Each
+owner keeps its section here; cross-key rules go in a ``check`` method that
+raises :class:`~workflow.errors.SceneError` naming the keys.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from workflow.errors import SceneError
+from workflow.schema import param
+
+PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report")
+
+
+@dataclass
+class Run:
+    outputs: list = param(["modes"], "", "products this scene asks for; the stages they need run, no others",
+                          item_choices=PRODUCTS)
+    title: str = param("", "", "title shown in the report")
+
+
+@dataclass
+class Model:
+    bundle: str = param("", "path", "an existing model bundle folder to use instead of geometry + assembly "
+                                    "(relative paths are relative to the scene file)")
+
+
+@dataclass
+class Material:
+    young: float = param(110e9, "Pa", "Young's modulus (Ti-6Al-4V)", min=0.0, min_exclusive=True)
+    poisson: float = param(0.33, "", "Poisson's ratio", min=-0.99, max=0.499)
+    density: float = param(4430.0, "kg/m³", "mass density", min=0.0, min_exclusive=True)
+
+
+@dataclass
+class Rotation:
+    speed_rpm: float = param(0.0, "rpm", "rotation speed Ω about the engine (x) axis: centrifugal load, stress "
+                                         "stiffening, spin softening", min=0.0)
+    stress_stiffening: bool = param(True, "", "add K_σ from the static prestress (interface tied)")
+    spin_softening: bool = param(True, "", "subtract Ω² M_⊥")
+
+
+@dataclass
+class Damping:
+    alpha: float = param(0.0, "1/s", "Rayleigh mass coefficient: C = αM + βK", min=0.0)
+    beta: float = param(0.0, "s", "Rayleigh stiffness coefficient", min=0.0)
+    modal_ratio: float = param(0.002, "", "if > 0, β is chosen so the first tied mode has this damping ratio "
+                                          "(added to beta)", min=0.0, max=1.0)
+
+
+@dataclass
+class Excitation:
+    amplitude: float = param(0.1, "N", "amplitude of the harmonic force at the blade tip (paper: 0.1 N)", min=0.0)
+    static_force: float = param(0.0, "N", "extra static radial (+z) force on the blade tip, for Ω = 0 studies")
+
+
+@dataclass
+class Modes:
+    count: int = param(10, "", "eigenfrequencies of the full tied model to compute", min=1)
+
+
+@dataclass
+class Reduction:
+    modes: int = param(30, "", "fixed-interface modes kept (0: use cutoff_hz)", min=0)
+    cutoff_hz: float = param(0.0, "Hz", "keep fixed-interface modes below this frequency (0: use modes)", min=0.0)
+    check_modes: int = param(10, "", "eigenfrequencies compared reduced vs full", min=1)
+    check_mode_counts: list = param([5, 10, 20, 40], "", "fixed-interface mode counts for the convergence study",
+                                    min=0)
+    frf_points: int = param(40, "", "frequencies of the linear FRF comparison", min=2)
+
+
+@dataclass
+class Contact:
+    mu: float = param(0.5, "", "Coulomb friction coefficient (paper: 0.5, titanium on titanium)", min=0.0)
+    eps_n: float = param(0.0, "N/m", "DLFT normal penalty ε_N (0: automatic, from the reduced stiffness)", min=0.0)
+    eps_t: float = param(0.0, "N/m", "DLFT tangential penalty ε_T (0: automatic)", min=0.0)
+    gap: float = param(0.0, "m", "initial normal gap added to every pair (<0: interference)")
+    max_passes: int = param(20, "", "DLFT periodic passes at most (stick reference convergence)", min=1)
+
+
+@dataclass
+class HB:
+    methods: list = param(["hbm"], "", "formulations: hbm (AFT), tcm (collocation), hdhb (time samples)",
+                          item_choices=("hbm", "tcm", "hdhb"))
+    harmonics: list = param([3], "", "numbers of harmonics Nh", min=0)
+    time_samples: list = param([0], "", "nit per period; 0 means 2Nh+1 (HDHB always uses 2Nh+1)", min=0)
+    solver: str = param("newton", "", "nonlinear solver", choices=("newton", "powell", "pseudo-time"))
+    tol: float = param(1e-8, "", "residual tolerance relative to ‖F_r‖", min=0.0, min_exclusive=True)
+    max_iterations: int = param(100, "", "solver iterations at most", min=1)
+    reference_harmonics: int = param(0, "", "Nh of the converged reference for the error table (0: off)", min=0)
+    reference_time_samples: int = param(256, "", "nit of the reference", min=3)
+
+    def check(self):
+        for nh in self.harmonics:
+            for nit in self.time_samples:
+                if "hdhb" in self.methods and nit not in (0, 2 * nh + 1) and len(self.methods) == 1:
+                    raise SceneError(f"hb.time_samples = {nit} with hb.methods = ['hdhb']: HDHB needs "
+                                     f"2Nh+1 = {2 * nh + 1} samples (use 0)")
+                if nit and nit < 2 * nh + 1:
+                    raise SceneError(f"hb.time_samples = {nit} < 2·Nh+1 = {2 * nh + 1} for hb.harmonics = {nh}")
+
+
+@dataclass
+class Sweep:
+    f_start_hz: float = param(0.0, "Hz", "first frequency (0: 0.9 × the first tied bending frequency)", min=0.0)
+    f_stop_hz: float = param(0.0, "Hz", "last frequency (0: 1.1 × the first tied bending frequency)", min=0.0)
+    points: int = param(50, "", "frequencies in the sweep (paper: 50)", min=1)
+    continuation: bool = param(False, "", "arc-length continuation (follows turning points)")
+
+    def check(self):
+        if self.f_start_hz and self.f_stop_hz and self.f_stop_hz <= self.f_start_hz:
+            raise SceneError(f"sweep.f_stop_hz = {self.f_stop_hz} must exceed sweep.f_start_hz = {self.f_start_hz}")
+
+
+@dataclass
+class PseudoTime:
+    scheme: str = param("ser", "", "pseudo-time integrator",
+                        choices=("rk4", "ser", "bdf", "rosenbrock", "block-jacobi", "local"))
+    cfl: float = param(0.8, "", "fraction of the explicit stability limit (explicit schemes)", min=0.0,
+                       min_exclusive=True)
+    tol: float = param(1e-8, "", "steady-state tolerance on ‖R‖/‖F_r‖", min=0.0, min_exclusive=True)
+    max_steps: int = param(2000, "", "pseudo-time steps at most", min=1)
+
+
+@dataclass
+class Wear:
+    k_w: float = param(1e-13, "m²/N", "Archard wear coefficient (per unit slip, per unit pressure)", min=0.0)
+    blade_share: float = param(0.5, "", "fraction of the wear depth on the blade flank (rest on the disk)",
+                               min=0.0, max=1.0)
+    methods: list = param(["pseudo-time", "implicit"], "", "wear methods",
+                          item_choices=("pseudo-time", "explicit", "implicit"))
+    cycles_per_block: float = param(1e5, "cycles", "physical cycles per block for the reference marching",
+                                    min=0.0, min_exclusive=True)
+    max_blocks: int = param(400, "", "reference marching blocks at most", min=1)
+    steady_tol: float = param(1e-3, "", "steady state: max wear rate × cycles_per_block below this fraction of "
+                                        "the max wear", min=0.0, min_exclusive=True)
+    frequency_hz: float = param(0.0, "Hz", "excitation frequency of the wear study (0: first tied resonance)",
+                                min=0.0)
+
+
+@dataclass
+class Remap:
+    smoothing: str = param("harmonic", "", "mesh-motion extension into the bodies", choices=("harmonic", "elastic"))
+    max_fraction: float = param(0.3, "", "largest node motion allowed, as a fraction of the local element size",
+                                min=0.0, min_exclusive=True, max=1.0)
+    reassemble: bool = param(True, "", "re-assemble and re-reduce the worn model, report frequency shifts")
+    image_width: int = param(1600, "px", "figure width", min=200)
+
+
+@dataclass
+class Extreme:
+    cases: list = param(["all"], "", "which stiff/extreme cases to run")
+
+
+SECTIONS = {
+    "run": Run, "model": Model, "material": Material, "rotation": Rotation, "damping": Damping,
+    "excitation": Excitation, "modes": Modes, "reduction": Reduction, "contact": Contact, "hb": HB,
+    "sweep": Sweep, "pseudotime": PseudoTime, "wear": Wear, "remap": Remap, "extreme": Extreme,
+}
