@@ -41,6 +41,8 @@ class Rotation:
                                          "stiffening, spin softening", min=0.0)
     stress_stiffening: bool = param(True, "", "add K_σ from the static prestress (interface tied)")
     spin_softening: bool = param(True, "", "subtract Ω² M_⊥")
+    prestress_iterations: int = param(0, "", "re-solve the static prestress with its own K_σ this many times "
+                                             "(stress-stiffened static state; 0 = linear prestress)", min=0)
 
 
 @dataclass

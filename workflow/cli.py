@@ -1,0 +1,137 @@
+"""``bladewear``: run a scene, list the shipped scenes, show a resolved scene.
+
+    bladewear run SCENE [--out DIR] [--set section.key=value ...] [--fresh] [--quiet] [--cache DIR]
+    bladewear scenes
+    bladewear show SCENE [--set ...] [--out DIR] [--cache DIR]
+
+SCENE is a path or the name of a shipped scene (``bladewear run quick``).
+Every :class:`~workflow.errors.BladewearError` is printed as one line
+``error: …`` on stderr with exit status 2; other exceptions are bugs and keep
+their traceback. Ctrl-C or SIGTERM stop the run between two writes: cache
+entries and the run folder's summary are written whole or not at all.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import signal
+import sys
+from pathlib import Path
+
+from workflow.errors import BladewearError
+
+EXIT_ERROR = 2
+EXIT_INTERRUPTED = 130
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="bladewear", description="Friction-damped vibration and fretting wear of a "
+                                 "turbine-blade dovetail (Salles et al. 2012).")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="{run,scenes,show}")
+
+    def common(p):
+        p.add_argument("scene", help="scene file, or the name of a shipped scene (see `bladewear scenes`)")
+        p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                       help="override a scene key; VALUE is parsed as TOML (repeatable)")
+        p.add_argument("--out", type=Path, default=None,
+                       help="run folder (default: results/<scene name>)")
+        p.add_argument("--cache", type=Path, default=None,
+                       help="cache folder (default: $BLADEWEAR_CACHE, else .cache beside the run folder)")
+
+    r = sub.add_parser("run", help="run the stages a scene's outputs need")
+    common(r)
+    r.add_argument("--fresh", action="store_true", help="ignore the cache: recompute every stage")
+    r.add_argument("--quiet", action="store_true", help="no progress on the terminal (run.log still written)")
+    sub.add_parser("scenes", help="list the shipped scenes")
+    s = sub.add_parser("show", help="print the resolved scene (defaults filled) and the stages it runs")
+    common(s)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``bladewear`` console script; returns the exit status."""
+    args = _parser().parse_args(argv)
+    try:
+        with _sigterm_as_interrupt():
+            return {"run": cmd_run, "scenes": cmd_scenes, "show": cmd_show}[args.command](args)
+    except BladewearError as exc:
+        print(f"error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print("error: interrupted; completed stages stay cached, the next run resumes from them", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """Turn SIGTERM (``kill``) into KeyboardInterrupt so temporaries are cleaned up."""
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+    try:
+        old = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread (e.g. called from a test runner thread)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def _default_out(args, scene) -> Path:
+    if args.out is not None:
+        return args.out
+    stem = scene.path.stem if scene.path else "scene"
+    return Path("results") / stem
+
+
+def cmd_run(args) -> int:
+    from workflow.pipeline import run_scene
+    from workflow.scene import load_scene
+
+    scene = load_scene(args.scene, args.overrides)
+    out = _default_out(args, scene)
+    summary = run_scene(scene, out, cache=args.cache, fresh=args.fresh, quiet=args.quiet)
+    if not args.quiet:
+        print(f"{out / 'summary.json'}")
+    return 0 if summary else EXIT_ERROR
+
+
+def cmd_scenes(args) -> int:
+    from workflow.scene import SHIPPED, shipped_scenes
+
+    rows = shipped_scenes()
+    width = max((len(n) for n, _ in rows), default=0)
+    for name, title in rows:
+        print(f"{name.ljust(width)}  {title}")
+    if not rows:
+        print(f"(no scenes in {SHIPPED})")
+    return 0
+
+
+def cmd_show(args) -> int:
+    from workflow.pipeline import default_cache, plan, read_entry
+    from workflow.scene import format_scene, load_scene
+
+    scene = load_scene(args.scene, args.overrides)
+    print(format_scene(scene))
+    p = plan(scene)
+    out = _default_out(args, scene)
+    cache = args.cache.resolve() if args.cache else default_cache(out)
+    print(f"\n# stages for outputs {scene['run'].outputs} (cache {cache}):")
+    if "bundle" in p.external:
+        print(f"#   model bundle: {p.external['bundle']} (replaces geometry + assembly)")
+    for name in p.stages:
+        module = p.modules[name]
+        cached = getattr(module, "CACHE", True) and read_entry(cache / name / p.keys[name]) is not None
+        reads = f"; reads [{'], ['.join(module.SECTIONS)}]" if module.SECTIONS else ""
+        print(f"#   {name:<16} {'cached' if cached else 'to compute':<11} needs {', '.join(module.NEEDS) or '-'}{reads}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,327 @@
+"""Dynamic Lagrangian frictional contact law (DLFT, paper eqs. 11–17), 3D, per node pair.
+
+Sign convention (docs/contracts.md §6 — stated here and nowhere else)
+---------------------------------------------------------------------
+* Relative DOFs of pair i are ``u_r = u_blade − u_disk`` in the pair frame
+  ``(n, t1, t2)``, n pointing from the disk into the blade; arrays carry them
+  as the last axis of length 3, ``[n, t1, t2]`` (metres).
+* λ (newtons) is the multiplier of eq. 3, ``Zr U_r + λ = Fr``: the force the
+  disk exerts on the blade is ``−λ``. Hence **λ_N < 0 in contact**
+  (compression), and a predicted ``λ_N ≥ 0`` means separation (eq. 15).
+* Normal gap function ``g = u_N + gap + W ≥ 0`` with ``gap`` the initial
+  opening (> 0 open, < 0 interference) and ``W ≥ 0`` the wear depth. The
+  paper's ``U^N − W`` becomes our shifted displacement ``u_N + gap + W``, so
+  ``X^N = 0`` in contact means ``g = 0``.
+* ``λ_x = ε X`` is the penalty image of the corrected displacement X of
+  eq. 11; its tangential part is the stick reference ("anchor") remembered
+  from one instant to the next.
+* Contact pressure ``p_N = −λ_N / area ≥ 0``.
+
+The law, one instant k (eqs. 13–17), given the predictor
+``λ_u = F_r − Z_r U_r + ε (U_r + [gap + W, 0, 0])`` (eq. 11/12, evaluated
+by the caller in the time domain):
+
+* predictor ``λ_pre^T = λ_u^T − λ_x^{k−1,T}``, ``λ_pre^N = λ_u^N``;
+* separation (``λ_pre^N ≥ 0``): ``λ = 0``, ``λ_x = λ_u``;
+* stick (``‖λ_pre^T‖ < μ|λ_pre^N|``): ``λ = λ_pre``, ``λ_x^T = λ_x^{k−1,T}``;
+* slip: ``λ^N = λ_pre^N``, ``λ^T = μ|λ_pre^N| λ_pre^T/‖λ_pre^T‖``,
+  ``λ_x^T = λ_u^T − λ^T``.
+
+The pass is sequential in time (stick remembers the previous instant) and
+vectorised over pairs. A periodic solution needs the reference at the start
+of the period to equal the one at its end: passes are repeated until it stops
+changing (see :func:`dlft_pass`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from workflow.errors import SceneError
+
+__all__ = ["SEPARATION", "STICK", "SLIP", "ContactLaw", "DLFTResult", "dlft_pass", "dlft"]
+
+SEPARATION, STICK, SLIP = 0, 1, 2
+
+_TINY = 1e-300
+
+
+def _per_pair(value, p: int, name: str, *, positive: bool = False,
+              nonnegative: bool = False) -> np.ndarray:
+    """Broadcast a scalar or (p,) value to a float (p,) array and validate it."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"{name}: not a number or array of numbers ({exc})") from None
+    if a.ndim == 0:
+        a = np.full(p, float(a))
+    if a.shape != (p,):
+        raise SceneError(f"{name}: expected a scalar or {p} values (one per pair), got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise SceneError(f"{name}: values must be finite (got NaN or inf)")
+    if positive and np.any(a <= 0):
+        raise SceneError(f"{name}: values must be > 0 (min {a.min():g})")
+    if nonnegative and np.any(a < 0):
+        raise SceneError(f"{name}: values must be ≥ 0 (min {a.min():g})")
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class ContactLaw:
+    """Per-pair parameters of the DLFT law.
+
+    mu     friction coefficient, (p,) or scalar, ≥ 0 (dimensionless)
+    eps_n  normal DLFT penalty ε_N, scalar or (p,), > 0 (N/m)
+    eps_t  tangential DLFT penalty ε_T, scalar or (p,), > 0 (N/m)
+    gap    initial normal opening, (p,) (m; > 0 open, < 0 interference)
+    wear   wear depth W, (p,) ≥ 0 (m); default zeros
+
+    ``p`` is taken from ``gap``. The converged HB solution does not depend on
+    ε (DLFT's promise); ε only scales the iteration. Invalid values raise
+    :class:`~workflow.errors.SceneError` naming ``contact.<field>``.
+    """
+
+    mu: np.ndarray
+    eps_n: np.ndarray
+    eps_t: np.ndarray
+    gap: np.ndarray
+    wear: np.ndarray = field(default=None)
+
+    def __post_init__(self):
+        # p comes from the first per-pair array among gap, mu, wear
+        p = None
+        for v in (self.gap, self.mu, self.wear):
+            if v is not None and np.ndim(v) == 1:
+                p = len(v)
+                break
+        if p is None:
+            raise SceneError("contact.gap: expected one value per pair (an array)")
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731  (frozen dataclass)
+        set_("gap", _per_pair(self.gap, p, "contact.gap"))
+        set_("mu", _per_pair(self.mu, p, "contact.mu", nonnegative=True))
+        set_("eps_n", _per_pair(self.eps_n, p, "contact.eps_n", positive=True))
+        set_("eps_t", _per_pair(self.eps_t, p, "contact.eps_t", positive=True))
+        w = np.zeros(p) if self.wear is None else self.wear
+        set_("wear", _per_pair(w, p, "contact.wear", nonnegative=True))
+
+    @property
+    def p(self) -> int:
+        """Number of node pairs."""
+        return self.gap.shape[0]
+
+    def with_wear(self, wear) -> "ContactLaw":
+        """Copy with a new wear depth vector W (p,) in metres."""
+        return replace(self, wear=np.asarray(wear, dtype=float).copy())
+
+    def with_penalty(self, eps_n, eps_t) -> "ContactLaw":
+        """Copy with new penalties (N/m)."""
+        return replace(self, eps_n=eps_n, eps_t=eps_t)
+
+    def eps(self) -> np.ndarray:
+        """Penalties per relative DOF, (p, 3) = [ε_N, ε_T, ε_T] (N/m)."""
+        return np.stack([self.eps_n, self.eps_t, self.eps_t], axis=1)
+
+    def offset(self) -> np.ndarray:
+        """Shift (p, 3) added to u_r so that its normal part is the gap function g (m)."""
+        off = np.zeros((self.p, 3))
+        off[:, 0] = self.gap + self.wear
+        return off
+
+
+@dataclass
+class DLFTResult:
+    """Output of :func:`dlft_pass` (time samples on τ_k = 2πk/nit).
+
+    lam       (nit, p, 3) corrected multipliers λ^k (N), eq. 14
+    lam_x_T   (nit, p, 2) tangential λ_x^k (N) — the stick references
+    state     (nit, p) int8: 0 separation, 1 stick, 2 slip
+    passes    number of sequential passes made
+    converged whether the period-start reference stopped changing
+    ref_T     (p, 2) reference λ_x^{−1,T} the final pass started from (N)
+    ref_change last max |λ_x^{end,T} − λ_x^{start,T}| (N)
+    dlam      (nit, p, 3, 3m) or None: dλ^k_{i,c} / d a_{j,i,c'} at column
+              3j+c', where the caller's predictor is λ_u[k,i,c] = Σ_j basis[k,j] a[j,i,c]
+              (exact for the converged periodic fixed point; see dlft_pass)
+    """
+
+    lam: np.ndarray
+    lam_x_T: np.ndarray
+    state: np.ndarray
+    passes: int
+    converged: bool
+    ref_T: np.ndarray
+    ref_change: float
+    dlam: np.ndarray | None = None
+
+
+def _inv2(A: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Inverse of (p, 2, 2) matrices where ``ok``; zero elsewhere."""
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+    safe = np.where(ok, det, 1.0)
+    inv = np.empty_like(A)
+    inv[:, 0, 0] = A[:, 1, 1]
+    inv[:, 1, 1] = A[:, 0, 0]
+    inv[:, 0, 1] = -A[:, 0, 1]
+    inv[:, 1, 0] = -A[:, 1, 0]
+    inv /= safe[:, None, None]
+    inv[~ok] = 0.0
+    return inv
+
+
+def _one_pass(lam_u, mu, ref, dlu):
+    """One sequential pass over the period from reference ``ref`` (p, 2).
+
+    ``dlu`` (nit, 3, ncol) is the sensitivity of λ_u^k (same for every pair)
+    with respect to the caller's columns, the last two being the reference;
+    sensitivities S of λ_x^T (p, 2, ncol) are carried through the branches.
+    """
+    nit, p, _ = lam_u.shape
+    ncol = dlu.shape[2]
+    lam = np.zeros((nit, p, 3))
+    lxT_all = np.empty((nit, p, 2))
+    state = np.empty((nit, p), dtype=np.int8)
+    dlam = np.zeros((nit, p, 3, ncol))
+    lxT = ref.copy()
+    S = np.zeros((p, 2, ncol))
+    S[:, 0, ncol - 2] = 1.0  # d ref / d ref = I
+    S[:, 1, ncol - 1] = 1.0
+    for k in range(nit):
+        lu = lam_u[k]
+        preN = lu[:, 0]
+        preT = lu[:, 1:] - lxT
+        nT = np.sqrt(preT[:, 0] ** 2 + preT[:, 1] ** 2)
+        limit = -mu * preN  # μ|λ_pre^N| in contact
+        sep = preN >= 0.0
+        slip = ~sep & (nT >= limit)
+        stick = ~sep & ~slip
+        state[k] = np.where(sep, SEPARATION, np.where(slip, SLIP, STICK))
+        that = preT / np.maximum(nT, _TINY)[:, None]
+        # normal: λ^N = λ_pre^N in contact (X^N = 0 ⇔ g = 0), 0 in separation
+        lam[k, :, 0] = np.where(sep, 0.0, preN)
+        lamT = np.where(stick[:, None], preT, np.where(slip[:, None], limit[:, None] * that, 0.0))
+        lam[k, :, 1:] = lamT
+        # stick keeps the anchor bit-for-bit so a pair stuck all period is an exact fixed point
+        lxT = np.where(stick[:, None], lxT, lu[:, 1:] - lamT)
+        lxT_all[k] = lxT
+        # --- sensitivities (branch derivatives of eqs. 15–17) ---
+        dN = dlu[k, 0]                      # (ncol,)
+        dpreT = dlu[k, 1:][None] - S        # (p, 2, ncol)
+        c = np.where(slip, limit / np.maximum(nT, _TINY), 0.0)
+        # slip: dλ^T = c (I − t tᵀ) dpre^T − μ t dλ_pre^N   (|λ_pre^N| = −λ_pre^N)
+        proj = dpreT - that[:, :, None] * np.einsum("ia,ian->in", that, dpreT)[:, None, :]
+        dslip = c[:, None, None] * proj - (mu[:, None] * that)[:, :, None] * dN[None, None, :]
+        dT = np.where(stick[:, None, None], dpreT, np.where(slip[:, None, None], dslip, 0.0))
+        dlam[k, :, 0] = np.where(sep[:, None], 0.0, dN[None, :])
+        dlam[k, :, 1:] = dT
+        S = np.where(stick[:, None, None], S, dlu[k, 1:][None] - dT)
+    return lam, lxT_all, state, dlam, S
+
+
+def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray | None = None,
+              periodic: bool = True, max_passes: int = 20, tol: float = 1e-10,
+              accelerate: bool = True, jacobian: bool = False) -> DLFTResult:
+    """DLFT correction in the time domain (eqs. 13–17), repeated to a periodic state.
+
+    Parameters
+    ----------
+    lam_u : (nit, p, 3) predictor λ_u of eq. 11/12 per instant and pair (N),
+        i.e. ``F_r − Z_r U_r + ε (U_r + [gap + W, 0, 0])`` sampled in time.
+    mu : (p,) or scalar friction coefficient.
+    lam_x0_T : (p, 2) stick reference λ_x^{−1,T} before the first instant (N),
+        ``ε_T ×`` the tangential anchor displacement.
+    basis : (nit, m) matrix with ``λ_u[k] = Σ_j basis[k, j] a_j`` (per pair and
+        component): the columns the Jacobian is taken against (real Fourier
+        coefficients for HBM/TCM, identity for HDHB). Needed if ``jacobian``.
+    periodic : if False, a single pass from ``lam_x0_T`` (a load step, e.g.
+        the static state). If True, passes repeat until the reference at the
+        period start equals the one at its end within
+        ``tol · max|λ_u|``, or ``max_passes`` is reached (``converged`` False).
+    accelerate : update the reference of each pair by a Newton step on the
+        fixed point ``r = Φ(r)`` (2×2 per pair, from the carried
+        sensitivities) instead of plain substitution; a pair stuck during the
+        whole period keeps its reference (any reference is a fixed point —
+        the stuck zeroth harmonic, fixed by the caller's static state).
+    jacobian : also return ``dlam``.
+
+    Jacobian: the sensitivities of λ_x^T (per pair, 2 × (3m + 2)) are carried
+    through the pass, with two extra columns for the start reference. For the
+    converged periodic state ``r = Φ(a, r)``, ``dr/da = (I − ∂Φ/∂r)⁻¹ ∂Φ/∂a``
+    (implicit function theorem, i.e. the limit of propagating across
+    infinitely many passes); pairs stuck all period keep ``dr/da = 0``
+    because their reference is an external parameter.
+    """
+    lam_u = np.asarray(lam_u, dtype=float)
+    if lam_u.ndim != 3 or lam_u.shape[2] != 3:
+        raise ValueError(f"lam_u must be (nit, p, 3), got {lam_u.shape}")
+    nit, p, _ = lam_u.shape
+    mu = np.broadcast_to(np.asarray(mu, dtype=float), (p,))
+    ref = np.array(lam_x0_T, dtype=float).reshape(p, 2)
+    if max_passes < 1:
+        raise ValueError("max_passes must be ≥ 1")
+    if jacobian:
+        if basis is None:
+            raise ValueError("jacobian=True needs the predictor basis")
+        basis = np.asarray(basis, dtype=float)
+        m = basis.shape[1]
+        dlu = np.zeros((nit, 3, m, 3))
+        for c in range(3):
+            dlu[:, c, :, c] = basis
+        dlu = dlu.reshape(nit, 3, 3 * m)
+        dlu = np.concatenate([dlu, np.zeros((nit, 3, 2))], axis=2)
+    else:
+        m = 0
+        dlu = np.zeros((nit, 3, 2))
+    ncol = 3 * m
+    scale = max(float(np.abs(lam_u).max()), _TINY)
+    passes = 0
+    converged = not periodic
+    change = 0.0
+    prev_change = np.inf
+    while True:
+        lam, lxT, state, dlam, S = _one_pass(lam_u, mu, ref, dlu)
+        passes += 1
+        if not periodic:
+            break
+        d = lxT[-1] - ref
+        change = float(np.abs(d).max())
+        stuck = np.all(state == STICK, axis=0)
+        A = S[:, :, ncol:]
+        if change <= tol * scale:
+            converged = True
+            break
+        if passes >= max_passes:
+            break
+        if accelerate and change < prev_change:
+            IA = np.eye(2)[None] - A
+            det = IA[:, 0, 0] * IA[:, 1, 1] - IA[:, 0, 1] * IA[:, 1, 0]
+            ok = ~stuck & (np.abs(det) > 1e-8)
+            step = np.einsum("iab,ib->ia", _inv2(IA, ok), d)
+            ref = np.where(ok[:, None], ref + step, lxT[-1])
+        else:
+            ref = lxT[-1].copy()
+        prev_change = change
+    out_dlam = None
+    if jacobian:
+        dl = dlam[..., :ncol]
+        if periodic:
+            stuck = np.all(state == STICK, axis=0)
+            IA = np.eye(2)[None] - S[:, :, ncol:]
+            det = IA[:, 0, 0] * IA[:, 1, 1] - IA[:, 0, 1] * IA[:, 1, 0]
+            ok = ~stuck & (np.abs(det) > 1e-12)
+            dr = np.einsum("iab,ibn->ian", _inv2(IA, ok), S[:, :, :ncol])
+            dl = dl + np.einsum("kicr,irn->kicn", dlam[..., ncol:], dr)
+        out_dlam = dl
+    return DLFTResult(lam=lam, lam_x_T=lxT, state=state, passes=passes, converged=converged,
+                      ref_T=ref, ref_change=change, dlam=out_dlam)
+
+
+def dlft(law: ContactLaw, lam_u: np.ndarray, anchor_T: np.ndarray, **kw) -> DLFTResult:
+    """:func:`dlft_pass` with the law's μ and a stick reference given as a
+    tangential anchor displacement (p, 2) in metres: ``λ_x^{−1,T} = ε_T · anchor``.
+
+    Storing the anchor as a displacement keeps a stuck pair's static offset
+    independent of ε_T.
+    """
+    ref = law.eps_t[:, None] * np.asarray(anchor_T, dtype=float).reshape(law.p, 2)
+    return dlft_pass(lam_u, law.mu, ref, **kw)

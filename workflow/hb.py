@@ -1,0 +1,432 @@
+"""Harmonic-balance problems on a condensed model: HBM, TCM and HDHB (paper §1–2).
+
+The linear part is given per harmonic on the relative contact DOFs
+(docs/contracts.md §5): ``Zr`` complex (Nh+1, 3p, 3p) in N/m and ``Fr``
+complex (Nh+1, 3p) in N, so that ``Zr U_r + λ = Fr`` (eq. 3). The contact
+multiplier λ comes from the DLFT law of :mod:`workflow.contact` (eqs. 11–17),
+the same law for the three formulations:
+
+* ``hbm`` — unknowns: real harmonic coefficients of U_r (eq. 2),
+  ``n = (2Nh+1)·3p``; residual in frequency ``R = Z Ũ + λ̃ − F̃`` (eq. 3), λ̃
+  by AFT (rfft to nit samples, DLFT pass, rfft back), nit ≥ 2Nh+1 free.
+* ``tcm`` — unknowns: the same coefficients; residual in time at 2Nh+1
+  collocation instants ``R = T⁻¹(Z Ũ − F̃) + λ̄`` (eqs. 5–8). The DLFT runs on
+  the nit grid; the collocation instants are the grid samples
+  ``k_m = ⌊m·nit/(2Nh+1)⌋``, m = 0…2Nh — equally spaced (exactly the paper's
+  τ_m) when 2Nh+1 divides nit (nit = 105 serves Nh = 1, 2, 3, 7, 17), only
+  nearly so otherwise (the square collocation system stays well posed: the
+  trigonometric interpolation at distinct instants is unisolvent). We do not
+  use the least-squares variant: least squares over all nit samples is
+  exactly the Galerkin HBM above.
+* ``hdhb`` — unknowns: time samples Ū at nit = 2Nh+1 instants (eq. 9),
+  ``R = H Ū + λ̄ − F̄`` (eq. 10) with ``H = T⁻¹ Z T`` where our ``T`` maps
+  samples to coefficients (the paper's eq. 10 writes ``T Z T⁻¹`` with its
+  own labelling; ours is the one consistent with ``Ũ = T Ū``); the DLFT acts
+  directly on the unknown instants (eq. 12).
+
+With nit = 2Nh+1 the three are the same equations in different unknowns
+(``R_tcm = T⁻¹ R_hbm``, ``R_hdhb(Ū) = T⁻¹ R_hbm(T Ū)``) and share roots.
+
+All three are one code path: with ``y`` the unknowns, ``a`` the predictor in
+the space the DLFT is differentiated against (coefficients for HBM/TCM,
+samples for HDHB)::
+
+    a   = a_F − A y + ε (y + shift)            (eq. 11/12)
+    λ_u = basis · a   (time samples)           λ = DLFT(λ_u)
+    R   = Rlin y − r_F + Q λ
+    J   = Rlin + G (diag ε − A),   G = Q · dλ/da  (block-diagonal over pairs)
+
+Unknown ordering is always leading-index major: ``y.reshape(2Nh+1, 3p)``,
+pair-major ``[p0n, p0t1, p0t2, p1n, …]`` inside each block.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from workflow import fourier
+from workflow.contact import STICK, ContactLaw, DLFTResult, dlft
+from workflow.errors import SceneError
+from workflow.solvers import SolveResult, newton, powell
+
+__all__ = ["METHODS", "HBProblem", "StaticState"]
+
+METHODS = ("hbm", "tcm", "hdhb")
+
+
+def _trig_matrix(nh: int, tau: np.ndarray) -> np.ndarray:
+    """Rows [1, cos jτ, sin jτ] (len(tau) × 2Nh+1) at arbitrary instants τ (rad)."""
+    E = np.empty((len(tau), fourier.n_coef(nh)))
+    E[:, 0] = 1.0
+    j = np.arange(1, nh + 1)
+    E[:, 1::2] = np.cos(np.outer(tau, j))
+    E[:, 2::2] = np.sin(np.outer(tau, j))
+    return E
+
+
+@dataclass
+class StaticState:
+    """The harmonic-0 (static preload) contact state, :meth:`HBProblem.static_state`.
+
+    u       (p, 3) static relative displacement (m)
+    lam     (p, 3) static multiplier (N); λ_N < 0 in contact
+    state   (p,) 0 separation, 1 stick, 2 slip
+    anchor  (p, 2) tangential stick anchor (m) carried into the dynamic solve
+    result  the Newton :class:`SolveResult`
+    """
+
+    u: np.ndarray
+    lam: np.ndarray
+    state: np.ndarray
+    anchor: np.ndarray
+    result: SolveResult
+
+
+class HBProblem:
+    """A harmonic-balance problem ``Zr U_r + λ(U_r) = Fr`` on relative contact DOFs.
+
+    Parameters
+    ----------
+    Zr : complex (≥Nh+1, 3p, 3p) condensed dynamic stiffness per harmonic (N/m);
+        harmonic 0 real. Harmonics above ``nh`` are ignored.
+    Fr : complex (≥Nh+1, 3p) condensed forcing per harmonic (N).
+    contact : :class:`~workflow.contact.ContactLaw` with p pairs.
+    nh : number of harmonics Nh ≥ 0.
+    nit : time samples per period for the DLFT (nit ≥ 2Nh+1; = 2Nh+1 for hdhb).
+    method : "hbm", "tcm" or "hdhb".
+    max_passes, pass_tol : DLFT periodic passes limit and tolerance.
+    stick_anchor : (p, 2) initial tangential stick anchor (m); if None it is
+        set by :meth:`static_state` (called by :meth:`x0`), zeros before.
+    """
+
+    def __init__(self, Zr, Fr, contact: ContactLaw, nh: int, nit: int, method: str = "hbm", *,
+                 max_passes: int = 30, pass_tol: float = 1e-10, stick_anchor=None):
+        if method not in METHODS:
+            raise SceneError(f"hb.method: {method!r} is not one of {', '.join(METHODS)}")
+        if not isinstance(contact, ContactLaw):
+            raise TypeError("contact must be a ContactLaw")
+        nh = int(nh)
+        if nh < 0:
+            raise SceneError(f"hb.harmonics: Nh = {nh} must be ≥ 0")
+        Zr = np.asarray(Zr)
+        Fr = np.asarray(Fr)
+        p = contact.p
+        nr = 3 * p
+        if Zr.ndim != 3 or Zr.shape[0] < nh + 1 or Zr.shape[1:] != (nr, nr):
+            raise SceneError(f"hb: Zr has shape {Zr.shape}, expected (≥{nh + 1}, {nr}, {nr}) "
+                             f"for Nh = {nh} and {p} pairs")
+        if Fr.shape[0] < nh + 1 or Fr.shape[1:] != (nr,):
+            raise SceneError(f"hb: Fr has shape {Fr.shape}, expected (≥{nh + 1}, {nr})")
+        if not (np.all(np.isfinite(Zr)) and np.all(np.isfinite(Fr))):
+            raise SceneError("hb: Zr or Fr contains NaN or inf")
+        nc = fourier.n_coef(nh)
+        if int(nit) != nit or nit < nc:
+            raise SceneError(f"hb.time_samples: nit = {nit} must be an integer ≥ 2·Nh+1 = {nc}")
+        if method == "hdhb" and nit != nc:
+            raise SceneError(f"hb.time_samples: HDHB needs nit = 2·Nh+1 = {nc} (got {nit}); "
+                             "its unknowns are the samples themselves")
+        self.method, self.nh, self.nit, self.p = method, nh, int(nit), p
+        self.nc, self.nr, self.n = nc, nr, nc * nr
+        self.law = contact
+        self.max_passes, self.pass_tol = int(max_passes), float(pass_tol)
+        self.stick_anchor = np.zeros((p, 2)) if stick_anchor is None else \
+            np.array(stick_anchor, dtype=float).reshape(p, 2)
+        self._anchor_set = stick_anchor is not None
+        self._static: StaticState | None = None
+        self.last_dlft: DLFTResult | None = None
+        self.stats = {"evaluations": 0, "jacobians": 0, "max_passes": 0, "unconverged_passes": 0}
+        self._set_linear(Zr[: nh + 1], Fr[: nh + 1])
+
+    # ------------------------------------------------------------------ set-up
+    def _set_linear(self, Zr, Fr):
+        nh, nc, nr, nit = self.nh, self.nc, self.nr, self.nit
+        self.Zr, self.Fr = Zr, Fr
+        Zb = fourier.real_block_diag(Zr)                          # (n, n)
+        Fc = fourier.complex_to_real(Fr)                          # (nc, nr)
+        self.F_coef = Fc
+        E = fourier.time_from_coef_matrix(nh, nit)                # (nit, nc)
+        if self.method == "hbm":
+            self.basis = E
+            self._Lr = None                                       # identity
+            self._Lp = None
+            self.Q = fourier.coef_from_time_matrix(nh, nit)       # Galerkin projection
+            self.Rlin = Zb
+            self.A = Zb
+            self._const = np.eye(nc)[0]                           # constant term = coef 0
+        elif self.method == "tcm":
+            self.kc = (np.arange(nc) * nit) // nc                 # collocation grid indices
+            Ec = _trig_matrix(nh, 2.0 * np.pi * self.kc / nit)   # (nc, nc) = T⁻¹ at τ_m
+            self.basis = E
+            self._Lr = Ec
+            self._Lp = None
+            self.Q = None                                          # selection of rows kc
+            self.Rlin = np.einsum("mj,jakb->makb", Ec, Zb.reshape(nc, nr, nc, nr)).reshape(self.n, self.n)
+            self.A = Zb
+            self._const = np.eye(nc)[0]
+            self._Ec = Ec
+        else:  # hdhb
+            T, Tinv = fourier.hdhb_operators(nh)
+            self.T, self.Tinv = T, Tinv
+            self.basis = np.eye(nit)
+            self._Lr = Tinv
+            self._Lp = Tinv
+            self.Q = None                                          # identity
+            H = np.einsum("kj,jalb,lm->kamb", Tinv, Zb.reshape(nc, nr, nc, nr), T,
+                          optimize=True).reshape(self.n, self.n)
+            self.Rlin = H
+            self.A = H
+            self._const = np.ones(nc)                              # a constant in every sample
+        self.r_F = self._apply_L(self._Lr, Fc)
+        self.a_F = self._apply_L(self._Lp, Fc)
+        self._refresh_penalty()
+
+    def _refresh_penalty(self):
+        self._eps = self.law.eps().reshape(self.nr)
+        self._shift = np.outer(self._const, self.law.offset().reshape(self.nr))   # (nc, nr)
+        self._M = np.diag(np.tile(self._eps, self.nc)) - self.A                  # diag ε − A
+
+    @staticmethod
+    def _apply_L(L, v):
+        return v if L is None else L @ v
+
+    def with_linear(self, Zr, Fr) -> "HBProblem":
+        """A new problem at another frequency: same law, method, Nh, nit, anchor."""
+        new = HBProblem(Zr, Fr, self.law, self.nh, self.nit, self.method, max_passes=self.max_passes,
+                        pass_tol=self.pass_tol, stick_anchor=self.stick_anchor)
+        new._anchor_set = True
+        return new
+
+    def set_wear(self, W) -> None:
+        """Set the wear depth vector W (p,) in metres (opens the normal gap)."""
+        self.law = self.law.with_wear(W)
+        self._refresh_penalty()
+
+    def set_contact(self, law: ContactLaw) -> None:
+        """Replace the contact law (same number of pairs)."""
+        if law.p != self.p:
+            raise SceneError(f"contact: {law.p} pairs given, the model has {self.p}")
+        self.law = law
+        self._refresh_penalty()
+
+    def set_stick_anchor(self, anchor) -> None:
+        """Set the tangential stick anchor (p, 2) in metres: the start-of-period
+        stick reference is ``λ_x^{−1,T} = ε_T · anchor`` (only matters for pairs
+        that stick during the whole period)."""
+        self.stick_anchor = np.array(anchor, dtype=float).reshape(self.p, 2)
+        self._anchor_set = True
+
+    def stick_anchor_of(self, x) -> np.ndarray:
+        """The converged period-start stick anchor (p, 2, m) of the state x — to
+        carry the interface's history to the next solve (e.g. next frequency)."""
+        res = self._dlft(self._predictor(x), jacobian=False)
+        return res.ref_T / self.law.eps_t[:, None]
+
+    def residual_scale(self) -> float:
+        """‖F‖₂ in the residual's space (N); the solvers' tolerance is relative to it."""
+        s = float(np.linalg.norm(self.r_F))
+        return s if s > 0 else 1.0
+
+    # ------------------------------------------------------------ conversions
+    def coefficients(self, x) -> np.ndarray:
+        """Real harmonic coefficients (2Nh+1, 3p) of U_r (m) for unknowns x."""
+        y = np.asarray(x, dtype=float).reshape(self.nc, self.nr)
+        return self.T @ y if self.method == "hdhb" else y
+
+    def unknowns_from_coefficients(self, coef) -> np.ndarray:
+        """Unknown vector (n,) from real coefficients (2Nh+1, 3p)."""
+        coef = np.asarray(coef, dtype=float).reshape(self.nc, self.nr)
+        return (self.Tinv @ coef if self.method == "hdhb" else coef).ravel()
+
+    def unknowns_from_harmonics(self, U) -> np.ndarray:
+        """Unknown vector from complex harmonics (≥Nh+1, 3p) of U_r."""
+        return self.unknowns_from_coefficients(fourier.complex_to_real(np.asarray(U)[: self.nh + 1]))
+
+    def harmonics(self, x) -> np.ndarray:
+        """Complex harmonics (Nh+1, 3p) of U_r (m), ``U_j = u_jc − i u_js``."""
+        return fourier.real_to_complex(self.coefficients(x))
+
+    def relative_time(self, x) -> np.ndarray:
+        """u_r at τ_k = 2πk/nit, (nit, p, 3) in the pair frames (m)."""
+        return fourier.to_time(self.harmonics(x), self.nit).reshape(self.nit, self.p, 3)
+
+    # --------------------------------------------------------------- contact
+    def _predictor(self, x):
+        y = np.asarray(x, dtype=float).reshape(self.nc, self.nr)
+        a = self.a_F - (self.A @ y.ravel()).reshape(self.nc, self.nr) + self._eps * (y + self._shift)
+        return a
+
+    def _dlft(self, a, jacobian):
+        lam_u = (self.basis @ a).reshape(self.nit, self.p, 3)
+        res = dlft(self.law, lam_u, self.stick_anchor, basis=self.basis, jacobian=jacobian,
+                   max_passes=self.max_passes, tol=self.pass_tol)
+        self.last_dlft = res
+        self.stats["max_passes"] = max(self.stats["max_passes"], res.passes)
+        if not res.converged:
+            self.stats["unconverged_passes"] += 1
+        return res
+
+    def contact_time(self, x) -> np.ndarray:
+        """λ at τ_k, (nit, p, 3) in the pair frames (N); λ_N < 0 in contact."""
+        return self._dlft(self._predictor(x), jacobian=False).lam
+
+    def contact_state(self, x) -> np.ndarray:
+        """Contact state per instant and pair (nit, p): 0 separation, 1 stick, 2 slip."""
+        return self._dlft(self._predictor(x), jacobian=False).state
+
+    def contact_harmonics(self, x) -> np.ndarray:
+        """Complex harmonics (Nh+1, 3p) of λ (N), consistent with ``Zr U + λ = Fr``
+        at a root: the Galerkin projection of the samples (HBM, HDHB) or the
+        trigonometric interpolant through the collocation instants (TCM)."""
+        lam = self.contact_time(x).reshape(self.nit, self.nr)
+        if self.method == "tcm":
+            return fourier.real_to_complex(np.linalg.solve(self._Ec, lam[self.kc]))
+        return fourier.to_freq(lam, self.nh)
+
+    def _lam_rows(self, lam):
+        """Contact term of the residual from time samples (nit, nr) → (nc, nr)."""
+        if self.method == "hbm":
+            return fourier.complex_to_real(fourier.to_freq(lam, self.nh))
+        if self.method == "tcm":
+            return lam[self.kc]
+        return lam
+
+    def _G(self, dlam):
+        """Per-pair blocks (p, 3nc, 3nc) of Q·dλ/da, rows (m, c), columns (j, c')."""
+        if self.method == "hbm":
+            G = np.einsum("ok,kicn->iocn", self.Q, dlam, optimize=True)
+        elif self.method == "tcm":
+            G = dlam[self.kc].transpose(1, 0, 2, 3)
+        else:
+            G = dlam.transpose(1, 0, 2, 3)
+        return np.ascontiguousarray(G).reshape(self.p, 3 * self.nc, 3 * self.nc)
+
+    def _apply_G(self, G, V):
+        """Block-diagonal G times V whose rows are ordered (j, pair, c'); V (n, ...) → (n, ...)."""
+        nc, p = self.nc, self.p
+        tail = V.shape[1:]
+        Vp = V.reshape((nc, p, 3) + tail)
+        Vp = np.moveaxis(Vp, 1, 0).reshape((p, 3 * nc, -1))
+        out = np.matmul(G, Vp).reshape((p, nc, 3, -1))
+        return np.moveaxis(out, 0, 1).reshape((self.n,) + tail)
+
+    # -------------------------------------------------------------- residual
+    def _evaluate(self, x, jacobian):
+        x = np.asarray(x, dtype=float)
+        if x.shape != (self.n,):
+            raise ValueError(f"x must have shape ({self.n},), got {x.shape}")
+        a = self._predictor(x)
+        res = self._dlft(a, jacobian)
+        R = self.Rlin @ x - self.r_F.ravel() + self._lam_rows(res.lam.reshape(self.nit, self.nr)).ravel()
+        self.stats["evaluations"] += 1
+        if not jacobian:
+            return R, None, None
+        G = self._G(res.dlam)
+        J = self.Rlin + self._apply_G(G, self._M)
+        self.stats["jacobians"] += 1
+        return R, J, G
+
+    def residual(self, x) -> np.ndarray:
+        """Residual R(x) (n,) in N (eq. 3 / 8 / 10 for hbm / tcm / hdhb)."""
+        return self._evaluate(x, False)[0]
+
+    def residual_jacobian(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """(R, J) with the analytic Jacobian J = ∂R/∂x (n × n, N/m), exact for the
+        converged DLFT pass away from stick/slip/separation switches."""
+        R, J, _ = self._evaluate(x, True)
+        return R, J
+
+    def residual_jacobian_omega(self, x, dZr, dFr):
+        """(R, J, ∂R/∂ω) given the ω-derivatives of the linear part (contracts §5).
+
+        The contact law does not depend on ω but the DLFT predictor does,
+        through Z and F: ``∂R/∂ω = L_r q − G L_p q`` with
+        ``q = ∂Z/∂ω Ũ − ∂F/∂ω`` (coefficients). Units N·s/rad.
+        """
+        R, J, G = self._evaluate(x, True)
+        dZb = fourier.real_block_diag(np.asarray(dZr)[: self.nh + 1])
+        q = (dZb @ self.coefficients(x).ravel()).reshape(self.nc, self.nr) \
+            - fourier.complex_to_real(np.asarray(dFr)[: self.nh + 1])
+        Rw = self._apply_L(self._Lr, q).ravel() - self._apply_G(G, self._apply_L(self._Lp, q).ravel()[:, None])[:, 0]
+        return R, J, Rw
+
+    # ------------------------------------------------------------ initial guess
+    def static_state(self, *, tol: float = 1e-10, maxiter: int = 60, apply: bool = True) -> StaticState:
+        """Solve the harmonic-0 (static preload) problem alone and set the stick anchor.
+
+        ``Zr[0] u + λ(u) = Fr[0]`` with a single DLFT step (nit = 1,
+        ``periodic=False``) from a zero tangential anchor. Assumption: the
+        interface was assembled stress-free and tied (zero tangential offset)
+        and the static load (preload, centrifugal) is applied in one
+        proportional step — no loading history. A pair that sticks keeps
+        u_T = 0; one that slips ends where Coulomb lets it. The resulting
+        anchor ``λ_x^T/ε_T`` (= the static u_T at convergence) becomes the
+        stick reference of the dynamic solve, which fixes the otherwise
+        non-unique static tangential offset of pairs that never slip
+        ("stuck zeroth harmonic"). With ``apply`` False the anchor is returned
+        but not set.
+        """
+        Z0 = np.real(self.Zr[0])
+        F0 = np.real(self.Fr[0])
+        p, nr = self.p, self.nr
+        eps = self._eps
+        off = self.law.offset().reshape(nr)
+        Mst = np.diag(eps) - Z0
+        one = np.ones((1, 1))
+        zero = np.zeros((p, 2))
+
+        def ev(u, jac):
+            lam_u = (F0 - Z0 @ u + eps * (u + off)).reshape(1, p, 3)
+            r = dlft(self.law, lam_u, zero, basis=one, periodic=False, jacobian=jac)
+            R = Z0 @ u + r.lam.reshape(nr) - F0
+            if not jac:
+                return R, r
+            G = r.dlam.reshape(p, 3, 3)
+            J = Z0 + np.einsum("iab,ibn->ian", G, Mst.reshape(p, 3, nr)).reshape(nr, nr)
+            return R, J, r
+
+        scale = max(float(np.linalg.norm(F0)), 1e-300)
+        res = newton(lambda u: ev(u, True)[:2], np.zeros(nr), fun=lambda u: ev(u, False)[0],
+                     tol=tol, scale=scale if np.linalg.norm(F0) > 0 else 1.0, maxiter=maxiter)
+        _, r = ev(res.x, False)
+        anchor = r.lam_x_T[0] / self.law.eps_t[:, None]
+        st = StaticState(u=res.x.reshape(p, 3), lam=r.lam[0], state=r.state[0], anchor=anchor, result=res)
+        if apply:
+            self.stick_anchor = anchor.copy()
+            self._anchor_set = True
+        self._static = st
+        return st
+
+    def x0(self) -> np.ndarray:
+        """Initial guess: the static state for harmonic 0 (solving it and setting
+        the anchor if no anchor was given) and, for j ≥ 1, the linear response
+        with every pair in contact at the static state tied (U_j = 0 there)
+        and separated pairs free (``Z_j,ff U_f = F_j,f``)."""
+        if self._static is None:
+            self.static_state(apply=not self._anchor_set)
+        st = self._static
+        U = np.zeros((self.nh + 1, self.nr), dtype=complex)
+        U[0] = st.u.reshape(self.nr)
+        free = np.repeat(st.state == 0, 3)
+        if free.any():
+            for j in range(1, self.nh + 1):
+                U[j, free] = np.linalg.solve(self.Zr[j][np.ix_(free, free)], self.Fr[j, free])
+        return self.unknowns_from_harmonics(U)
+
+    # ----------------------------------------------------------------- solve
+    def solve(self, x0=None, *, solver: str = "newton", tol: float = 1e-9, maxiter: int = 50,
+              **kw) -> SolveResult:
+        """Solve R(x) = 0 with ``newton`` or ``powell`` (tol relative to ‖F‖)."""
+        x0 = self.x0() if x0 is None else np.asarray(x0, dtype=float)
+        scale = self.residual_scale()
+        if solver == "newton":
+            return newton(self.residual_jacobian, x0, fun=self.residual, tol=tol, scale=scale,
+                          maxiter=maxiter, **kw)
+        if solver == "powell":
+            return powell(self.residual, self.residual_jacobian, x0, tol=tol, scale=scale,
+                          maxfev=kw.pop("maxfev", 40 * maxiter), **kw)
+        raise SceneError(f"solver.method: {solver!r} is not one of newton, powell")
+
+    def stuck_pairs(self, x) -> np.ndarray:
+        """Boolean (p,): pairs that stick during the whole period at x."""
+        return np.all(self.contact_state(x) == STICK, axis=0)

@@ -1,0 +1,534 @@
+"""The pipeline: run the stages a scene's outputs need, once, from a cache.
+
+Plan
+    ``[run] outputs`` lists products; each product has one producing stage
+    (:mod:`workflow.stages`), whose ``NEEDS`` are products in turn. The plan
+    is the closure of that relation in dependency order — and no other
+    stage. ``[model] bundle`` supplies the ``bundle`` product from a folder,
+    replacing geometry + assembly. The report stage, when asked for, runs
+    last and sees every other product.
+
+Cache
+    A stage's cache key hashes its name, the resolved values of its
+    ``SECTIONS``, the keys of its inputs and the code version (the source of
+    the geometry/, reduction/ and workflow/ packages and of the stage module).
+    An entry is a folder ``<cache>/<stage>/<key>/`` written whole with
+    :func:`workflow.io.atomic_dir`: a run killed inside a stage leaves the
+    previous entry or none, plus a ``.tmp`` folder that the next run removes.
+    Each entry holds the stage's files and ``.stage.json`` (its summary).
+
+Run folder
+    ``<out>/<stage>`` are relative symbolic links to the cache entries,
+    updated only after every stage has succeeded, then ``<out>/summary.json``
+    (written atomically, last), ``<out>/scene.json`` (the resolved scene) and
+    ``<out>/run.log``. A failed run leaves the previous summary and links.
+"""
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import fcntl
+import hashlib
+import json
+import os
+import shutil
+import sys
+import time
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from types import ModuleType
+from typing import Iterable, Iterator
+
+from workflow import stages as registry
+from workflow.errors import OutputError, SceneError
+from workflow.io import atomic_dir, write_json
+from workflow.scene import Scene
+
+#: Entry file holding a stage's summary inside its output folder.
+STAGE_FILE = ".stage.json"
+#: Packages whose source is the code version of every cache key.
+CODE_PACKAGES = ("geometry", "reduction", "workflow")
+
+
+# ---------------------------------------------------------------- plan
+
+@dataclass
+class Plan:
+    """The stages a scene needs, in the order they run, and their cache keys."""
+
+    stages: list[str]
+    modules: dict[str, ModuleType]
+    external: dict[str, Path] = field(default_factory=dict)  # product → folder supplied by the scene
+    keys: dict[str, str] = field(default_factory=dict)  # stage → cache key
+    product_keys: dict[str, str] = field(default_factory=dict)  # product → key of its producer
+
+    def producer_of(self, product: str) -> str | None:
+        for name in self.stages:
+            if product in self.modules[name].PRODUCES:
+                return name
+        return None
+
+
+def plan(scene: Scene) -> Plan:
+    """Closure of ``[run] outputs`` over NEEDS → producer, dependency order.
+
+    Only the modules of the stages in the closure are imported.
+    """
+    outputs = list(scene["run"].outputs)
+    if not outputs:
+        raise SceneError("run.outputs is empty: nothing to compute")
+    external: dict[str, Path] = {}
+    bundle = scene["model"].bundle
+    if bundle:
+        external["bundle"] = Path(bundle)
+    order: list[str] = []
+    modules: dict[str, ModuleType] = {}
+    visiting: list[str] = []
+
+    def visit(product: str, wanted_by: str) -> None:
+        if product in external:
+            return
+        name = registry.producer(product)
+        if name in order:
+            return
+        if name in visiting:
+            raise TypeError(f"stage cycle: {' → '.join(visiting + [name])}")
+        visiting.append(name)
+        module = modules[name] = registry.load(name)
+        if product not in module.PRODUCES:
+            raise TypeError(f"stage {name} is registered for {product!r} but PRODUCES {module.PRODUCES}")
+        if not getattr(module, "NEEDS_ALL", False):
+            for need in module.NEEDS:
+                visit(need, name)
+        visiting.pop()
+        order.append(name)
+
+    last = [p for p in outputs if _needs_all(p)]
+    for product in [p for p in outputs if p not in last] + last:
+        visit(product, "run.outputs")
+    # A stage that sees every product (the report) must run after all others.
+    order.sort(key=lambda n: bool(getattr(modules[n], "NEEDS_ALL", False)))
+    p = Plan(order, modules, external)
+    _assign_keys(scene, p)
+    return p
+
+
+def _needs_all(product: str) -> bool:
+    # Decided from the registry without importing: only the report sees all.
+    return registry.PRODUCERS.get(product) == "report"
+
+
+def _assign_keys(scene: Scene, p: Plan) -> None:
+    for product, folder in p.external.items():
+        p.product_keys[product] = "external-" + folder_digest(folder)
+    for name in p.stages:
+        module = p.modules[name]
+        unknown = [s for s in module.SECTIONS if s not in scene]
+        if unknown:
+            raise TypeError(f"stage {name} reads unknown scene section(s) {unknown}")
+        needs = sorted(p.product_keys) if getattr(module, "NEEDS_ALL", False) else sorted(module.NEEDS)
+        ident = {
+            "stage": name,
+            "sections": json.loads(scene.canonical(module.SECTIONS)),
+            "inputs": {need: p.product_keys[need] for need in needs},
+            "code": code_version(),
+            "module": _module_digest(module),
+        }
+        key = hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()[:24]
+        p.keys[name] = key
+        for product in module.PRODUCES:
+            p.product_keys[product] = key
+
+
+@lru_cache(maxsize=1)
+def code_version() -> str:
+    """Hash of every ``.py`` source of geometry/, reduction/ and workflow/."""
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for pkg in CODE_PACKAGES:
+        for f in sorted((root / pkg).rglob("*.py")):
+            if "__pycache__" in f.parts:
+                continue
+            h.update(str(f.relative_to(root)).encode() + b"\0")
+            h.update(f.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def _module_digest(module: ModuleType) -> str:
+    # Stage modules outside the packages (plug-ins, test fakes) count too.
+    path = getattr(module, "__file__", None)
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16] if path else ""
+
+
+def folder_digest(folder: Path) -> str:
+    """Content hash of every file under ``folder`` (names and bytes)."""
+    h = hashlib.sha256()
+    for f in sorted(p for p in Path(folder).rglob("*") if p.is_file()):
+        h.update(str(f.relative_to(folder)).encode() + b"\0")
+        with open(f, "rb") as fh:
+            for chunk in iter(lambda: fh.read(1 << 20), b""):
+                h.update(chunk)
+    return h.hexdigest()[:24]
+
+
+# ---------------------------------------------------------------- log
+
+class RunLog:
+    """What stages report through: ``.info(msg)``, ``.warning(msg)``, ``.progress(it)``.
+
+    Lines go to ``run.log`` (always, time-stamped) and to ``stream`` unless
+    quiet. On a terminal ``progress`` draws a bar with an ETA; elsewhere
+    (CI logs, files) it writes one line per ~10 %.
+    """
+
+    def __init__(self, file: Path | None = None, quiet: bool = False, stream=None, prefix: str = "",
+                 _fh=None):
+        self.quiet = quiet
+        self.stream = sys.stderr if stream is None else stream
+        self.prefix = prefix
+        self._fh = _fh
+        if _fh is None and file is not None:
+            try:
+                self._fh = open(file, "w", encoding="utf-8", buffering=1)
+            except OSError as exc:
+                raise OutputError(f"cannot write {file}: {exc.strerror or exc}") from exc
+
+    def child(self, prefix: str) -> "RunLog":
+        """The same log with ``[prefix]`` on every line (one per stage)."""
+        return RunLog(quiet=self.quiet, stream=self.stream, prefix=prefix, _fh=self._fh)
+
+    @property
+    def tty(self) -> bool:
+        return not self.quiet and hasattr(self.stream, "isatty") and self.stream.isatty()
+
+    def _tag(self, msg: str) -> str:
+        return f"[{self.prefix}] {msg}" if self.prefix else msg
+
+    def _file(self, msg: str) -> None:
+        if self._fh is not None:
+            stamp = _dt.datetime.now().isoformat(timespec="seconds")
+            try:
+                self._fh.write(f"{stamp} {self._tag(msg)}\n")
+            except OSError:
+                pass  # a full disk must not hide the stage's own error
+
+    def info(self, msg: str) -> None:
+        self._file(msg)
+        if not self.quiet:
+            print(self._tag(msg), file=self.stream, flush=True)
+
+    def warning(self, msg: str) -> None:
+        self.info(f"warning: {msg}")
+
+    def progress(self, iterable: Iterable, total: int | None = None, label: str = "") -> Iterator:
+        """Yield from ``iterable``, reporting progress (and an ETA when ``total`` is known)."""
+        if total is None:
+            try:
+                total = len(iterable)  # type: ignore[arg-type]
+            except TypeError:
+                total = None
+        label = label or "progress"
+        t0 = time.monotonic()
+        last_draw, last_decile, n = 0.0, 0, 0
+        tty = self.tty
+        for n, item in enumerate(iterable, 1):
+            yield item
+            now = time.monotonic()
+            if tty and (now - last_draw > 0.2 or n == total):
+                last_draw = now
+                self.stream.write("\r" + self._tag(_bar(label, n, total, now - t0)) + "\033[K")
+                self.stream.flush()
+            if total:
+                decile = (10 * n) // total
+                if decile > last_decile:
+                    last_decile = decile
+                    self._line(_bar(label, n, total, now - t0, bar=False), tty)
+            elif n & (n - 1) == 0:  # unknown length: 1, 2, 4, 8, … items
+                self._line(_bar(label, n, None, now - t0, bar=False), tty)
+        if tty:
+            self.stream.write("\n")
+            self.stream.flush()
+        if not total or last_decile < 10:
+            self._line(f"{label}: done, {n} items in {time.monotonic() - t0:.1f} s", tty)
+
+    def _line(self, msg: str, tty: bool) -> None:
+        # On a terminal the bar already shows it; the file always gets it.
+        self._file(msg)
+        if not self.quiet and not tty:
+            print(self._tag(msg), file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self._fh is not None and self.prefix == "":
+            with contextlib.suppress(OSError):
+                self._fh.close()
+            self._fh = None
+
+
+def _bar(label: str, n: int, total: int | None, elapsed: float, bar: bool = True) -> str:
+    if not total:
+        return f"{label}: {n} items, {elapsed:.1f} s"
+    frac = min(n / total, 1.0)
+    eta = elapsed / frac * (1 - frac) if frac > 0 else 0.0
+    text = f"{label}: {n}/{total} ({100 * frac:3.0f} %), elapsed {_hms(elapsed)}, ETA {_hms(eta)}"
+    if bar:
+        width = 24
+        full = int(round(width * frac))
+        text = f"{label} [{'#' * full}{'.' * (width - full)}] {n}/{total} ETA {_hms(eta)}"
+    return text
+
+
+def _hms(seconds: float) -> str:
+    s = int(round(seconds))
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+
+
+# ---------------------------------------------------------------- cache
+
+def default_cache(out: Path) -> Path:
+    """``$BLADEWEAR_CACHE``, else ``.cache`` beside the run folder (``results/.cache``)."""
+    env = os.environ.get("BLADEWEAR_CACHE")
+    return Path(env) if env else Path(out).resolve().parent / ".cache"
+
+
+@contextlib.contextmanager
+def cache_lock(root: Path) -> Iterator[None]:
+    """Hold a shared lock on the cache; clean stale temporaries when alone.
+
+    A run killed hard (SIGKILL, power loss) leaves ``.*.tmp`` folders from
+    :func:`atomic_dir`. Only a run that gets the lock *exclusively* (no other
+    run is writing) removes them; the lock dies with its process, so a killed
+    run never blocks the next one.
+    """
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        fh = open(root / ".lock", "a+")
+    except OSError as exc:
+        raise OutputError(f"cannot write cache folder {root}: {exc.strerror or exc}") from exc
+    try:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            clean_stale(root, depth=2)
+        except BlockingIOError:
+            pass
+        fcntl.flock(fh, fcntl.LOCK_SH)
+        yield
+    finally:
+        fh.close()
+
+
+def clean_stale(folder: Path, depth: int = 1) -> list[Path]:
+    """Remove ``.*.tmp`` and ``.*.old`` leftovers of atomic writes under ``folder``."""
+    removed = []
+    level = [Path(folder)]
+    for _ in range(depth):
+        nxt = []
+        for d in level:
+            try:
+                children = list(d.iterdir())
+            except OSError:
+                continue
+            for c in children:
+                if c.name.startswith(".") and (c.name.endswith(".tmp") or c.name.endswith(".old")):
+                    if c.is_dir() and not c.is_symlink():
+                        shutil.rmtree(c, ignore_errors=True)
+                    else:
+                        with contextlib.suppress(OSError):
+                            c.unlink()
+                    removed.append(c)
+                elif c.is_dir() and not c.is_symlink():
+                    nxt.append(c)
+        level = nxt
+    return removed
+
+
+def read_entry(entry: Path) -> dict | None:
+    """The ``.stage.json`` of a complete cache entry, or None."""
+    try:
+        return json.loads((entry / STAGE_FILE).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+# ---------------------------------------------------------------- run
+
+def run_scene(scene: Scene, out: str | os.PathLike, *, cache: str | os.PathLike | None = None,
+              fresh: bool = False, quiet: bool = False, stream=None) -> dict:
+    """Run the stages ``scene`` needs; write ``out``; return the summary dict."""
+    out = Path(out).resolve()
+    cache_root = Path(cache).resolve() if cache else default_cache(out)
+    # Plan first: a scene that cannot run must not touch the run folder.
+    p = plan(scene)
+    model = _check_bundle(p.external["bundle"]) if "bundle" in p.external else None
+    _prepare_out(out)
+    log = RunLog(out / "run.log", quiet=quiet, stream=stream)
+    try:
+        return _run(scene, p, out, cache_root, fresh, log, model)
+    finally:
+        log.close()
+
+
+def _prepare_out(out: Path) -> None:
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise PermissionError(13, "Permission denied")
+        foreign = any(out.iterdir()) and not any((out / f).exists() for f in ("run.log", "summary.json"))
+    except OSError as exc:
+        raise OutputError(f"cannot write output folder {out}: {exc.strerror or exc}") from exc
+    if foreign:
+        # The run replaces <out>/<stage> entries: never do that in someone else's folder.
+        raise OutputError(f"output folder {out} is not empty and is not a bladewear run folder "
+                          f"(no run.log or summary.json); choose another --out")
+    clean_stale(out)
+
+
+def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: RunLog,
+         model: dict | None = None) -> dict:
+    t_start = time.monotonic()
+    log.info(f"scene {scene.path or '(in memory)'}: {scene.title}")
+    log.info("stages: " + " → ".join(p.stages) + (f" (bundle from {p.external['bundle']})"
+                                                    if "bundle" in p.external else ""))
+    status: dict[str, str] = {}
+    timings: dict[str, float] = {}
+    summaries: dict[str, dict] = {}
+    folders: dict[str, Path] = {}  # stage → folder holding its outputs
+    products: dict[str, Path] = dict(p.external)
+    if model is not None:
+        log.info(f"model bundle {model['bundle']}: {model.get('n_dofs')} DOFs, "
+                 f"{model.get('contact_pairs')} contact pairs")
+        summaries["model"] = model
+        status["model"] = "external"
+    with cache_lock(cache_root):
+        for name in p.stages:
+            module = p.modules[name]
+            if getattr(module, "NEEDS_ALL", False) or not getattr(module, "CACHE", True):
+                continue  # runs after the links are in place (the report)
+            entry = cache_root / name / p.keys[name]
+            t0 = time.monotonic()
+            got = None if fresh else read_entry(entry)
+            if got is not None:
+                status[name] = "cached"
+                log.info(f"{name}: cached ({entry})")
+            else:
+                inputs = {need: products[need] for need in module.NEEDS}
+                got = _compute(scene, module, inputs, entry, p.keys[name], log)
+                status[name] = "computed"
+            timings[name] = round(time.monotonic() - t0, 3)
+            summaries[name] = got.get("summary", {})
+            folders[name] = entry
+            for product in module.PRODUCES:
+                products[product] = entry
+        _link(out, folders, p)
+        for name in p.stages:
+            if name in status:
+                continue
+            t0 = time.monotonic()
+            summaries[name] = _run_uncached(scene, p, name, out, products, status, timings, summaries, log)
+            status[name] = "computed"
+            timings[name] = round(time.monotonic() - t0, 3)
+    summary = _summary(scene, p, cache_root, status, timings, summaries)
+    summary["total_seconds"] = round(time.monotonic() - t_start, 3)
+    write_json(out / "scene.json", json.loads(scene.canonical()))
+    write_json(out / "summary.json", summary)
+    log.info(f"done in {summary['total_seconds']:.1f} s: "
+             + ", ".join(f"{n} {s}" for n, s in status.items()) + f"; summary in {out / 'summary.json'}")
+    return summary
+
+
+def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: str, log: RunLog) -> dict:
+    """Run one stage into a fresh temporary folder that becomes ``entry`` whole."""
+    name = module.NAME
+    log.info(f"{name}: computing")
+    t0 = time.monotonic()
+    with atomic_dir(entry) as tmp:
+        summary = module.run(scene, dict(inputs), tmp, log.child(name))
+        seconds = time.monotonic() - t0
+        got = {"stage": name, "key": key, "summary": summary if summary is not None else {},
+               "seconds": round(seconds, 3), "created": _now(),
+               "inputs": {k: str(v) for k, v in inputs.items()},
+               "sections": json.loads(scene.canonical(module.SECTIONS))}
+        # Last file written: an entry without it is never trusted.
+        write_json(tmp / STAGE_FILE, got)
+    log.info(f"{name}: computed in {seconds:.1f} s")
+    return json.loads((entry / STAGE_FILE).read_text())
+
+
+def _run_uncached(scene, p: Plan, name, out, products, status, timings, summaries, log) -> dict:
+    """An uncached stage (the report): straight into ``out/<name>``, sees all products."""
+    module = p.modules[name]
+    inputs = dict(products) if getattr(module, "NEEDS_ALL", False) else {n: products[n] for n in module.NEEDS}
+    target = out / name
+    if target.is_symlink():
+        target.unlink()
+    log.info(f"{name}: computing")
+    with atomic_dir(target) as tmp:
+        pre = tmp.parent / f".{name}.summary.tmp"
+        if getattr(module, "NEEDS_ALL", False):
+            # What the report shows: the run so far (this stage's own entry excluded).
+            write_json(pre, _summary(scene, p, None, status, timings, summaries))
+            inputs["summary"] = pre
+        try:
+            summary = module.run(scene, inputs, tmp, log.child(name)) or {}
+        finally:
+            with contextlib.suppress(OSError):
+                pre.unlink()
+    return summary
+
+
+def _link(out: Path, folders: dict[str, Path], p: Plan) -> None:
+    """Point ``out/<stage>`` at each stage's cache entry (relative links).
+
+    Links of stages this run did not use are removed (only links, never
+    real folders), so ``out`` shows exactly this run.
+    """
+    try:
+        for name, target in folders.items():  # OutputError from _replace_link passes through
+            _replace_link(out / name, target)
+        if "bundle" in p.external:
+            _replace_link(out / "model", p.external["bundle"])
+        for child in out.iterdir():
+            if child.is_symlink() and child.name not in folders and child.name != "model" \
+                    and child.name in registry.MODULES:
+                child.unlink()
+        if "bundle" not in p.external and (out / "model").is_symlink():
+            (out / "model").unlink()
+    except OSError as exc:
+        raise OutputError(f"cannot write output folder {out}: {exc.strerror or exc}") from exc
+
+
+def _replace_link(link: Path, target: Path) -> None:
+    rel = os.path.relpath(target, link.parent)
+    tmp = link.with_name(f".{link.name}.link.tmp")
+    if tmp.is_symlink() or tmp.exists():
+        tmp.unlink()
+    os.symlink(rel, tmp)
+    if link.exists() and not link.is_symlink():
+        tmp.unlink()
+        # Not ours to delete: a real file or folder where a stage link goes.
+        raise OutputError(f"cannot link {link}: a file or folder of that name is in the way")
+    os.replace(tmp, link)
+
+
+def _check_bundle(folder: Path) -> dict:
+    """Validate a user's bundle before anything is written (BundleError names the file)."""
+    from reduction.bundle import read_bundle  # lazily: scipy
+
+    b = read_bundle(folder)
+    return {"bundle": str(folder), "n_dofs": b.n_dofs, "contact_pairs": b.contact.n_pairs}
+
+
+def _summary(scene: Scene, p: Plan, cache_root, status, timings, summaries) -> dict:
+    s = {"scene": str(scene.path) if scene.path else None, "title": scene.title,
+         "outputs": list(scene["run"].outputs), "overrides": list(scene.overrides),
+         "created": _now(), "code_version": code_version(),
+         "cache": str(cache_root) if cache_root else None,
+         "stages": dict(status), "timings": dict(timings),
+         "keys": {n: p.keys[n] for n in status if n in p.keys}}
+    for name, entry in summaries.items():
+        s[name] = entry
+    return s
+
+
+def _now() -> str:
+    return _dt.datetime.now().astimezone().isoformat(timespec="seconds")

@@ -1,0 +1,197 @@
+"""Root finders for the harmonic-balance residuals (paper §3): Newton and hybrid Powell.
+
+Both take ``fun(x) -> R`` and ``fun_jac(x) -> (R, J)`` (analytic J) and
+return a :class:`SolveResult` (docs/contracts.md §7).
+
+Convergence test, the same for both: ``‖R‖₂ ≤ tol · scale``, where the
+caller passes ``scale`` (for an HB problem ``‖F‖₂`` of the forcing in the
+residual's own space, :meth:`workflow.hb.HBProblem.residual_scale`), so
+``tol`` is a relative residual independent of the units and the size of the
+load. Non-finite residuals or Jacobians never leak: the solver stops, returns
+the last finite iterate and says why in ``reason``.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+
+__all__ = ["SolveResult", "newton", "powell"]
+
+
+@dataclass
+class SolveResult:
+    """Outcome of a nonlinear solve.
+
+    x                    final iterate (the last finite one)
+    converged            ‖R‖ ≤ tol·scale reached
+    iterations           Newton steps, or residual evaluations for Powell
+    residual_norm        ‖R(x)‖₂ (units of the residual)
+    reason               "converged", "max iterations", "line search failed",
+                         "non-finite residual", "non-finite Jacobian",
+                         "singular Jacobian", "stalled: …"
+    history              ‖R‖₂ after each accepted step / each evaluation
+    seconds              wall time
+    jacobian_evaluations analytic Jacobians computed
+    function_evaluations residual evaluations (including those with a Jacobian)
+    """
+
+    x: np.ndarray
+    converged: bool
+    iterations: int
+    residual_norm: float
+    reason: str
+    history: list = field(default_factory=list)
+    seconds: float = 0.0
+    jacobian_evaluations: int = 0
+    function_evaluations: int = 0
+
+
+def _finite(a) -> bool:
+    return bool(np.all(np.isfinite(a)))
+
+
+def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxiter: int = 50,
+           max_backtracks: int = 20, armijo: float = 1e-4, callback=None) -> SolveResult:
+    """Newton–Raphson with backtracking line search on ‖R‖₂.
+
+    Each step solves ``J dx = −R`` (LU; least squares if J is singular) and
+    halves the step until ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖`` — a
+    sufficient decrease of the residual norm, which keeps Newton from
+    cycling across the kinks of the piecewise-smooth friction residual.
+    Trial points use ``fun`` (residual only, cheaper) when given.
+
+    tol, scale: converged when ``‖R‖₂ ≤ tol·scale`` (see module docstring).
+    callback(it, x, norm) is called after every accepted step.
+    """
+    t0 = time.perf_counter()
+    x = np.array(x0, dtype=float)
+    fun = fun if fun is not None else (lambda z: fun_jac(z)[0])
+    nfev = nje = 0
+    history: list[float] = []
+    target = tol * scale
+
+    def done(reason, conv, R, it):
+        norm = float(np.linalg.norm(R)) if R is not None and _finite(R) else float("nan")
+        return SolveResult(x=x, converged=conv, iterations=it, residual_norm=norm, reason=reason,
+                           history=history, seconds=time.perf_counter() - t0,
+                           jacobian_evaluations=nje, function_evaluations=nfev)
+
+    R, J = fun_jac(x)
+    nfev += 1
+    nje += 1
+    if not _finite(R):
+        return done("non-finite residual", False, None, 0)
+    norm = float(np.linalg.norm(R))
+    history.append(norm)
+    for it in range(maxiter + 1):
+        if norm <= target:
+            return done("converged", True, R, it)
+        if it == maxiter:
+            return done("max iterations", False, R, it)
+        if not _finite(J):
+            return done("non-finite Jacobian", False, R, it)
+        try:
+            dx = scipy.linalg.solve(J, -R, check_finite=False)
+        except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+            dx = None
+        if dx is None or not _finite(dx):
+            dx = np.linalg.lstsq(J, -R, rcond=None)[0]
+            if not _finite(dx):
+                return done("singular Jacobian", False, R, it)
+        alpha = 1.0
+        accepted = False
+        for _ in range(max_backtracks):
+            xt = x + alpha * dx
+            Rt = fun(xt)
+            nfev += 1
+            if _finite(Rt) and np.linalg.norm(Rt) <= (1.0 - armijo * alpha) * norm:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            return done("line search failed", False, R, it)
+        x = xt
+        R, J = fun_jac(x)
+        nfev += 1
+        nje += 1
+        if not _finite(R):  # cannot happen after a finite trial, kept as a guard
+            return done("non-finite residual", False, None, it + 1)
+        norm = float(np.linalg.norm(R))
+        history.append(norm)
+        if callback is not None:
+            callback(it + 1, x, norm)
+    return done("max iterations", False, R, maxiter)  # pragma: no cover
+
+
+class _NonFinite(Exception):
+    pass
+
+
+_MINPACK = {
+    2: "max iterations",
+    3: "stalled: xtol too small, no further improvement possible",
+    4: "stalled: not making good progress (Jacobian evaluations)",
+    5: "stalled: not making good progress (iterations)",
+}
+
+
+def powell(fun, fun_jac, x0, *, tol: float = 1e-8, scale: float = 1.0, maxfev: int = 200,
+           xtol: float = 1e-13) -> SolveResult:
+    """MINPACK hybrid Powell (trust-region dogleg with Broyden updates), as in the paper.
+
+    Calls ``scipy.optimize.root(method='hybr')`` with the analytic Jacobian
+    given as a separate callable (``jac=fun_jac(x)[1]``) rather than
+    ``jac=True``: MINPACK evaluates J only when its Broyden update stalls, so
+    residual-only calls stay cheap. MINPACK stops on a relative step
+    ``xtol``; the result is then judged by our residual test
+    ``‖R‖₂ ≤ tol·scale``. ``maxfev`` bounds residual evaluations.
+    """
+    t0 = time.perf_counter()
+    x0 = np.array(x0, dtype=float)
+    history: list[float] = []
+    counts = {"f": 0, "j": 0}
+    last = {"x": x0.copy(), "R": None}
+
+    def f(x):
+        R = np.asarray(fun(x), dtype=float)
+        counts["f"] += 1
+        if not _finite(R):
+            raise _NonFinite("residual")
+        history.append(float(np.linalg.norm(R)))
+        if last["R"] is None or history[-1] <= np.linalg.norm(last["R"]):
+            last["x"], last["R"] = np.array(x, copy=True), R
+        return R
+
+    def jac(x):
+        _, J = fun_jac(x)
+        counts["j"] += 1
+        if not _finite(J):
+            raise _NonFinite("Jacobian")
+        return J
+
+    reason = None
+    try:
+        sol = scipy.optimize.root(f, x0, jac=jac, method="hybr",
+                                  options={"xtol": xtol, "maxfev": maxfev})
+        x = sol.x
+        R = f(x)
+        if last["R"] is not None and np.linalg.norm(last["R"]) < np.linalg.norm(R):
+            x, R = last["x"], last["R"]
+        status = sol.status
+    except _NonFinite as exc:
+        reason = f"non-finite {exc.args[0]}"
+        x, R = last["x"], last["R"]
+        status = None
+    norm = float(np.linalg.norm(R)) if R is not None else float("nan")
+    converged = R is not None and norm <= tol * scale
+    if reason is None:
+        reason = "converged" if converged else _MINPACK.get(status, f"stalled: MINPACK status {status}")
+        if not converged and status == 1:
+            reason = "stalled: step below xtol but residual above tolerance"
+    return SolveResult(x=x, converged=bool(converged), iterations=counts["f"], residual_norm=norm,
+                       reason=reason, history=history, seconds=time.perf_counter() - t0,
+                       jacobian_evaluations=counts["j"], function_evaluations=counts["f"])
