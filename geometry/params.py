@@ -4,40 +4,41 @@ Every dimension is SI (metres, radians). Coordinates follow
 ``docs/contracts.md`` §1: x axial (engine axis through the origin, leading
 edge at x = 0), z radial at the sector's centre line, y circumferential.
 
-The dovetail, seen in the y–z plane (x is out of the page), half profile
-y ≥ 0; the blade is below the inclined face, the disk above it::
+The dovetail is a profile in the y–z plane extruded along x. With
+a = neck_width/2, b = lobe_width/2, β = flank_angle, c = clearance, the half
+profile y ≥ 0 of the blade root is (the other half is its mirror image)::
 
-          disk rim top (r = r_out)
-      ────────────╮ T          ┃ blade neck (y = neck_width/2)
-        disk      ╲ (neck gap: ┃  0 at C1, clearance at T)
-        overhang   ╲           ┃
-                    C1 ────────C0   ← inclined face starts (neck_height below r_out)
-       contact       ╲
-       flank ─────►   ╲  flank_length, at flank_angle below the y axis
-                       C2 ──────────┐ (b + clearance, z(C2))   disk relief
-                        ╲  blade    │
-                         C3 lobe    │  disk slot side (clearance)
-                         │ (lobe_height)
-          ───────────────┘          │
-          slot bottom (clearance below the blade)  ───────┘
+    reference inclined face: from (a, r_out − neck_height) down at β to y = b
+    C1, C2    the contact flank: the middle flank_length of that face
+    C0, C3    neck and lobe corners: outside the flank the blade's face turns
+              away from the disk by relief_angle (C1 → C0 at β − ρ, C2 → C3
+              at β + ρ), as real dovetails are relieved at the edges of bedding
+    blade:  shank y = a up to the platform; C0 → C1 → C2 → C3;
+            lobe side y = b down to z(C3) − lobe_height; flat bottom.
+    disk:   rim top r = r_out down to T = (a + c, on r = r_out); straight to
+            C1 (the neck gap opens from 0 at C1 to c at T); the flank C1 → C2;
+            horizontally out to y = b + c; slot side y = b + c down to the slot
+            bottom, c below the blade's bottom.
 
-The inclined face of the blade runs from C0 (neck) to C3 (lobe); only its
-middle part C1–C2 (``flank_length`` long, centred) bears on the disk. At C1 the
-disk's neck face leaves the flank line towards the rim top with a gap that
-opens to ``clearance``; at C2 the disk turns horizontally out to the slot side.
-So the bodies share the flank C1–C2 and are apart everywhere else, without
-any edge as short as the clearance (which would force tiny elements).
+The blade lies below the inclined face, the disk's overhang above it; under
+centrifugal load the lobes push radially outward on the overhang through the
+flanks. The bodies share only the flank C1–C2 and are apart everywhere else,
+and no edge is as short as the clearance (which would force tiny elements).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
 
+import numpy as np
+
 from workflow.errors import GeometryError
 
 #: Upper bound on the estimated number of tetrahedra, so that a typo in a mesh
 #: size fails at once instead of exhausting memory inside gmsh.
 MAX_ELEMENTS = 2_000_000
+#: Largest aspect ratio of the flank's structured cells (along x vs across).
+MAX_FLANK_ASPECT = 10.0
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,9 @@ class SectorParams:
         lobe_height: height of the vertical lobe side below the inclined face, m.
         clearance: gap between root and slot away from the flanks (slot
             sides, slot bottom, neck top), m.
+        relief_angle: angle by which the blade's inclined face turns away
+            from the disk beyond each end of the flank, rad (0 keeps it
+            straight, which gives flat tetrahedra along the flank's edges).
 
     Shank and platform
         shank_height: radial gap between r_out and the platform underside, m
@@ -97,6 +101,7 @@ class SectorParams:
     neck_height: float = 0.005
     lobe_height: float = 0.003
     clearance: float = 0.0003
+    relief_angle: float = math.radians(30.0)
 
     shank_height: float = 0.006
     platform_width: float = 0.028
@@ -164,6 +169,14 @@ def _check_types(p: SectorParams) -> None:
         _fail("nodes_across", f"must be ≥ 2, got {p.nodes_across}")
     if p.element_order not in (1, 2):
         _fail("element_order", f"must be 1 or 2, got {p.element_order}")
+    # The flank's structured cells are faces of tetrahedra: very elongated
+    # cells leave only slivers to attach to them.
+    da, dc = p.axial_length / (p.nodes_along - 1), p.flank_length / (p.nodes_across - 1)
+    if max(da, dc) / min(da, dc) > MAX_FLANK_ASPECT:
+        name = "nodes_along" if da > dc else "nodes_across"
+        _fail(name, f"flank cells would be {1e3 * da:.3g} mm (along) × {1e3 * dc:.3g} mm (across), "
+                    f"aspect {max(da, dc) / min(da, dc):.3g} > {MAX_FLANK_ASPECT}; the tetrahedra on "
+                    f"them would be slivers: balance nodes_along and nodes_across")
 
 
 def _check_dovetail(p: SectorParams) -> None:
@@ -173,6 +186,9 @@ def _check_dovetail(p: SectorParams) -> None:
     if not lo <= p.flank_angle <= hi:
         _fail("flank_angle", f"must be between 10° and 80° (in radians), got {p.flank_angle!r} rad "
                              f"= {math.degrees(p.flank_angle):.1f}°")
+    if not 0.0 <= p.relief_angle <= math.radians(45.0) or p.flank_angle + p.relief_angle >= math.radians(85.0):
+        _fail("relief_angle", f"must be between 0 and 45° (in radians) with flank_angle + relief_angle "
+                              f"< 85°, got {p.relief_angle!r} rad = {math.degrees(p.relief_angle):.1f}°")
     if p.r_in >= p.r_out:
         _fail("r_in", f"must be < r_out = {p.r_out}, got {p.r_in}")
     if p.lobe_width <= p.neck_width:
@@ -181,6 +197,9 @@ def _check_dovetail(p: SectorParams) -> None:
     if p.clearance >= 0.5 * p.neck_width:
         _fail("clearance", f"must be < neck_width/2 = {0.5 * p.neck_width}, got {p.clearance}")
     d = Dovetail.from_params(p)
+    if p.r_out - p.neck_height >= d.T[1]:
+        _fail("neck_height", f"{p.neck_height} puts the inclined face above the rim top next to the "
+                             f"neck; it must exceed {p.r_out - d.T[1]:.3g} m")
     if d.flank_length > d.inclined_length:
         _fail("flank_length", f"{p.flank_length} is longer than the inclined face "
                               f"({d.inclined_length:.6g} m, set by lobe_width, neck_width, flank_angle)")
@@ -226,7 +245,7 @@ def _check_airfoil(p: SectorParams) -> None:
     if abs(p.twist) >= math.radians(80.0):
         _fail("twist", f"must be within ±80° (in radians), got {p.twist!r}")
     af = Airfoil.from_params(p)
-    pts = af.section_outline(0.0)
+    pts = np.vstack(af.section_sides(af.z_root) + af.section_sides(af.z_platform))
     x, y = pts[:, 0], pts[:, 1]
     if x.min() < 0.0 or x.max() > p.axial_length or abs(y).max() > 0.5 * p.platform_width:
         _fail("chord", f"the airfoil root section (chord {p.chord} m at stagger "

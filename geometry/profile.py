@@ -16,7 +16,7 @@ import numpy as np
 class Dovetail:
     """Key points of the half profile y ≥ 0 (mirror for y < 0).
 
-    ``C0`` top of the blade's inclined face (at the neck), ``C1``–``C2`` the
+    ``C0`` where the blade's neck meets its inclined face, ``C1``–``C2`` the
     contact flank, ``C3`` the lobe corner; ``T`` where the disk's neck face
     meets the rim top r = r_out. See ``geometry.params`` for the sketch.
     """
@@ -50,12 +50,18 @@ class Dovetail:
         inclined = (b - a) / math.cos(beta)
         relief = 0.5 * (inclined - p.flank_length)
         u = (math.cos(beta), -math.sin(beta))          # along the face, C0 → C3
-        C0, C3 = (a, z0), (b, z3)
         C1 = (a + relief * u[0], z0 + relief * u[1])
         C2 = (b - relief * u[0], z3 - relief * u[1])
+        # Outside the flank the blade's face turns away from the disk by the
+        # relief angle (as real dovetails do at the edges of bedding). Kept
+        # collinear, the three faces would be coplanar and the mesher leaves
+        # flat tetrahedra across their common edges.
+        rho = p.relief_angle
+        C0 = (a, C1[1] + (C1[0] - a) * math.tan(beta - rho))
+        C3 = (b, C2[1] - (b - C2[0]) * math.tan(beta + rho))
         yT = a + c
         T = (yT, math.sqrt(max(p.r_out ** 2 - yT ** 2, 0.0)))
-        z_bot = z3 - p.lobe_height
+        z_bot = C3[1] - p.lobe_height
         zpb = p.r_out + p.shank_height
         return cls(r_in=p.r_in, r_out=p.r_out, half_angle=math.pi / p.n_sectors, a=a, b=b, beta=beta,
                    c=c, flank_length=p.flank_length, C0=C0, C1=C1, C2=C2, C3=C3, T=T,
@@ -65,7 +71,8 @@ class Dovetail:
 
     @property
     def inclined_length(self) -> float:
-        """Length of the blade's whole inclined face C0–C3, m."""
+        """Length of the reference inclined face (neck to lobe, before the
+        reliefs), m: the flank is its middle part."""
         return (self.b - self.a) / math.cos(self.beta)
 
     @property

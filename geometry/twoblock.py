@@ -56,13 +56,11 @@ def build_two_block(params: TwoBlockParams = TwoBlockParams(), msh_path=None, co
     """Mesh the two-block model with gmsh.
 
     Returns ``(mesh, cell_tags, facet_tags)`` as dolfinx objects (through
-    :func:`dolfinx.io.gmshio.model_to_mesh`), and writes the gmsh ``.msh`` to
+    :func:`reduction.dolfinx_compat.model_to_mesh`), and writes the gmsh ``.msh`` to
     ``msh_path`` if given.
     """
     import gmsh
     from mpi4py import MPI
-
-    from dolfinx.io import gmshio
 
     comm = comm or MPI.COMM_WORLD
     p = params
@@ -132,7 +130,9 @@ def build_two_block(params: TwoBlockParams = TwoBlockParams(), msh_path=None, co
             gmsh.model.mesh.setOrder(2)
         if msh_path is not None:
             gmsh.write(str(msh_path))
-        return gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
+        from reduction.dolfinx_compat import model_to_mesh
+
+        return model_to_mesh(gmsh.model, comm, 3)  # tags named cell_tags / facet_tags
     finally:
         gmsh.finalize()
 

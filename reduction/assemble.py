@@ -161,7 +161,7 @@ def assemble_operators(mesh, cell_tags, facet_tags, material, omega: float = 0.0
         Kstat = K0 - omega ** 2 * ops.M_perp if ops.M_perp is not None else K0
     has_load = mesh.comm.bcast(bool(root and np.any(f)), root=dc.ROOT)
     if stress_stiffening and has_load:
-        if fixed is None:
+        if mesh.comm.bcast(fixed is None, root=dc.ROOT):  # collective: decided on rank 0 for all
             fixed = clamped_dofs(V, facet_tags)
         if root:
             if fixed is None or len(fixed) == 0:

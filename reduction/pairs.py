@@ -35,7 +35,7 @@ def flank_vertex_data(V, facet_tags, flanks=FLANKS):
     """Gather flank vertex data to rank 0.
 
     Returns, on rank 0, a dict ``{group: (global_blocks, coords)}`` for every
-    group in ``flanks`` plus ``"p1"`` → ``{group: (coords, area, normal_sum)}``
+    group in ``flanks`` plus ``"p1"`` → ``{group: (coords, area, coords, normal_sum)}``
     for the disk groups; ``None`` on other ranks.
     """
     mesh = V.mesh
@@ -54,13 +54,12 @@ def flank_vertex_data(V, facet_tags, flanks=FLANKS):
         blocks = dc.blocks_at_vertices_of_facets(V, facet_tags, group)
         out[group] = dc.gather_owned_blocks(V, blocks, xV)
     p1 = {}
+    xW = dc.block_coordinates(W)
     for group in disk_groups:
-        blocks = dc.blocks_at_vertices_of_facets(S, facet_tags, group)
-        g = dc.gather_owned_blocks(S, blocks, xS, area)
-        # vector P1 has the scalar P1 vertex numbering (block i = scalar DOF i)
-        gw = dc.gather_owned_blocks(W, blocks, xS, nsum)
+        g = dc.gather_owned_blocks(S, dc.blocks_at_vertices_of_facets(S, facet_tags, group), xS, area)
+        gw = dc.gather_owned_blocks(W, dc.blocks_at_vertices_of_facets(W, facet_tags, group), xW, nsum)
         if g is not None:
-            p1[group] = (g[1], g[2], gw[2])
+            p1[group] = (g[1], g[2], gw[1], gw[2])
     if mesh.comm.rank != dc.ROOT:
         return None
     out["p1"] = p1
@@ -121,9 +120,10 @@ def contact_pairs(V, facet_tags, flanks=FLANKS, bs: int = 3) -> dict | None:
             continue
         tol = MATCH_TOL_REL * _spacing(xd)
         ib = _match(xd, xb, tol, f"flank groups {gb} (blade) / {gd} (disk)")
-        xs, area, nsum = data["p1"][gd]
+        xs, area, xw, nsum = data["p1"][gd]
         ip = _match(xd, xs, tol, f"disk flank group {gd} (P1 vs P2 vertices)")
-        n, t1, t2 = frames(nsum[ip])
+        iw = _match(xd, xw, tol, f"disk flank group {gd} (vector P1 vs P2 vertices)")
+        n, t1, t2 = frames(nsum[iw])
         # Order along x, then across the flank (along the flank's mean t2).
         t2m = t2.mean(axis=0)
         key_x = np.round((xd[:, 0] - xd[:, 0].min()) / max(tol, 1e-15)).astype(np.int64)

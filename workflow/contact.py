@@ -175,46 +175,55 @@ def _one_pass(lam_u, mu, ref, dlu):
     ``dlu`` (nit, 3, ncol) is the sensitivity of λ_u^k (same for every pair)
     with respect to the caller's columns, the last two being the reference;
     sensitivities S of λ_x^T (p, 2, ncol) are carried through the branches.
+
+    Every branch is written ``λ^T = f · λ_pre^T`` with f = 1 (stick),
+    μ|λ_pre^N|/‖λ_pre^T‖ (slip), 0 (separation), and ``λ_x^T = λ_u^T − λ^T``,
+    so one set of array operations serves all pairs (no per-pair branching).
     """
     nit, p, _ = lam_u.shape
     ncol = dlu.shape[2]
-    lam = np.zeros((nit, p, 3))
+    luN = lam_u[:, :, 0]
+    luT = lam_u[:, :, 1:]
+    # the normal part has no memory: vectorise it over time (eq. 15 / X^N = 0)
+    sep_all = luN >= 0.0
+    limit_all = -mu[None, :] * luN            # μ|λ_pre^N| in contact
+    lam = np.empty((nit, p, 3))
+    lam[:, :, 0] = np.where(sep_all, 0.0, luN)
+    dlam = np.empty((nit, p, 3, ncol))
+    dlam[:, :, 0, :] = np.where(sep_all[:, :, None], 0.0, dlu[:, None, 0, :])
     lxT_all = np.empty((nit, p, 2))
     state = np.empty((nit, p), dtype=np.int8)
-    dlam = np.zeros((nit, p, 3, ncol))
     lxT = ref.copy()
     S = np.zeros((p, 2, ncol))
     S[:, 0, ncol - 2] = 1.0  # d ref / d ref = I
     S[:, 1, ncol - 1] = 1.0
+    mu_col = mu[:, None]
     for k in range(nit):
-        lu = lam_u[k]
-        preN = lu[:, 0]
-        preT = lu[:, 1:] - lxT
-        nT = np.sqrt(preT[:, 0] ** 2 + preT[:, 1] ** 2)
-        limit = -mu * preN  # μ|λ_pre^N| in contact
-        sep = preN >= 0.0
-        slip = ~sep & (nT >= limit)
-        stick = ~sep & ~slip
+        preT = luT[k] - lxT
+        nT = np.sqrt(preT[:, 0] * preT[:, 0] + preT[:, 1] * preT[:, 1])
+        sep = sep_all[k]
+        lim = limit_all[k]
+        slip = (nT >= lim) & ~sep
+        stick = ~(slip | sep)
         state[k] = np.where(sep, SEPARATION, np.where(slip, SLIP, STICK))
-        that = preT / np.maximum(nT, _TINY)[:, None]
-        # normal: λ^N = λ_pre^N in contact (X^N = 0 ⇔ g = 0), 0 in separation
-        lam[k, :, 0] = np.where(sep, 0.0, preN)
-        lamT = np.where(stick[:, None], preT, np.where(slip[:, None], limit[:, None] * that, 0.0))
+        inv = 1.0 / np.maximum(nT, _TINY)
+        fac = np.where(stick, 1.0, np.where(slip, lim * inv, 0.0))
+        lamT = fac[:, None] * preT
         lam[k, :, 1:] = lamT
         # stick keeps the anchor bit-for-bit so a pair stuck all period is an exact fixed point
-        lxT = np.where(stick[:, None], lxT, lu[:, 1:] - lamT)
+        lxT = np.where(stick[:, None], lxT, luT[k] - lamT)
         lxT_all[k] = lxT
-        # --- sensitivities (branch derivatives of eqs. 15–17) ---
-        dN = dlu[k, 0]                      # (ncol,)
-        dpreT = dlu[k, 1:][None] - S        # (p, 2, ncol)
-        c = np.where(slip, limit / np.maximum(nT, _TINY), 0.0)
-        # slip: dλ^T = c (I − t tᵀ) dpre^T − μ t dλ_pre^N   (|λ_pre^N| = −λ_pre^N)
-        proj = dpreT - that[:, :, None] * np.einsum("ia,ian->in", that, dpreT)[:, None, :]
-        dslip = c[:, None, None] * proj - (mu[:, None] * that)[:, :, None] * dN[None, None, :]
-        dT = np.where(stick[:, None, None], dpreT, np.where(slip[:, None, None], dslip, 0.0))
-        dlam[k, :, 0] = np.where(sep[:, None], 0.0, dN[None, :])
+        # sensitivities: dλ^T = f dλ_pre^T + λ_pre^T ⊗ df, with, in slip,
+        # df = −(μ dλ_pre^N + f t·dλ_pre^T)/‖λ_pre^T‖  (|λ_pre^N| = −λ_pre^N, t = λ_pre^T/‖λ_pre^T‖)
+        dpreT = dlu[k, 1:][None] - S
+        dT = fac[:, None, None] * dpreT
+        if slip.any():
+            that = preT * inv[:, None]
+            tdp = that[:, 0, None] * dpreT[:, 0] + that[:, 1, None] * dpreT[:, 1]
+            dfac = -(mu_col * dlu[k, 0][None] + fac[:, None] * tdp) * (inv * slip)[:, None]
+            dT += preT[:, :, None] * dfac[:, None, :]
         dlam[k, :, 1:] = dT
-        S = np.where(stick[:, None, None], S, dlu[k, 1:][None] - dT)
+        S = dlu[k, 1:][None] - dT
     return lam, lxT_all, state, dlam, S
 
 

@@ -161,7 +161,7 @@ class HBProblem:
             self._Lr = Ec
             self._Lp = None
             self.Q = None                                          # selection of rows kc
-            self.Rlin = np.einsum("mj,jakb->makb", Ec, Zb.reshape(nc, nr, nc, nr)).reshape(self.n, self.n)
+            self.Rlin = (Ec @ Zb.reshape(nc, -1)).reshape(self.n, self.n)
             self.A = Zb
             self._const = np.eye(nc)[0]
             self._Ec = Ec
@@ -172,8 +172,9 @@ class HBProblem:
             self._Lr = Tinv
             self._Lp = Tinv
             self.Q = None                                          # identity
-            H = np.einsum("kj,jalb,lm->kamb", Tinv, Zb.reshape(nc, nr, nc, nr), T,
-                          optimize=True).reshape(self.n, self.n)
+            # H = (T⁻¹ ⊗ I) Zb (T ⊗ I), as two BLAS products
+            H = (Tinv @ Zb.reshape(nc, -1)).reshape(self.n, nc, nr)
+            H = np.matmul(H.transpose(0, 2, 1), T).transpose(0, 2, 1).reshape(self.n, self.n)
             self.Rlin = H
             self.A = H
             self._const = np.ones(nc)                              # a constant in every sample
@@ -185,6 +186,21 @@ class HBProblem:
         self._eps = self.law.eps().reshape(self.nr)
         self._shift = np.outer(self._const, self.law.offset().reshape(self.nr))   # (nc, nr)
         self._M = np.diag(np.tile(self._eps, self.nc)) - self.A                  # diag ε − A
+        self._Mblocks = None
+        if self.method != "hdhb":
+            # HBM/TCM: A = Z is block-diagonal in harmonics, so G·(diag ε − A) only
+            # couples the cos/sin coefficients of one harmonic: keep those blocks,
+            # per pair rows (j, c') → (p, 3s, s·3p), to multiply by G harmonic by harmonic.
+            nc, p, nr = self.nc, self.p, self.nr
+            M5 = self._M.reshape(nc, p, 3, nc, nr)
+            blocks = []
+            for h in range(self.nh + 1):
+                idx = [0] if h == 0 else [2 * h - 1, 2 * h]
+                s = len(idx)
+                Mh = M5[np.ix_(idx, range(p), range(3), idx, range(nr))]
+                Mh = np.ascontiguousarray(Mh.transpose(1, 0, 2, 3, 4)).reshape(p, 3 * s, s * nr)
+                blocks.append((idx, Mh))
+            self._Mblocks = blocks
 
     @staticmethod
     def _apply_L(L, v):
@@ -310,6 +326,20 @@ class HBProblem:
         out = np.matmul(G, Vp).reshape((p, nc, 3, -1))
         return np.moveaxis(out, 0, 1).reshape((self.n,) + tail)
 
+    def _GM(self, G):
+        """G · (diag ε − A) (n × n): batched per pair, harmonic by harmonic for HBM/TCM."""
+        if self._Mblocks is None:
+            return self._apply_G(G, self._M)
+        nc, p, nr = self.nc, self.p, self.nr
+        G4 = G.reshape(p, 3 * nc, nc, 3)
+        out = np.empty((nc, p, 3, nc, nr))
+        for idx, Mh in self._Mblocks:
+            s = len(idx)
+            Gh = G4[:, :, idx, :].reshape(p, 3 * nc, 3 * s)
+            blk = np.matmul(Gh, Mh).reshape(p, nc, 3, s, nr)
+            out[:, :, :, idx, :] = blk.transpose(1, 0, 2, 3, 4)
+        return out.reshape(self.n, self.n)
+
     # -------------------------------------------------------------- residual
     def _evaluate(self, x, jacobian):
         x = np.asarray(x, dtype=float)
@@ -322,7 +352,7 @@ class HBProblem:
         if not jacobian:
             return R, None, None
         G = self._G(res.dlam)
-        J = self.Rlin + self._apply_G(G, self._M)
+        J = self.Rlin + self._GM(G)
         self.stats["jacobians"] += 1
         return R, J, G
 

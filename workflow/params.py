@@ -119,12 +119,18 @@ class Sweep:
 
 @dataclass
 class PseudoTime:
-    scheme: str = param("ser", "", "pseudo-time integrator",
-                        choices=("rk4", "ser", "bdf", "rosenbrock", "block-jacobi", "local"))
+    scheme: str = param("ser", "", "pseudo-time integrator (workflow/pseudotime.py); the wear system needs an "
+                                   "implicit one (ser, bdf, radau, lsoda, rosenbrock; others fall back to ser)",
+                        choices=("rk4", "local", "ser", "bdf", "radau", "lsoda", "rosenbrock", "block-jacobi"))
+    precond: str = param("jacobian", "", "pseudo-time mass M of M ∂x/∂t* = −R: none (paper eq. 18), jacobi "
+                                         "(local steps), jacobian (J(x0) frozen: attracting near resonance)",
+                         choices=("none", "jacobi", "jacobian"))
     cfl: float = param(0.8, "", "fraction of the explicit stability limit (explicit schemes)", min=0.0,
                        min_exclusive=True)
     tol: float = param(1e-8, "", "steady-state tolerance on ‖R‖/‖F_r‖", min=0.0, min_exclusive=True)
     max_steps: int = param(2000, "", "pseudo-time steps at most", min=1)
+    dt_growth: float = param(1.2, "", "SER: smallest growth factor of the pseudo-time step per step (1: pure "
+                                      "SER)", min=1.0)
 
 
 @dataclass

@@ -191,6 +191,9 @@ class _Tracker:
         self.best_x = np.array(x0, dtype=float)
         self.best_norm = math.inf
         self.rejected = 0
+        self.keep = "best"
+        self.last_x = np.array(x0, dtype=float)
+        self.last_norm = math.inf
         self.t = 0.0
         self.dt_stable = None
         self.rho = None
@@ -219,6 +222,7 @@ class _Tracker:
             self.t += float(dt)
         if norm < self.best_norm:
             self.best_norm, self.best_x = norm, np.array(x, copy=True)
+        self.last_x, self.last_norm = np.array(x, copy=True), norm
         if self.callback is not None:
             self.callback(len(self.history) - 1, x, norm)
         return norm
@@ -229,7 +233,9 @@ class _Tracker:
         return norm <= self.target
 
     def result(self, x, norm, reason, converged):
-        if x is None or not np.all(np.isfinite(x)) or (not converged and norm > self.best_norm):
+        if not converged and self.keep == "last":
+            x, norm = self.last_x, self.last_norm
+        elif x is None or not np.all(np.isfinite(x)) or (not converged and norm > self.best_norm):
             x, norm = self.best_x, self.best_norm
         steps = max(len(self.dts), 0)
         return PseudoTimeResult(x=np.array(x, copy=True), converged=bool(converged), iterations=steps,
@@ -344,7 +350,7 @@ def _initial_dt(J, dt0, cfl):
 
 
 def _ser(tr: _Tracker, x0, *, dt0, dt_max, cfl, max_steps, reject, growth, window, blocks=None,
-         sweeps=1):
+         sweeps=1, dt_growth=1.0):
     x = np.array(x0, dtype=float)
     R, J = tr.fun_jac(x)
     if not _finite(R) or not _finite(J):
@@ -424,7 +430,8 @@ def _ser(tr: _Tracker, x0, *, dt0, dt_max, cfl, max_steps, reject, growth, windo
             return tr.result(None, norm, f"stalled: ‖R‖ did not drop 1 % in {window} steps "
                                          f"(best {watch.best:.3g}, Δt* = {dt:.3g})", False)
         # switched evolution relaxation: the step grows as the residual falls
-        dt = min(dt * prev / max(norm, 1e-300), dt_cap)
+        # (at least by ``dt_growth`` per accepted step, ≥ 1, for slowly decaying residuals)
+        dt = min(dt * max(prev / max(norm, 1e-300), dt_growth), dt_cap)
     return tr.result(None, norm, f"max steps: ‖R‖ = {norm:.3g} > {tr.target:.3g} after {max_steps} steps",
                      False)
 
@@ -574,8 +581,8 @@ PRECONDITIONERS = ("none", "jacobi", "jacobian")
 def integrate(fun, fun_jac, x0, scheme: str = "ser", *, precond="none", tol: float = 1e-8, scale: float = 1.0,
               max_steps: int = 2000, cfl: float | None = None, dt0: float | None = None,
               dt_max: float | None = None, rtol: float = 1e-3, atol=None, blocks=None, sweeps: int = 1,
-              reject: float = 2.0, growth: float = 1e3, window: int | None = None,
-              done=None, callback=None) -> PseudoTimeResult:
+              reject: float = 2.0, growth: float = 1e3, window: int | None = None, dt_growth: float = 1.0,
+              keep: str = "best", done=None, callback=None) -> PseudoTimeResult:
     """Integrate ``M ∂x/∂t* = −R(x)`` from x0 until ‖R‖₂ ≤ tol·scale (eq. 18).
 
     Parameters
@@ -606,6 +613,10 @@ def integrate(fun, fun_jac, x0, scheme: str = "ser", *, precond="none", tol: flo
         ``(nit, 3p)`` time-major).
     sweeps : block-Jacobi sweeps per step (1: couplings fully lagged).
     reject : SER/block-Jacobi refuse a step raising ‖R‖ by more than this.
+    dt_growth : SER/block-Jacobi: smallest growth factor of Δt* per accepted
+        step (1: pure SER).
+    keep : on failure return the ``"best"`` (lowest ‖R‖) or the ``"last"``
+        finite iterate.
     growth, window : divergence (‖R‖ > growth × best) and stall (no 1 %
         progress in ``window`` steps) detection.
     done : optional ``done(x, R) -> bool`` replacing the norm test (R true).
@@ -619,6 +630,7 @@ def integrate(fun, fun_jac, x0, scheme: str = "ser", *, precond="none", tol: flo
         raise ValueError("pseudotime: scheme 'block-jacobi' needs blocks (e.g. nit time instances for HDHB)")
     x0 = np.asarray(x0, dtype=float)
     tr = _Tracker(fun, fun_jac, x0, tol, scale, done, scheme, callback)
+    tr.keep = keep
     if isinstance(precond, str) and precond not in PRECONDITIONERS:
         raise ValueError(f"pseudotime.precond: {precond!r} is not one of {', '.join(PRECONDITIONERS)}")
     if not (isinstance(precond, str) and precond == "none"):
@@ -653,7 +665,7 @@ def integrate(fun, fun_jac, x0, scheme: str = "ser", *, precond="none", tol: flo
     if scheme in ("ser", "block-jacobi"):
         return _ser(tr, x0, dt0=dt0, dt_max=dt_max, cfl=cfl_i, max_steps=max_steps,
                     reject=reject, growth=growth, window=window,
-                    blocks=blocks if scheme == "block-jacobi" else None, sweeps=sweeps)
+                    blocks=blocks if scheme == "block-jacobi" else None, sweeps=sweeps, dt_growth=dt_growth)
     if atol is None:
         atol = 1e-6 * max(float(np.abs(x0).max()) if x0.size else 0.0, 1e-300)
         if atol <= 1e-300:

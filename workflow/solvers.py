@@ -55,14 +55,18 @@ def _finite(a) -> bool:
 
 
 def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxiter: int = 50,
-           max_backtracks: int = 20, armijo: float = 1e-4, callback=None) -> SolveResult:
+           max_backtracks: int = 20, armijo: float = 1e-4, lm_fallback: bool = True,
+           callback=None) -> SolveResult:
     """Newton–Raphson with backtracking line search on ‖R‖₂.
 
     Each step solves ``J dx = −R`` (LU; least squares if J is singular) and
     halves the step until ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖`` — a
     sufficient decrease of the residual norm, which keeps Newton from
     cycling across the kinks of the piecewise-smooth friction residual.
-    Trial points use ``fun`` (residual only, cheaper) when given.
+    Trial points use ``fun`` (residual only, cheaper) when given. If no step
+    length decreases ‖R‖ (a kink of the piecewise-smooth residual),
+    ``lm_fallback`` tries Levenberg–Marquardt steps of growing damping before
+    giving up with "line search failed".
 
     tol, scale: converged when ``‖R‖₂ ≤ tol·scale`` (see module docstring).
     callback(it, x, norm) is called after every accepted step.
@@ -112,6 +116,28 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
                 accepted = True
                 break
             alpha *= 0.5
+        if not accepted and lm_fallback:
+            # At a stick/slip/separation kink the Newton direction of the active
+            # branch can point into a branch where ‖R‖ grows. Levenberg–Marquardt
+            # steps (JᵀJ + νI) dx = −JᵀR turn towards steepest descent as ν grows
+            # and get the iterate off the kink.
+            JtJ = J.T @ J
+            g = J.T @ R
+            nu = 1e-8 * max(float(np.trace(JtJ)) / len(x), 1e-300)
+            for _ in range(max_backtracks):
+                try:
+                    dx = -scipy.linalg.solve(JtJ + nu * np.eye(len(x)), g, assume_a="pos",
+                                             check_finite=False)
+                except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+                    dx = None
+                if dx is not None and _finite(dx):
+                    xt = x + dx
+                    Rt = fun(xt)
+                    nfev += 1
+                    if _finite(Rt) and np.linalg.norm(Rt) < (1.0 - armijo * 1e-3) * norm:
+                        accepted = True
+                        break
+                nu *= 10.0
         if not accepted:
             return done("line search failed", False, R, it)
         x = xt

@@ -111,3 +111,25 @@ def jenkins(k: float, kn: float, N: float, a: float, nh: int):
     if nh >= 1:
         Fr[1, 1] = k * a
     return Zr, Fr
+
+
+def gap_model(*, force: float = 1.0, k1: float = 1.0e4, k2: float = 3.0e4, m: float = 1.0,
+              zeta: float = 0.01) -> dict:
+    """A mass (3 DOFs) on ground springs k1, tied by springs k2 to a light contact
+    node (3 DOFs) that meets the rigid disk after an initial gap: piecewise
+    linear hardening k1 → k1 + k2 once the gap closes (a fold for light damping).
+    Harmonic force on the mass towards the disk (−n); no static load."""
+    nd = 6
+    M = np.diag([1e-3, 1e-3, 1e-3, m, m, m])
+    K = np.zeros((nd, nd))
+    for c in range(3):
+        K[np.ix_([c, 3 + c], [c, 3 + c])] += k2 * np.array([[1, -1], [-1, 1]])
+        K[3 + c, 3 + c] += k1
+        K[c, c] += 1e-3 * k2
+    C = 2 * zeta * np.sqrt(k1 * m) / k1 * K   # stiffness-proportional, ζ at the open mode
+    B = np.zeros((3, nd))
+    B[:, :3] = np.eye(3)
+    f1 = np.zeros(nd)
+    f1[3] = -force
+    f1[4] = 0.1 * force
+    return {"M": M, "K": K, "C": C, "B": B, "f0": np.zeros(nd), "f1": f1, "p": 1, "obs": 3}

@@ -1,0 +1,193 @@
+"""Archard fretting wear (eqs. 20–22): closed forms, stick, and the worn steady state."""
+import time
+
+import numpy as np
+import pytest
+
+from wearmodels import hb_problem
+from workflow.contact import ContactLaw
+from workflow.hb import HBProblem
+from workflow.wear import (WearProblem, march_reference, profile_rel_diff, pseudo_time_wear, slip_increments,
+                           wear_per_cycle)
+
+
+def test_imposed_slip_wears_4a_per_cycle():
+    """Constant N, imposed relative slip a·cos τ: slip path 4a per cycle (nit even: turning
+    points sampled), ΔW = k_w (N/A) 4a."""
+    nit, p = 64, 2
+    tau = 2 * np.pi * np.arange(nit) / nit
+    a, N, A, kw = 3e-6, np.array([10.0, 20.0]), np.array([1e-6, 2e-6]), 1e-13
+    lam = np.zeros((nit, p, 3))
+    lam[..., 0] = -N
+    uT = np.zeros((nit, p, 2))
+    uT[..., 0] = a * np.cos(tau)[:, None]
+    np.testing.assert_allclose(wear_per_cycle(lam, uT, A, kw), kw * N / A * 4 * a, rtol=1e-12)
+    # separation (λ_N ≥ 0) wears nothing; a constant path wears nothing
+    lam[..., 0] = 1.0
+    assert np.all(wear_per_cycle(lam, uT, A, kw) == 0)
+    assert np.all(slip_increments(np.ones((nit, p, 2))) == 0)
+
+
+@pytest.mark.parametrize("nit", [16, 64, 256])
+def test_jenkins_gross_slip_matches_archard_closed_form_through_dlft(nit):
+    """Massless Jenkins pair (tangential spring k to a driver a·cos τ, normal load N) solved by
+    the HB engine: slip path 4(a − μN/k) per cycle, ΔW = k_w (N/A)·4(a − μN/k).
+    With ε_T = k the DLFT predictor is the exact driver force, so the only error is the
+    sampling of the turning points, which shrinks with nit."""
+    k, kn, N, a, mu, A, kw, nh = 1e5, 1e6, 10.0, 1e-4, 0.5, 1e-6, 1e-13, 5
+    Zr = np.zeros((nh + 1, 3, 3), dtype=complex)
+    Zr[:] = np.diag([kn, k, k])
+    Fr = np.zeros((nh + 1, 3), dtype=complex)
+    Fr[0, 0] = -N
+    Fr[1, 1] = k * a
+    law = ContactLaw(mu=np.array([mu]), eps_n=kn, eps_t=k, gap=np.zeros(1))
+    hb = HBProblem(Zr, Fr, law, nh, nit, "hbm")
+    sol = hb.solve(tol=1e-11)
+    assert sol.converged
+    wp = WearProblem(hb, area=[A], k_w=kw)
+    rate = wp.evaluate(sol.x).rate[0]
+    exact = kw * N / A * 4 * (a - mu * N / k)
+    err = abs(rate - exact) / exact
+    # sampled turning points: the slider misses at most a fraction ~ (π/nit)² of the stroke
+    assert err <= 2.0 * (np.pi / nit) ** 2 + 1e-9, (nit, rate, exact)
+
+
+def test_fully_stuck_interface_does_not_wear():
+    hb = hb_problem(12.0, nh=2, nit=32, force=0.5)
+    sol = hb.solve(tol=1e-11)
+    assert sol.converged and np.all(hb.contact_state(sol.x) == 1)
+    st = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=1e-12).evaluate(sol.x, jacobian=True)
+    assert np.all(st.rate == 0.0)
+    assert np.all(st.G_x == 0.0) and np.all(st.G_W == 0.0)
+
+
+def test_wear_derivatives_match_finite_differences():
+    hb = hb_problem(20.0, nh=2, nit=32)
+    sol = hb.solve(tol=1e-11)
+    wp = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=1e-14)
+    W = np.array([1e-7, 0.0, 2e-7])
+    st = wp.evaluate(sol.x, W, jacobian=True)
+    h = 1e-10
+    for i in range(hb.p):
+        Wp = W.copy()
+        Wp[i] += h
+        sp = wp.evaluate(sol.x, Wp)
+        np.testing.assert_allclose((sp.R - st.R) / h, st.R_W[:, i], atol=1e-4 * np.abs(st.R_W).max())
+        assert (sp.rate[i] - st.rate[i]) / h == pytest.approx(st.G_W[i], rel=1e-3, abs=1e-20)
+    v = np.random.default_rng(0).standard_normal(hb.n) * 1e-10
+    sp, sm = wp.evaluate(sol.x + v, W), wp.evaluate(sol.x - v, W)
+    np.testing.assert_allclose((sp.rate - sm.rate) / 2, st.G_x @ v, rtol=1e-3, atol=1e-22)
+
+
+def test_zero_wear_coefficient_pseudo_time_is_newton():
+    hb = hb_problem(20.0, nh=2, nit=32)
+    sol = hb.solve(tol=1e-11)
+    wp = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=0.0)
+    h = pseudo_time_wear(wp, hb.x0(), tol=1e-11)
+    assert h.steady and np.all(h.W == 0)
+    np.testing.assert_allclose(h.x, sol.x, atol=1e-8 * np.abs(sol.x).max())
+
+
+@pytest.fixture(scope="module")
+def worn():
+    """3 pairs, preload 6/12/6 N, tip force at 20 Hz: edge pairs slip, centre sticks."""
+    out = {}
+    for name in ("reference", "pseudo"):
+        hb = hb_problem(20.0, nh=3, nit=32)
+        x0 = hb.solve(tol=1e-10).x
+        wp = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=1e-14)
+        kw = dict(cycles_per_block=5e5, steady_tol=1e-4, tol=1e-9)
+        t0 = time.process_time()
+        if name == "reference":
+            h = march_reference(wp, x0, scheme="explicit", max_blocks=1000, **kw)
+        else:
+            h = pseudo_time_wear(wp, x0, scheme="ser", **kw)
+        out[name] = (h, time.process_time() - t0, wp)
+    return out
+
+
+def test_wear_steady_state_has_zero_rates(worn):
+    for name, (h, _, wp) in worn.items():
+        assert h.steady, (name, h.reason)
+        assert np.max(h.final_rate) * 5e5 <= 1e-4 * np.max(h.W) + 1e-30, name
+        assert np.max(h.W) > 0 and h.W[1] <= 1e-12 * np.max(h.W)  # the stuck centre pair never wears
+
+
+def test_reference_and_pseudo_time_profiles_agree_and_pseudo_time_is_cheaper(worn):
+    (hr, cr, _), (hp, cp, _) = worn["reference"], worn["pseudo"]
+    diff = profile_rel_diff(hr.W, hp.W)
+    print(f"\nprofile diff {diff:.4f}; CPU reference {cr:.2f}s ({hr.iterations} blocks), "
+          f"pseudo-time {cp:.2f}s ({hp.iterations} steps), ratio {cp / cr:.3f}")
+    assert diff <= 0.02
+    assert cp <= 0.5 * cr  # target ≤ 0.1; loose bound against a busy machine
+
+
+def test_implicit_reference_agrees_with_explicit():
+    hb = hb_problem(20.0, nh=2, nit=32)
+    x0 = hb.solve(tol=1e-10).x
+    wp = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=1e-14)
+    he = march_reference(wp, x0, scheme="explicit", cycles_per_block=1e6, steady_tol=1e-3)
+    wp.set_wear(np.zeros(hb.p))
+    # implicit: stable with blocks 8× longer
+    hi = march_reference(wp, x0, scheme="implicit", cycles_per_block=8e6, steady_tol=1e-3 * 8)
+    assert he.steady and hi.steady
+    assert hi.iterations < he.iterations
+    assert profile_rel_diff(he.W, hi.W) <= 0.02
+
+
+def _reduced_block_model():
+    from reduction.reduced import ReducedModel
+    from wearmodels import block_model
+
+    m = block_model()
+    p = m["p"]
+    O = np.zeros((1, m["K"].shape[0]))
+    O[0, m["tip"]] = 1.0
+    pos = np.zeros((p, 3))
+    pos[:, 0] = np.arange(p) * 1e-3
+    return ReducedModel(M=m["M"], K=m["K"], C=m["C"], B=m["B"], f_static=m["f0"], f_harmonic=m["f1"], O=O,
+                        area=np.full(p, 1e-6), gap=np.zeros(p), flank=np.zeros(p, int), position=pos)
+
+
+def test_wear_stage_on_a_reduced_model(tmp_path):
+    import csv
+    import json
+
+    from workflow import params
+    from workflow.stages import wear as stage
+
+    scene = {k: getattr(params, c)() for k, c in (("contact", "Contact"), ("hb", "HB"), ("pseudotime", "PseudoTime"),
+                                                     ("wear", "Wear"), ("excitation", "Excitation"))}
+    scene["contact"].mu, scene["contact"].eps_n, scene["contact"].eps_t = 0.3, 1e5, 1e5
+    scene["hb"].harmonics, scene["hb"].time_samples = [2], [32]
+    w = scene["wear"]
+    w.frequency_hz, w.k_w, w.cycles_per_block, w.steady_tol = 20.0, 1e-14, 1e6, 1e-4
+    w.methods = ["explicit", "pseudo-time"]
+    model = _reduced_block_model()
+    model.save(tmp_path / "reduced.npz")
+
+    class Log:
+        def info(self, msg):
+            pass
+
+    out = tmp_path / "wear"
+    s = stage.run(scene, {"reduced": tmp_path}, out, Log())
+    json.dumps(s)
+    assert set(s["methods"]) == {"explicit", "pseudo-time"}
+    for v in s["methods"].values():
+        assert v["steady"] and v["max_wear_m"] > 0 and v["seconds"] > 0 and v["iterations"] > 0
+    assert s["profile_max_rel_diff"] <= 0.02
+    rows = list(csv.DictReader(open(out / "wear.csv")))
+    assert len(rows) == 3 and float(rows[0]["W_pseudo-time_m"]) > 0
+    assert float(rows[0]["W_blade_pseudo-time_m"]) == pytest.approx(0.5 * float(rows[0]["W_pseudo-time_m"]))
+    for f in ("wear_profile.png", "max_wear.png", "harmonic1.png", "tip_cycle.png"):
+        assert (out / f).stat().st_size > 1000
+
+
+def test_paper_wear_scene_resolves():
+    from workflow.scene import SHIPPED, load_scene
+
+    sc = load_scene(SHIPPED / "paper-wear.toml")
+    assert sc["geometry"].nodes_along * sc["geometry"].nodes_across * 2 == 48
+    assert sc["hb"].harmonics == [3] and sc["excitation"].amplitude == 0.5 and sc["contact"].mu == 0.5
+    assert sc["run"].outputs == ["wear"]

@@ -1,0 +1,1 @@
+"""Benchmarks and convergence studies (scripts: python -m workflow.bench.<name>)."""

@@ -1,0 +1,630 @@
+"""Harmonic-balance stage: friction-damped frequency responses (paper §5.1, Figs. 4–8, Table 1).
+
+Reads the reduced model (``<reduced>/reduced.npz``), rewrites it once in
+relative coordinates (:func:`reduction.condense.relative_coordinates`) and
+sweeps a frequency band for every *variant* — formulation (HBM / TCM /
+HDHB, :mod:`workflow.hb`) × number of harmonics Nh × time samples nit —
+with the solver of ``hb.solver``. Optionally a converged *reference*
+(HBM, ``hb.reference_harmonics``, ``hb.reference_time_samples``) measures
+every variant's error against its run time.
+
+Choices made here (and why):
+
+* **Band.** Default ±10 % around the first tied *bending* frequency: the
+  eigenfrequencies of the reduced model with ``u_r = 0`` (the interface tied),
+  and the first mode whose modal response at the observed DOFs to the
+  harmonic load is at least ``SIGNIFICANT`` of the largest one (so a mode the
+  tip force barely excites, e.g. an axial or torsion mode, is skipped).
+* **Condensation once.** ``Zr``, ``Fr`` are computed once per frequency for
+  the largest Nh of the run (reference included) and sliced for each variant:
+  ``condense`` is harmonic-by-harmonic, so a slice equals a fresh condensation
+  at lower Nh. Its wall time is reported separately (``condense_seconds``),
+  not charged to the variants.
+* **Static state.** Harmonic 0 does not depend on ω: the static (preload)
+  contact state is solved once (:meth:`workflow.hb.HBProblem.static_state`)
+  and its tangential stick anchor is carried into every dynamic solve, which
+  fixes the otherwise non-unique static offset of pairs that stick all period
+  (DESIGN §3, "stuck zeroth harmonic"). Assumption: the interface was
+  assembled stress-free and tied, and the preload is applied in one step.
+  A static problem with no equilibrium (no preload: the blade only touches
+  the disk at the flanks) is a :class:`SolverError` that says so.
+* **Sweep.** Sequential in frequency with a secant predictor from the two
+  previous converged points; fall-backs, in order: the previous point, the
+  problem's own initial guess (static + tied linear response), then Powell.
+  ``sweep.continuation`` hands the variant to :mod:`workflow.sweep`
+  (arc-length) when that module is installed.
+* **Observed amplitude.** ``amplitude_m`` is the Euclidean norm over the
+  observed DOFs of the first-harmonic complex amplitude (= |U₁| for a single
+  observed DOF); ``amplitude_max_m`` the largest norm over the period of the
+  dynamic part (harmonics ≥ 1).
+* **Error.** ``max_f |A(f) − A_ref(f)| / max_f A_ref(f)`` over the points
+  where both converged: relative to the reference peak, so that small
+  absolute errors far from resonance do not dominate.
+* **ε_N, ε_T = 0 (automatic).** The mean diagonal of ``Re Zr`` at harmonic
+  1, at the band centre, over the normal / tangential relative DOFs (the
+  converged solution does not depend on ε, only the iteration does).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+NAME = "hb"
+SECTIONS = ("contact", "hb", "sweep", "excitation")
+NEEDS = ("reduced",)
+PRODUCES = ("frf",)
+
+#: a tied mode is "excited" if its modal response at the observed DOFs is at
+#: least this fraction of the largest one.
+SIGNIFICANT = 0.05
+#: samples per period for the max-over-period amplitude and the Fig. 8 curves.
+PERIOD_SAMPLES = 128
+
+FRF_COLUMNS = ("method", "Nh", "nit", "solver", "frequency_hz", "amplitude_m", "iterations", "seconds",
+               "converged", "amplitude_max_m", "role")
+
+
+# ---------------------------------------------------------------- variants
+@dataclass(frozen=True)
+class Variant:
+    """One HB formulation to sweep: method, Nh, nit (already resolved, ≥ 2Nh+1)."""
+
+    method: str
+    nh: int
+    nit: int
+
+    @property
+    def collocated(self) -> bool:
+        """nit = 2Nh+1 (the HDHB grid)."""
+        return self.nit == 2 * self.nh + 1
+
+    @property
+    def nit_label(self) -> str:
+        return "2Nh+1" if self.collocated else str(self.nit)
+
+    @property
+    def label(self) -> str:
+        return f"{self.method.upper()}-{self.nh} nit={self.nit}"
+
+
+def variants(hb) -> list[Variant]:
+    """method ∈ hb.methods × Nh ∈ hb.harmonics × nit ∈ hb.time_samples (0 → 2Nh+1).
+
+    HDHB runs only with nit = 2Nh+1 (other nit values are skipped for it);
+    duplicates (e.g. nit = 0 and nit = 2Nh+1 both listed) are dropped. Order:
+    as listed in the scene (method-major).
+    """
+    out: list[Variant] = []
+    for method in hb.methods:
+        for nh in hb.harmonics:
+            for nit in hb.time_samples:
+                n = 2 * int(nh) + 1 if int(nit) == 0 else int(nit)
+                if method == "hdhb" and n != 2 * int(nh) + 1:
+                    continue
+                v = Variant(method, int(nh), n)
+                if v not in out:
+                    out.append(v)
+    return out
+
+
+# ---------------------------------------------------------- linear helpers
+def tied_modes(rc) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenfrequencies (Hz) of the model with the interface tied (u_r = 0), and
+    each mode's modal response at the observed DOFs to the harmonic load,
+    ``‖O φ‖ |φᵀ f| / ω²`` (m), normalised so the largest is 1."""
+    import scipy.linalg as sla
+
+    r = rc.n_rel
+    K, M = rc.K[r:, r:], rc.M[r:, r:]
+    w2, phi = sla.eigh(K, M)
+    w2 = np.maximum(w2, 0.0)
+    f = np.sqrt(w2) / (2 * np.pi)
+    obs = np.linalg.norm(rc.O[:, r:] @ phi, axis=0)
+    force = np.abs(phi.T @ rc.f_harmonic[r:])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        resp = np.where(w2 > 0, obs * force / np.where(w2 > 0, w2, 1.0), 0.0)
+    top = resp.max() if resp.size and resp.max() > 0 else 1.0
+    return f, resp / top
+
+
+def first_excited_mode(rc) -> tuple[float, int]:
+    """(frequency in Hz, index) of the first tied mode significantly excited and observed."""
+    from workflow.errors import BundleError
+
+    f, s = tied_modes(rc)
+    idx = np.flatnonzero((s >= SIGNIFICANT) & (f > 0))
+    if not idx.size:
+        raise BundleError("reduced model: no tied mode responds at the observed DOFs to the harmonic load "
+                          "(f_harmonic or O is zero?)")
+    return float(f[idx[0]]), int(idx[0])
+
+
+def band(sweep, f_mode: float) -> tuple[float, float]:
+    """(f_start, f_stop) in Hz from the sweep section (0 → ∓10 % of f_mode)."""
+    from workflow.errors import SceneError
+
+    f0 = sweep.f_start_hz or 0.9 * f_mode
+    f1 = sweep.f_stop_hz or 1.1 * f_mode
+    if f1 <= f0:
+        raise SceneError(f"sweep: band [{f0:g}, {f1:g}] Hz is empty (sweep.f_start_hz / sweep.f_stop_hz; "
+                         f"first tied bending frequency {f_mode:g} Hz)")
+    return float(f0), float(f1)
+
+
+def auto_penalty(Zr1: np.ndarray) -> tuple[float, float]:
+    """(ε_N, ε_T) N/m: mean diagonal of Re Zr over normal / tangential relative DOFs."""
+    d = np.abs(np.real(np.diagonal(Zr1)))
+    eps_n = float(np.mean(d[0::3]))
+    eps_t = float(np.mean(np.concatenate([d[1::3], d[2::3]])))
+    return max(eps_n, 1e-300), max(eps_t, 1e-300)
+
+
+def contact_law(contact, model, Zr1):
+    """The :class:`~workflow.contact.ContactLaw` of the scene's contact section on ``model``."""
+    from workflow.contact import ContactLaw
+
+    en, et = auto_penalty(Zr1)
+    p = model.n_pairs
+    return ContactLaw(mu=np.full(p, float(contact.mu)), eps_n=contact.eps_n or en, eps_t=contact.eps_t or et,
+                      gap=np.asarray(model.gap, dtype=float) + float(contact.gap))
+
+
+def linear_frfs(rc, cond: list, static) -> tuple[np.ndarray, np.ndarray]:
+    """First-harmonic observed amplitude (m) with the interface tied and sliding.
+
+    Tied: u_r = 0. Sliding (μ = 0): pairs in contact in the static state keep
+    u_N = 0, tangential DOFs are free (λ_T = 0); separated pairs are free.
+    The friction-damped peak lies between the two resonances.
+    """
+    from reduction.condense import recover
+
+    r = rc.n_rel
+    free_n = np.repeat(static.state == 0, 3)
+    fixed = np.zeros(r, bool)
+    fixed[0::3] = ~free_n[0::3]
+    free = ~fixed
+    tied, slide = [], []
+    for c in cond:
+        z = np.zeros((2, r), complex)
+        tied.append(np.linalg.norm(recover(rc, c.omega, z)[1]))
+        z[1, free] = np.linalg.solve(c.Zr[1][np.ix_(free, free)], c.Fr[1, free])
+        slide.append(np.linalg.norm(recover(rc, c.omega, z)[1]))
+    return np.array(tied), np.array(slide)
+
+
+# ------------------------------------------------------------------ sweep
+@dataclass
+class SweepResult:
+    """One variant swept over the band (arrays over frequencies)."""
+
+    variant: Variant
+    solver: str
+    freqs_hz: np.ndarray
+    amplitude: np.ndarray
+    amplitude_max: np.ndarray
+    iterations: np.ndarray
+    seconds: np.ndarray
+    converged: np.ndarray
+    Ur: list = field(default_factory=list)       # (Nh+1, 3p) complex per frequency
+    reasons: list = field(default_factory=list)
+    total_seconds: float = 0.0
+    error: float | None = None
+    dlft_max_passes: int = 0
+
+    @property
+    def converged_points(self) -> int:
+        return int(np.count_nonzero(self.converged))
+
+    def peak_hz(self) -> float:
+        a = np.where(self.converged, self.amplitude, -np.inf)
+        return float(self.freqs_hz[int(np.argmax(a))]) if np.isfinite(a).any() else float("nan")
+
+
+def _observed(rc, omega, Ur) -> tuple[float, float]:
+    """(first-harmonic amplitude, max over the period) at the observed DOFs (m)."""
+    from reduction.condense import recover
+    from workflow import fourier
+
+    obs = recover(rc, omega, Ur)
+    a1 = float(np.linalg.norm(obs[1])) if obs.shape[0] > 1 else 0.0
+    dyn = obs.copy()
+    dyn[0] = 0.0
+    t = fourier.to_time(dyn, max(PERIOD_SAMPLES, 4 * (obs.shape[0] - 1) + 4))
+    return a1, float(np.max(np.linalg.norm(np.atleast_2d(t.reshape(t.shape[0], -1)), axis=1)))
+
+
+def _solve_point(prob, guesses, solver: str, tol: float, maxiter: int):
+    """Solve one frequency from the first guess that converges; returns
+    (SolveResult of the last attempt, total iterations)."""
+    from workflow.errors import SceneError
+
+    total = 0
+    res = None
+    attempts = [(g, solver) for g in guesses]
+    if solver == "newton":
+        attempts.append((guesses[-1], "powell"))
+    for x0, s in attempts:
+        if x0 is None:
+            x0 = prob.x0()
+        if s in ("newton", "powell"):
+            res = prob.solve(x0, solver=s, tol=tol, maxiter=maxiter)
+        elif s == "pseudo-time":
+            from workflow.pseudotime import integrate
+
+            res = integrate(prob.residual, prob.residual_jacobian, x0, "ser", precond="jacobian", tol=tol,
+                            scale=prob.residual_scale(), max_steps=max(maxiter, 200))
+        else:
+            raise SceneError(f"hb.solver: {s!r} is not one of newton, powell, pseudo-time")
+        total += int(res.iterations)
+        if res.converged:
+            break
+    return res, total
+
+
+def sweep_variant(rc, cond: list, law, anchor, v: Variant, *, solver: str, tol: float, maxiter: int,
+                  max_passes: int = 20, progress=None, continuation: bool = False, log=None) -> SweepResult:
+    """Sweep ``v`` over the precomputed condensations ``cond`` (one per frequency).
+
+    ``anchor`` (p, 2) is the static tangential stick anchor carried in.
+    ``progress`` wraps the frequency loop (e.g. ``log.progress``).
+    """
+    from workflow.hb import HBProblem
+
+    if continuation:
+        try:
+            import workflow.sweep  # noqa: F401
+        except ImportError:
+            if log is not None:
+                log.warning("sweep.continuation: workflow.sweep is not installed; sequential sweep with a "
+                            "secant predictor instead")
+    n = len(cond)
+    out = SweepResult(variant=v, solver=solver, freqs_hz=np.array([c.omega / (2 * np.pi) for c in cond]),
+                      amplitude=np.full(n, np.nan), amplitude_max=np.full(n, np.nan),
+                      iterations=np.zeros(n, int), seconds=np.zeros(n), converged=np.zeros(n, bool))
+    t_all = time.perf_counter()
+    prev: list[tuple[float, np.ndarray]] = []   # (ω, x) of the last converged points
+    prob = None
+    idx = range(n)
+    for i in (progress(idx, total=n, label=v.label) if progress else idx):
+        c = cond[i]
+        t0 = time.perf_counter()
+        if prob is None:
+            prob = HBProblem(c.Zr, c.Fr, law, v.nh, v.nit, v.method, max_passes=max_passes, stick_anchor=anchor)
+        else:
+            prob = prob.with_linear(c.Zr, c.Fr)
+        guesses = []
+        if len(prev) >= 2:
+            (w1, x1), (w2, x2) = prev[-2], prev[-1]
+            guesses.append(x2 + (c.omega - w2) / (w2 - w1) * (x2 - x1))
+        if prev:
+            guesses.append(prev[-1][1])
+        guesses.append(None)                      # the problem's own x0 (static + tied linear)
+        res, its = _solve_point(prob, guesses, solver, tol, maxiter)
+        Ur = prob.harmonics(res.x)
+        a1, amax = _observed(rc, c.omega, Ur)
+        out.seconds[i] = time.perf_counter() - t0
+        out.iterations[i] = its
+        out.converged[i] = bool(res.converged)
+        out.amplitude[i], out.amplitude_max[i] = a1, amax
+        out.Ur.append(Ur)
+        out.reasons.append(res.reason)
+        if res.converged:
+            prev = (prev + [(c.omega, res.x)])[-2:]
+        else:
+            prev = []
+        out.dlft_max_passes = max(out.dlft_max_passes, prob.stats["max_passes"])
+    out.total_seconds = time.perf_counter() - t_all
+    return out
+
+
+def frf_error(v: SweepResult, ref: SweepResult) -> float | None:
+    """max |A − A_ref| / max A_ref over the points where both converged (None if none)."""
+    ok = v.converged & ref.converged
+    if not ok.any():
+        return None
+    top = float(np.max(ref.amplitude[ref.converged]))
+    return float(np.max(np.abs(v.amplitude[ok] - ref.amplitude[ok])) / top) if top > 0 else None
+
+
+# ------------------------------------------------------------------ stage
+def run(scene, inputs: dict, out: Path, log) -> dict:
+    from reduction.condense import condense, relative_coordinates
+    from reduction.reduced import ReducedModel
+    from workflow.errors import BundleError, SolverError
+    from workflow.hb import HBProblem
+
+    out = Path(out)
+    hb, sw, ct, ex = scene["hb"], scene["sweep"], scene["contact"], scene["excitation"]
+    path = Path(inputs["reduced"]) / "reduced.npz"
+    if not path.exists():
+        raise BundleError(f"reduced model {path} is missing (the reduction stage writes it)")
+    model = ReducedModel.load(path)
+    if model.n_pairs == 0:
+        raise BundleError(f"reduced model {path} has no contact pairs")
+    t0 = time.perf_counter()
+    rc = relative_coordinates(model)
+    f_mode, mode_index = first_excited_mode(rc)
+    f0, f1 = band(sw, f_mode)
+    freqs = np.linspace(f0, f1, sw.points) if sw.points > 1 else np.array([0.5 * (f0 + f1)])
+    todo = variants(hb)
+    ref_v = None
+    if hb.reference_harmonics > 0:
+        nit = max(int(hb.reference_time_samples), 2 * hb.reference_harmonics + 1)
+        ref_v = Variant("hbm", int(hb.reference_harmonics), nit)
+    nh_max = max([v.nh for v in todo] + ([ref_v.nh] if ref_v else []) + [1])
+    t_c = time.perf_counter()
+    cond = [condense(rc, 2 * np.pi * f, nh_max, derivative=bool(sw.continuation)) for f in freqs]
+    condense_seconds = time.perf_counter() - t_c
+    log.info(f"{model.n_pairs} contact pairs, {model.size} reduced DOFs; first excited tied mode "
+             f"#{mode_index + 1} at {f_mode:.2f} Hz; band {f0:.2f}–{f1:.2f} Hz, {len(freqs)} points; "
+             f"condensation to Nh = {nh_max}: {condense_seconds:.2f} s")
+
+    mid = cond[len(cond) // 2]
+    law = contact_law(ct, model, mid.Zr[1])
+    # --- static (preload) state, once
+    sp = HBProblem(mid.Zr[:1], mid.Fr[:1], law, 0, 1, "hbm", max_passes=ct.max_passes)
+    static = sp.static_state()
+    n_contact = int(np.count_nonzero(static.state != 0))
+    if not static.result.converged or n_contact == 0:
+        raise SolverError(
+            f"static contact state: {'no equilibrium' if not static.result.converged else 'every pair separated'} "
+            f"({static.result.reason}; ‖F_0‖ = {np.linalg.norm(mid.Fr[0]):.3g} N). The blade touches the disk "
+            "only at the flanks: it needs a preload pressing it into its slot — set rotation.speed_rpm "
+            "(centrifugal) or excitation.static_force, or a negative contact.gap (interference)")
+    log.info(f"static state: {n_contact}/{model.n_pairs} pairs in contact "
+             f"({int(np.count_nonzero(static.state == 2))} slipping), normal load "
+             f"{-static.lam[:, 0].sum():.4g} N; ε_N = {law.eps_n[0]:.3g}, ε_T = {law.eps_t[0]:.3g} N/m")
+    tied, slide = linear_frfs(rc, cond, static)
+
+    kw = dict(solver=hb.solver, tol=hb.tol, maxiter=hb.max_iterations, max_passes=ct.max_passes,
+              progress=log.progress, continuation=bool(sw.continuation), log=log)
+    runs: list[SweepResult] = []
+    for v in todo:
+        r = sweep_variant(rc, cond, law, static.anchor, v, **kw)
+        runs.append(r)
+        log.info(f"{v.label}: {r.total_seconds:.2f} s, {r.converged_points}/{len(freqs)} converged, "
+                 f"{int(r.iterations.sum())} iterations, peak {r.peak_hz():.2f} Hz")
+    ref = None
+    if ref_v is not None:
+        ref = sweep_variant(rc, cond, law, static.anchor, ref_v, **{**kw, "solver": "newton"})
+        log.info(f"reference {ref_v.label}: {ref.total_seconds:.2f} s, "
+                 f"{ref.converged_points}/{len(freqs)} converged")
+        for r in runs:
+            r.error = frf_error(r, ref)
+
+    files = write_outputs(out, runs, ref, freqs, tied, slide, static, law)
+    summary_runs = [{
+        "method": r.variant.method, "harmonics": r.variant.nh, "time_samples": r.variant.nit,
+        "solver": r.solver, "seconds": round(r.total_seconds, 4), "error": r.error,
+        "converged_points": r.converged_points, "points": len(freqs), "iterations": int(r.iterations.sum()),
+        "peak_hz": r.peak_hz(), "peak_amplitude_m": float(np.nanmax(r.amplitude)) if r.converged.any() else None,
+        "dlft_max_passes": r.dlft_max_passes,
+    } for r in runs]
+    reference = None
+    if ref is not None:
+        reference = {"method": "hbm", "harmonics": ref.variant.nh, "time_samples": ref.variant.nit,
+                     "solver": "newton", "seconds": round(ref.total_seconds, 4),
+                     "converged_points": ref.converged_points, "points": len(freqs), "peak_hz": ref.peak_hz()}
+    return {
+        "runs": runs_json(summary_runs),
+        "band_hz": [f0, f1],
+        "points": len(freqs),
+        "reference": reference,
+        "tied_frequency_hz": f_mode,
+        "tied_mode": mode_index + 1,
+        "static": {"pairs_in_contact": n_contact, "pairs_slipping": int(np.count_nonzero(static.state == 2)),
+                   "normal_load_N": float(-static.lam[:, 0].sum())},
+        "eps_n": float(law.eps_n[0]), "eps_t": float(law.eps_t[0]), "mu": float(ct.mu),
+        "excitation_amplitude_N": float(ex.amplitude),
+        "condense_seconds": round(condense_seconds, 4),
+        "seconds": round(time.perf_counter() - t0, 3),
+        "files": files,
+    }
+
+
+def runs_json(rows: list[dict]) -> list[dict]:
+    """NaN → None so summary.json stays valid JSON."""
+    def clean(v):
+        return None if isinstance(v, float) and not math.isfinite(v) else v
+    return [{k: clean(v) for k, v in row.items()} for row in rows]
+
+
+# ---------------------------------------------------------------- outputs
+def _csv(rows, header) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def _g(x) -> str:
+    return "" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.9g}"
+
+
+def write_outputs(out: Path, runs, ref, freqs, tied, slide, static, law) -> dict:
+    """All files of the stage; returns {name: path relative to out}."""
+    from workflow.io import write_text
+
+    files = {}
+    rows = []
+    for r, role in [(r, "variant") for r in runs] + ([(ref, "reference")] if ref else []):
+        v = r.variant
+        for i, f in enumerate(r.freqs_hz):
+            rows.append([v.method, v.nh, v.nit, r.solver, _g(float(f)), _g(float(r.amplitude[i])),
+                         int(r.iterations[i]), f"{r.seconds[i]:.6f}", int(r.converged[i]),
+                         _g(float(r.amplitude_max[i])), role])
+    write_text(out / "frf.csv", _csv(rows, FRF_COLUMNS))
+    files["frf"] = "frf.csv"
+    write_text(out / "linear.csv", _csv([[_g(float(f)), _g(float(a)), _g(float(b))]
+                                         for f, a, b in zip(freqs, tied, slide)],
+                                        ("frequency_hz", "tied_m", "sliding_m")))
+    files["linear"] = "linear.csv"
+
+    # --- CPU table (paper Table 1): seconds for 50 frequencies, normalised
+    base = next((r for r in runs if r.variant.method == "hbm" and r.variant.nh == 1 and r.variant.nit == 105),
+                runs[0] if runs else None)
+    cpu_rows = []
+    for r in runs:
+        s50 = r.total_seconds * 50.0 / max(len(r.freqs_hz), 1)
+        cpu_rows.append((r, s50, s50 / (base.total_seconds * 50.0 / max(len(base.freqs_hz), 1))
+                         if base and base.total_seconds > 0 else float("nan")))
+    write_text(out / "cpu_table.csv", _csv(
+        [[r.variant.method, r.variant.nh, r.variant.nit, r.variant.nit_label, f"{s:.6g}", f"{nrm:.6g}"]
+         for r, s, nrm in cpu_rows],
+        ("method", "Nh", "nit", "nit_label", "seconds_per_50", "normalised")))
+    files["cpu_table"] = "cpu_table.csv"
+    write_text(out / "cpu_table.md", _cpu_markdown(cpu_rows, base))
+    files["cpu_table_md"] = "cpu_table.md"
+
+    # --- error against run time
+    if ref is not None:
+        write_text(out / "error_vs_time.csv", _csv(
+            [[r.variant.method, r.variant.nh, r.variant.nit, r.solver, f"{r.total_seconds:.6g}", _g(r.error),
+              r.converged_points, len(r.freqs_hz)] for r in runs],
+            ("method", "Nh", "nit", "solver", "seconds", "error", "converged_points", "points")))
+        files["error_vs_time"] = "error_vs_time.csv"
+
+    try:
+        files.update(_figures(out, runs, ref, freqs, tied, slide))
+    except ImportError:  # pragma: no cover - matplotlib is a dependency
+        pass
+    return files
+
+
+def _cpu_markdown(cpu_rows, base) -> str:
+    cols = []
+    for r, _, _ in cpu_rows:
+        key = (r.variant.method, r.variant.nit_label)
+        if key not in cols:
+            cols.append(key)
+    nhs = sorted({r.variant.nh for r, _, _ in cpu_rows})
+    cell = {(r.variant.method, r.variant.nit_label, r.variant.nh): nrm for r, _, nrm in cpu_rows}
+    head = "| Nh | " + " | ".join(f"{m.upper()} nit={lab}" for m, lab in cols) + " |"
+    sep = "|---|" + "---|" * len(cols)
+    lines = [head, sep]
+    for nh in nhs:
+        vals = [cell.get((m, lab, nh)) for m, lab in cols]
+        lines.append(f"| {nh} | " + " | ".join("" if v is None else f"{v:.3g}" for v in vals) + " |")
+    ref = f"{base.variant.label}" if base else "—"
+    secs = f"{base.total_seconds * 50.0 / max(len(base.freqs_hz), 1):.3g} s" if base else ""
+    return (f"CPU (wall) time for 50 frequencies, normalised by {ref} ({secs}) — cf. paper Table 1.\n\n"
+            + "\n".join(lines) + "\n")
+
+
+_STYLE = {"hbm": "-", "tcm": "--", "hdhb": ":"}
+
+
+def _figures(out: Path, runs, ref, freqs, tied, slide) -> dict:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from workflow import fourier
+    from workflow.io import atomic_path
+
+    files = {}
+
+    def save(fig, name):
+        with atomic_path(out / name, suffix=".png") as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+        plt.close(fig)
+        files[name.removesuffix(".png")] = name
+
+    def frf_axes(sel, title, name):
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        ax.semilogy(freqs, tied, color="0.6", lw=1, ls="-.", label="linear, tied")
+        ax.semilogy(freqs, slide, color="0.8", lw=1, ls="-.", label="linear, sliding (μ = 0)")
+        if ref is not None:
+            ax.semilogy(ref.freqs_hz, ref.amplitude, "k-", lw=2.5, alpha=0.35, label=f"reference {ref.variant.label}")
+        for r in sel:
+            m = np.where(r.converged, r.amplitude, np.nan)
+            ax.semilogy(r.freqs_hz, m, ls=_STYLE.get(r.variant.method, "-"), marker=".", ms=3, label=r.variant.label)
+        top = max([np.nanmax(r.amplitude) for r in sel if np.isfinite(r.amplitude).any()] + [1e-300])
+        ax.set_ylim(top / 30, top * 3)
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_ylabel("tip amplitude, 1st harmonic (m)")
+        ax.set_title(title)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        save(fig, name)
+
+    nhs = sorted({r.variant.nh for r in runs})
+    for k in range(0, len(nhs), 2):
+        grp = nhs[k:k + 2]
+        frf_axes([r for r in runs if r.variant.nh in grp], "FRF, Nh = " + ", ".join(map(str, grp)) + " (cf. Figs. 4–5)",
+                 "frf_nh" + "_".join(map(str, grp)) + ".png")
+    if nhs:
+        frf_axes([r for r in runs if r.variant.nh == nhs[0]],
+                 f"Aliasing at Nh = {nhs[0]}: nit = 2Nh+1 vs larger nit (cf. Fig. 6)", "frf_nit_aliasing.png")
+
+    # iterations (Fig. 7)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for r in runs:
+        ax.plot(r.freqs_hz, r.iterations, ls=_STYLE.get(r.variant.method, "-"), marker=".", ms=3,
+                label=r.variant.label)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("solver iterations")
+    ax.set_title("Iterations against frequency (cf. Fig. 7)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    save(fig, "iterations.png")
+
+    # tangential displacement of one pair over a period at resonance (Fig. 8)
+    base = ref if ref is not None else max(runs, key=lambda r: (r.variant.nh, r.variant.nit))
+    if base.converged.any():
+        i_res = int(np.nanargmax(np.where(base.converged, base.amplitude, np.nan)))
+        U = base.Ur[i_res]
+        amp_t = np.linalg.norm(np.abs(U[1:]).reshape(U.shape[0] - 1, -1, 3)[:, :, 1:], axis=(0, 2))
+        pair = int(np.argmax(amp_t))
+        wanted = [("hbm", 7), ("hdhb", 7), ("hdhb", 17)]
+        sel = [r for r in runs if (r.variant.method, r.variant.nh) in wanted and r.converged[i_res]]
+        if not sel:
+            sel = [r for r in runs if r.converged[i_res]][:4]
+        tau = fourier.sample_times(256)
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for r in ([base] if ref is not None else []) + sel:
+            ut = fourier.to_time(r.Ur[i_res], 256).reshape(256, -1, 3)[:, pair, 1]
+            lab = f"reference {r.variant.label}" if r is ref else r.variant.label
+            ax.plot(tau, ut * 1e6, ls=_STYLE.get(r.variant.method, "-") if r is not ref else "-",
+                    lw=2.5 if r is ref else 1.2, alpha=0.4 if r is ref else 1.0, color="k" if r is ref else None,
+                    label=lab)
+            if r.variant.method == "hdhb":  # its unknowns: the samples themselves
+                ts = fourier.sample_times(r.variant.nit)
+                us = fourier.to_time(r.Ur[i_res], r.variant.nit).reshape(r.variant.nit, -1, 3)[:, pair, 1]
+                ax.plot(ts, us * 1e6, "o", ms=3, color=ax.lines[-1].get_color())
+        ax.set_xlabel("τ = ωt (rad)")
+        ax.set_ylabel(f"u_t1 of pair {pair} (µm)")
+        ax.set_title(f"Tangential relative displacement over a period at {base.freqs_hz[i_res]:.2f} Hz (cf. Fig. 8)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        save(fig, "tangential.png")
+
+    if ref is not None:
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        marker = {"hbm": "o", "tcm": "s", "hdhb": "^"}
+        for r in runs:
+            if r.error is None:
+                continue
+            ax.loglog(max(r.total_seconds, 1e-4), max(r.error, 1e-12), marker.get(r.variant.method, "o"),
+                      label=r.variant.label)
+            ax.annotate(f"{r.variant.method.upper()}-{r.variant.nh}/{r.variant.nit_label}",
+                        (max(r.total_seconds, 1e-4), max(r.error, 1e-12)), fontsize=6, xytext=(3, 3),
+                        textcoords="offset points")
+        ax.set_xlabel("wall time of the sweep (s)")
+        ax.set_ylabel("max |A − A_ref| / max A_ref")
+        ax.set_title(f"FRF error against run time (reference {ref.variant.label})")
+        ax.grid(True, which="both", alpha=0.3)
+        fig.tight_layout()
+        save(fig, "error_vs_time.png")
+    return files

@@ -1,0 +1,206 @@
+"""Remap stage: the wear depth back onto the geometry (contracts §8).
+
+Reads the bundle (``mesh.xdmf`` with its tags and the contact pairs) and the
+wear stage's ``wear.csv``; writes under ``out``:
+
+* ``wear_map.xdmf`` (+ .h5): the mesh with ``wear_depth`` (m, each body's
+  share on its flanks) and ``wear_motion`` (m) — open in ParaView;
+* ``worn_mesh.xdmf`` (+ .h5): the worn mesh with its tags;
+* ``worn_nodes.npz``: worn/new coordinates by gmsh node tag (for a ``.msh``);
+* ``figures/wear_flanks.png``, ``figures/wear_sector.png``;
+* with ``remap.reassemble``: ``model/`` the worn bundle (same loads and
+  material; ``gap`` = old gap + W so a wear study can continue from it),
+  ``reduced.npz`` when :func:`reduction.reduce.reduce_bundle` exists, and the
+  first tied frequencies new vs worn.
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from workflow.errors import BundleError, GeometryError
+
+NAME = "remap"
+SECTIONS = ("remap", "wear")
+NEEDS = ("bundle", "wear")
+PRODUCES = ("wear_map",)
+
+WEAR_CSV = "wear.csv"
+FIG_DIR = "figures"
+#: Tied frequencies compared new vs worn at most (the summary's freq_shift_hz).
+N_FREQ = 6
+
+
+# ------------------------------------------------------------- reading inputs
+
+def read_wear_csv(path: Path, methods=()) -> dict:
+    """Columns of the wear stage's CSV: ``pair`` (int), ``position`` (p, 3) [m],
+    ``W``, ``W_blade``, ``W_disk`` (p,) [m] (shares None if absent) and the
+    ``method`` chosen: the first of ``methods`` with a ``W_<method>_m`` column,
+    else the first W column."""
+    path = Path(path)
+    if not path.is_file():
+        raise GeometryError(f"wear output {path} is missing (run the wear stage)")
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        raise GeometryError(f"wear output {path} has no rows")
+    cols = list(rows[0])
+    w_cols = [c for c in cols if c.startswith("W_") and not c.startswith(("W_blade_", "W_disk_"))] or \
+             [c for c in cols if c == "W" or c.startswith("W")]
+    if not w_cols:
+        raise GeometryError(f"wear output {path} has no wear-depth column (W_<method>_m)")
+    chosen = next((f"W_{m}_m" for m in methods if f"W_{m}_m" in cols), w_cols[0])
+    method = chosen[2:-2] if chosen.startswith("W_") and chosen.endswith("_m") else chosen
+
+    def col(name):
+        return np.array([float(r[name]) for r in rows]) if name in cols else None
+
+    pos_cols = next(((a, b, c) for a, b, c in (("x_m", "y_m", "z_m"), ("x", "y", "z")) if a in cols), None)
+    return dict(pair=np.array([int(float(r["pair"])) for r in rows]) if "pair" in cols else np.arange(len(rows)),
+                position=np.column_stack([col(c) for c in pos_cols]) if pos_cols else None,
+                W=col(chosen), W_blade=col(f"W_blade_{method}_m"), W_disk=col(f"W_disk_{method}_m"),
+                method=method)
+
+
+def pair_wear(contact, table: dict, blade_share: float):
+    """:class:`geometry.remap.PairWear` in bundle pair order from the CSV table.
+
+    Rows are matched by ``pair`` index and checked against the bundle's pair
+    positions (1 µm); shares come from the CSV when present, else from
+    ``blade_share``.
+    """
+    from geometry.remap import PairWear, wear_shares
+
+    p = contact.n_pairs
+    if contact.position is None or contact.flank is None:
+        raise BundleError("the bundle's contact.npz lacks position/flank, needed to map wear onto the mesh")
+    idx = table["pair"]
+    if len(idx) != p or set(idx.tolist()) != set(range(p)):
+        raise GeometryError(f"wear.csv has {len(idx)} rows / pairs {idx.min()}..{idx.max()}, "
+                            f"the bundle {p} pairs")
+    order = np.argsort(idx)
+    if table["position"] is not None:
+        off = np.linalg.norm(table["position"][order] - contact.position, axis=1).max()
+        if off > 1e-6:
+            raise GeometryError(f"wear.csv positions differ from the bundle's pairs by up to {off:.3g} m "
+                                f"(was the wear computed on another bundle?)")
+    W = table["W"][order]
+    if table["W_blade"] is not None and table["W_disk"] is not None:
+        w_blade, w_disk = table["W_blade"][order], table["W_disk"][order]
+    else:
+        w_blade, w_disk = wear_shares(W, blade_share)
+    return PairWear(np.asarray(contact.position, float), np.asarray(contact.normal, float),
+                    np.asarray(contact.flank), np.clip(w_blade, 0.0, None), np.clip(w_disk, 0.0, None))
+
+
+# ------------------------------------------------------------------- the stage
+
+def run(scene, inputs: dict, out: Path, log) -> dict:
+    from geometry import remap as rm
+    from reduction import dolfinx_compat as dc
+    from reduction.bundle import read_bundle
+    from workflow import render
+    from workflow.stages.assembly import bundle_folder
+
+    out = Path(out)
+    rp, wp = scene["remap"], scene["wear"]
+    bdir = bundle_folder(inputs["bundle"])
+    bundle = read_bundle(bdir)
+    if not (bdir / "mesh.xdmf").is_file():
+        raise GeometryError(f"bundle {bdir} has no mesh.xdmf: the wear cannot be mapped onto a mesh "
+                            f"(a user bundle needs its mesh for the remap stage)")
+    table = read_wear_csv(Path(inputs["wear"]) / WEAR_CSV, getattr(wp, "methods", ()))
+    pairs = pair_wear(bundle.contact, table, wp.blade_share)
+    mesh, ct, ft = dc.read_mesh_xdmf(bdir / "mesh.xdmf")
+    r = rm.remap_wear(mesh, ft, pairs, rp.max_fraction, rp.smoothing)
+    share_max = float(max(pairs.w_blade.max(initial=0.0), pairs.w_disk.max(initial=0.0)))
+    log.info(f"remap: wear column {table['method']!r}, max share {share_max:.3g} m, "
+             f"max motion {r.max_node_motion:.3g} m = {r.max_fraction:.3g} × local element size, "
+             f"smallest det ratio {r.orientation:.3g}")
+
+    rm.write_wear_xdmf(out / "wear_map.xdmf", mesh, r, ct, ft)
+    rm.write_worn_xdmf(out / "worn_mesh.xdmf", mesh, r, ct, ft)
+    rm.write_worn_nodes(out / "worn_nodes.npz", mesh, r)
+
+    surfaces = rm.flank_surfaces(mesh, ft, r, pairs)
+    cells, types, points = dc.vtk_mesh(mesh)
+    body = np.zeros(len(types), dtype=int)
+    body[ct.indices] = ct.values
+    figs = [render.render_flank_wear(surfaces, out / FIG_DIR / "wear_flanks.png", rp.image_width,
+                                     title=f"wear depth ({table['method']}) on each flank"),
+            render.render_sector(cells, types, points, body, surfaces, out / FIG_DIR / "wear_sector.png",
+                                 rp.image_width)]
+
+    summary = {
+        "wear_map": "wear_map.xdmf", "worn_mesh": "worn_mesh.xdmf", "worn_nodes": "worn_nodes.npz",
+        "figures": [str(Path(f).relative_to(out)) for f in figs], "wear_column": table["method"],
+        "max_node_motion_m": r.max_node_motion, "max_wear_share_m": share_max,
+        "max_motion_fraction": r.max_fraction, "max_fraction_allowed": rp.max_fraction,
+        "min_det_ratio": r.orientation, "smoothing": rp.smoothing, "freq_shift_hz": [],
+    }
+    if rp.reassemble:
+        summary.update(reassemble(scene, bundle, mesh, ct, ft, r, pairs, out, log))
+    return summary
+
+
+def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log) -> dict:
+    """Assemble the worn model (new bundle under ``out/model``), reduce it if the
+    reduction is available, and compare the first tied frequencies."""
+    import time
+
+    from geometry.remap import moved
+    from reduction import dolfinx_compat as dc
+    from reduction.assemble import as_section, build_bundle
+    from reduction.bundle import write_bundle
+    from reduction.modes import frequencies
+
+    t0 = time.perf_counter()
+    meta = bundle.meta or {}
+    material = scene.get("material") or as_section(meta.get("material"))
+    rotation, damping, excitation = scene.get("rotation"), scene.get("damping"), scene.get("excitation")
+    geometry_info = meta.get("geometry") or {}
+    with moved(mesh, r.x):
+        worn, _ = build_bundle(mesh, ct, ft, geometry_info, material, rotation, damping, excitation)
+        stage = out / ".worn-mesh"
+        stage.mkdir(parents=True, exist_ok=True)
+        dc.write_mesh_xdmf(mesh, ct, ft, stage / "mesh.xdmf")
+    # Same pairs (worn positions moved along n only): match them, then carry
+    # the wear into the gap so that a new wear study on this bundle starts at W = 0.
+    c = worn.contact
+    W = pairs.w_blade + pairs.w_disk
+    match = _match_pairs(bundle.contact.position, c.position, W)
+    c.gap = bundle.contact.gap + W[match]
+    worn.meta = dict(worn.meta, worn_from=str(bundle.path), gap_includes_wear=True,
+                     max_wear_m=float(W.max(initial=0.0)))
+    write_bundle(worn, out / "model", extra_files={"mesh.xdmf": stage / "mesh.xdmf", "mesh.h5": stage / "mesh.h5"})
+    stage.rmdir()
+    n = min(N_FREQ, int(getattr(scene.get("modes"), "count", N_FREQ)))
+    f_new, f_worn = frequencies(bundle, n, tied=True), frequencies(worn, n, tied=True)
+    res = {"worn_bundle": "model", "freq_new_hz": f_new.tolist(), "freq_worn_hz": f_worn.tolist(),
+           "freq_shift_hz": (f_worn - f_new).tolist(), "reduced": None}
+    try:
+        from reduction.reduce import reduce_bundle
+    except ImportError:
+        log.info("remap: reduction.reduce.reduce_bundle is not available; worn bundle written, not reduced")
+    else:
+        red = scene.get("reduction")
+        reduced = reduce_bundle(worn, n_modes=int(getattr(red, "modes", 30)))
+        reduced.save(out / "reduced.npz")
+        res["reduced"] = "reduced.npz"
+    res["reassembly_s"] = time.perf_counter() - t0
+    log.info("remap: first tied frequencies worn − new [Hz]: "
+             + ", ".join(f"{d:+.4g}" for d in res["freq_shift_hz"]))
+    return res
+
+
+def _match_pairs(pos_new: np.ndarray, pos_worn: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """Index into the new pairs of each worn pair (nearest position; they moved by ≤ W)."""
+    from scipy.spatial import cKDTree
+
+    d, i = cKDTree(pos_new).query(pos_worn)
+    if len(set(i.tolist())) != len(i) or (len(d) and d.max() > 2.0 * W.max(initial=0.0) + 1e-9):
+        raise GeometryError("remap: the worn bundle's contact pairs do not match the new bundle's")
+    return i
