@@ -188,7 +188,7 @@ def test_info_is_json_serialisable_and_mesh_is_modest(default_sector):
     assert info["sector_angle"] == pytest.approx(2 * math.pi / 47)
 
 
-@pytest.mark.parametrize("along,across", [(2, 2), (3, 4), (8, 3)])
+@pytest.mark.parametrize("along,across", [(2, 2), (3, 3), (8, 3), (12, 6)])
 def test_contact_node_count_follows_the_grid(tmp_path, along, across, read_msh):
     p = replace(SectorParams(), nodes_along=along, nodes_across=across,
                 h_disk=0.01, h_blade=0.006, h_airfoil=0.012)
@@ -217,10 +217,11 @@ def test_same_parameters_give_the_same_file(tmp_path):
     assert (tmp_path / "a.msh").read_bytes() == (tmp_path / "b.msh").read_bytes()
 
 
-def test_mesh_size_refines(tmp_path):
-    coarse = build_sector(replace(SectorParams(), h_airfoil=0.012), tmp_path / "c.msh")
-    fine = build_sector(replace(SectorParams(), h_airfoil=0.006), tmp_path / "f.msh")
-    assert fine["n_nodes"] > 1.5 * coarse["n_nodes"]
+def test_mesh_sizes_drive_the_refinement(default_sector, tmp_path):
+    d = SectorParams()
+    coarse = build_sector(replace(d, h_blade=2 * d.h_blade, h_disk=2 * d.h_disk, h_airfoil=2 * d.h_airfoil),
+                          tmp_path / "c.msh")
+    assert default_sector[0]["n_nodes"] > 2.0 * coarse["n_nodes"]
 
 
 D = SectorParams()
@@ -249,8 +250,8 @@ BAD = [
     ({"nodes_along": 1}, "nodes_along"),
     ({"nodes_across": 1}, "nodes_across"),
     ({"nodes_across": 2.5}, "nodes_across"),
-    ({"nodes_along": 2, "nodes_across": 5}, "nodes_across"),   # flank cells 40 × 1.25 mm
-    ({"nodes_along": 40}, "nodes_along"),
+    ({"nodes_along": 2, "nodes_across": 5}, "nodes_along"),    # flank cells 40 × 1.25 mm
+    ({"nodes_along": 100}, "nodes_across"),                     # flank cells 0.4 × 5 mm
     ({"relief_angle": -0.1}, "relief_angle"),
     ({"element_order": 3}, "element_order"),
     ({"h_blade": 1e-5}, "h_blade"),              # would make billions of elements
@@ -286,17 +287,16 @@ def test_gmsh_failure_becomes_geometry_error_and_gmsh_stays_usable(tmp_path, mon
 
 
 def test_a_mesh_gmsh_cannot_make_raises(tmp_path, monkeypatch):
-    """gmsh errors from inside the library (here: an impossible transfinite
-    surface) surface as GeometryError, not as a bare Exception."""
+    """A real error inside gmsh (flank faces that a shifted 'identity' cannot
+    map onto each other) surfaces as GeometryError, not a bare Exception."""
     import geometry.meshing as gm
 
-    def bad_structured(face, n_along, n_across, along_axis=0):
-        import gmsh
-        gmsh.model.mesh.setTransfiniteSurface(face, cornerTags=[1, 2, 3])  # not its corners
-
-    monkeypatch.setattr(gm, "make_structured", bad_structured)
-    with pytest.raises(GeometryError, match="gmsh failed"):
+    shifted = list(gm.IDENTITY)
+    shifted[3] = 1e-3                       # x + 1 mm
+    monkeypatch.setattr(gm, "IDENTITY", shifted)
+    with pytest.raises(GeometryError, match="gmsh failed: .*periodic"):
         build_sector(replace(SectorParams(), h_airfoil=0.012), tmp_path / "s.msh")
+    assert not (tmp_path / "s.msh").exists()
 
 
 def test_poor_quality_is_refused(tmp_path, monkeypatch):
