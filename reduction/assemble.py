@@ -206,10 +206,14 @@ def modal_beta(ratio: float, omega1: float) -> float:
 
 
 def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rotation=None, damping=None,
-                 excitation=None) -> tuple[Bundle | None, dict]:
+                 excitation=None, pairs: dict | None = None) -> tuple[Bundle | None, dict]:
     """Assemble everything into an in-memory :class:`Bundle` (rank 0; ``None`` elsewhere).
 
-    Returns ``(bundle, info)`` with ``info`` the summary (timings, mass…).
+    ``pairs``: contact arrays as returned by
+    :func:`reduction.pairs.contact_pairs` (on rank 0) to use instead of
+    matching the flank vertices of ``mesh`` — e.g. the unworn pairs of a worn
+    mesh, whose flank vertices no longer coincide. Returns ``(bundle, info)``
+    with ``info`` the summary (timings, mass…).
     """
     t = {}
     comm = mesh.comm
@@ -221,7 +225,8 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
     V = dc.vector_space(mesh, DEGREE)
     bs = dc.block_size(V)
     t0 = time.perf_counter()
-    pairs = contact_pairs(V, facet_tags)
+    if comm.bcast(pairs is None, root=dc.ROOT):
+        pairs = contact_pairs(V, facet_tags)
     fixed = clamped_dofs(V, facet_tags)
     t["pairs_s"] = time.perf_counter() - t0
     ops, _ = assemble_operators(

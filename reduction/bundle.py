@@ -102,7 +102,8 @@ def write_bundle(bundle: Bundle, path: str | Path, extra_files: dict[str, Path] 
     path = Path(path)
     with atomic_dir(path) as tmp:
         for name in MATRICES:
-            sp.save_npz(tmp / f"{name}.npz", getattr(bundle, name).tocsr())
+            # Uncompressed: zlib on ~10⁶ nonzeros costs seconds and saves little.
+            sp.save_npz(tmp / f"{name}.npz", getattr(bundle, name).tocsr(), compressed=False)
         c = bundle.contact
         arrays = {k: getattr(c, k) for k in CONTACT_KEYS}
         for k in ("flank", "position"):

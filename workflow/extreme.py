@@ -46,6 +46,7 @@ import scipy.linalg
 from reduction.condense import condense, relative_coordinates
 from reduction.reduced import ReducedModel
 from workflow.contact import SEPARATION, SLIP, STICK, ContactLaw
+from workflow.errors import BladewearError
 from workflow.hb import HBProblem
 
 __all__ = ["GROUPS", "METHODS", "SOLVERS", "Settings", "Setup", "Case", "CaseResult", "synthetic_model",
@@ -148,7 +149,7 @@ class Settings:
     max_time_samples: int = 1024
     penalty_decades: int = 3
     excitation_factors: tuple = (1e-6, 1e-4, 1e-2, 1.0, 1e1, 1e2, 1e3)
-    wear_k: float = 1e-8         # m²/N: "very large" Archard coefficient
+    wear_k: float = 1e-11        # m²/N: "very large" Archard coefficient (paper-like: 1e-13)
     extra_modes: int = 12        # conditioning case (synthetic models only)
     spread: float = 1e3
 
@@ -286,7 +287,7 @@ def build_cases(su: Setup) -> list[Case]:
         out += [Case("wear-large-k", "wear", w, mu, wear={"k_w": s.wear_k, "mode": "steady"},
                      note="huge Archard coefficient: steady state in a few blocks"),
                 Case("wear-opens", "wear", w, mu, force_scale=30.0, static_scale=0.02,
-                     wear={"k_w": 1e3 * s.wear_k, "mode": "open"},
+                     wear={"k_w": 10.0 * s.wear_k, "mode": "open"},
                      note="light preload, gross slip: wear opens the contact")]
     if "conditioning" in g and su.model.info.get("synthetic"):
         ill = synthetic_model(su.p, extra_modes=s.extra_modes, spread=s.spread)
@@ -534,15 +535,29 @@ def _scaled_rj(prob, r, c, z):
     return r * R, r[:, None] * J * c[None, :]
 
 
-def _diagnose(res, prob: HBProblem, facts: dict, cond: float | None) -> str:
-    """Name the most likely cause of a failed solve."""
+def _diagnose(res, prob: HBProblem, x, solver: str, facts: dict, cond: float | None) -> str:
+    """Name the most likely cause of a failed solve (measured at the final point)."""
     parts = [res.reason or "not converged"]
     if facts.get("residual") is not None:
         parts.append(f"‖R‖/‖F‖ = {facts['residual']:.1e}")
-    if cond is not None and cond > 1e12:
-        parts.append(f"ill-conditioned Jacobian (cond {cond:.1e}): scale the unknowns or use powell")
-    if facts.get("separated", 0) > 0.999:
+    sep = facts.get("separated") or 0.0
+    if 0.0 < sep < 1.0:
+        parts.append(f"contact opens and closes within the period ({sep:.0%} of instants × pairs separated): "
+                     "stalled at a kink of the piecewise-smooth residual, no smooth root nearby")
+    elif sep >= 1.0:
         parts.append("contact open everywhere")
+    if solver == "pseudo-time" and x is not None and prob.n <= 1500:
+        try:
+            _, J = prob.residual_jacobian(x)
+            neg = int(np.sum(np.linalg.eigvals(J).real < 0))
+        except (np.linalg.LinAlgError, ValueError):
+            neg = 0
+        if neg:
+            parts.append(f"J has {neg} eigenvalue(s) with Re < 0 here: the steady state is not an attracting "
+                         "equilibrium of ∂x/∂t* = −R (slipping pairs see the free-interface Zr, indefinite above "
+                         "its resonances); use newton")
+    if cond is not None and cond > 1e12:
+        parts.append(f"ill-conditioned Jacobian (cond {cond:.1e})")
     if prob.stats.get("unconverged_passes"):
         parts.append(f"DLFT passes hit the limit {prob.stats['unconverged_passes']}×")
     return "; ".join(parts)
@@ -588,15 +603,15 @@ def run_case(su: Setup, case: Case, method: str, solver: str, reference: dict | 
         elif res.converged:
             out.diagnosis = f"solver claimed convergence but {why}"
         else:
-            out.diagnosis = _diagnose(res, prob, facts, cond) if not why.startswith("DLFT") else \
-                f"{res.reason}; {why}"
+            out.diagnosis = _diagnose(res, prob, x if np.all(np.isfinite(x)) else None, solver, facts, cond) \
+                if not why.startswith("DLFT") else f"{res.reason}; {why}"
         if np.all(np.isfinite(x)):
             out.x = x
             out.U = prob.harmonics(x)
         if out.converged:
             out.error = _error(su, case, prob, out.U, reference)
-    except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
-        out.diagnosis = f"{type(exc).__name__}: {exc}"
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError, BladewearError) as exc:
+        out.diagnosis = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
     out.seconds = time.perf_counter() - t0
     return out
 
@@ -669,11 +684,12 @@ def run_matrix(su: Setup, cases: list[Case] | None = None, *, progress: Callable
     it = progress(order, len(order)) if progress else order
     for i in it:
         case, method, solver = jobs[i]
-        ref = refs.get((method, solver))
+        ref = refs.get((method, solver), refs.get(method))
         r = run_case(su, case, method, solver, reference={"penalty": ref})
         if case.limit == "penalty" and case.eps_scale == 1.0:
             if r.converged:
                 refs[(method, solver)] = r.U
+                refs.setdefault(method, r.U)
                 r.error = 0.0
         results[i] = r
     return [results[i] for i in range(len(jobs))]

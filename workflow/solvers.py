@@ -13,6 +13,7 @@ the last finite iterate and says why in ``reason``.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -99,7 +100,9 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
         if not _finite(J):
             return done("non-finite Jacobian", False, R, it)
         try:
-            dx = scipy.linalg.solve(J, -R, check_finite=False)
+            with warnings.catch_warnings():       # ill-conditioned: lstsq below if not finite
+                warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+                dx = scipy.linalg.solve(J, -R, check_finite=False)
         except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
             dx = None
         if dx is None or not _finite(dx):
@@ -126,8 +129,10 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
             nu = 1e-8 * max(float(np.trace(JtJ)) / len(x), 1e-300)
             for _ in range(max_backtracks):
                 try:
-                    dx = -scipy.linalg.solve(JtJ + nu * np.eye(len(x)), g, assume_a="pos",
-                                             check_finite=False)
+                    with warnings.catch_warnings():   # small ν on a singular JᵀJ: ν grows next
+                        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+                        dx = -scipy.linalg.solve(JtJ + nu * np.eye(len(x)), g, assume_a="pos",
+                                                 check_finite=False)
                 except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
                     dx = None
                 if dx is not None and _finite(dx):

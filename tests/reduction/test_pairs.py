@@ -63,3 +63,14 @@ def test_unmatched_flank_meshes_raise(tmp_path):
     mesh, _, ft = dc.read_msh(path)
     with pytest.raises(GeometryError, match="flank"):
         contact_pairs(dc.vector_space(mesh, 2), ft)
+
+
+def test_build_bundle_accepts_given_pairs(dovetail, dovetail_mesh, pairs):
+    """``pairs=`` overrides the vertex matching (the remap's worn mesh uses the unworn pairs)."""
+    from conftest import TI
+    from reduction.assemble import build_bundle
+
+    given = {k: v.copy() for k, v in pairs[0].items()}
+    given["area"] = given["area"] * 2.0
+    b, _ = build_bundle(*dovetail_mesh, dovetail[1], TI, damping=dict(modal_ratio=0.0), pairs=given)
+    np.testing.assert_array_equal(b.contact.area, given["area"])

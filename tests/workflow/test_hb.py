@@ -165,7 +165,7 @@ CASES = {
     "slip": (dict(mu=0.0, force=1.0), (False, False, True)),
     "partial": (dict(mu=0.3, force=0.5), (False, True, True)),
     "separation": (dict(mu=0.3, gap=np.full(2, 1e-2), preload=0.0, force=1.0), (True, False, False)),
-    "mixed": (dict(mu=0.3, preload=np.array([10.0, 3.0]), force=0.5, force_n=4.0), (True, True, True)),
+    "mixed": (dict(mu=0.3, preload=np.array([10.0, 2.0]), force=0.5, force_n=4.0), (True, True, True)),
 }
 
 

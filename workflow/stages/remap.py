@@ -15,7 +15,6 @@ wear stage's ``wear.csv``; writes under ``out``:
 """
 from __future__ import annotations
 
-import contextlib
 import csv
 from pathlib import Path
 
@@ -163,8 +162,16 @@ def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log) -> dict:
     material = scene.get("material") or as_section(meta.get("material"))
     rotation, damping, excitation = scene.get("rotation"), scene.get("damping"), scene.get("excitation")
     geometry_info = meta.get("geometry") or {}
-    with _pairs_of_unworn_mesh(mesh, ft), moved(mesh, r.x):
-        worn, _ = build_bundle(mesh, ct, ft, geometry_info, material, rotation, damping, excitation)
+    from reduction.assemble import DEGREE
+    from reduction.pairs import contact_pairs
+
+    # Wear opens the gap; it does not change who touches whom. On the worn mesh
+    # the flank vertices are W apart and would not match, so the pairs (DOFs,
+    # frames, areas) are taken from the unworn mesh.
+    unworn = contact_pairs(dc.vector_space(mesh, DEGREE), ft)
+    with moved(mesh, r.x):
+        worn, _ = build_bundle(mesh, ct, ft, geometry_info, material, rotation, damping, excitation,
+                               pairs=unworn)
         stage = out / ".worn-mesh"
         stage.mkdir(parents=True, exist_ok=True)
         dc.write_mesh_xdmf(mesh, ct, ft, stage / "mesh.xdmf")
@@ -195,32 +202,6 @@ def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log) -> dict:
     log.info("remap: first tied frequencies worn − new [Hz]: "
              + ", ".join(f"{d:+.4g}" for d in res["freq_shift_hz"]))
     return res
-
-
-@contextlib.contextmanager
-def _pairs_of_unworn_mesh(mesh, ft):
-    """Inside: the assembly's contact pairs are those of the *unworn* mesh.
-
-    On the worn mesh the blade and disk flank vertices are W apart, so
-    ``reduction.pairs.contact_pairs`` (which matches coinciding vertices)
-    rightly refuses them. The pairs (DOFs, frames, areas) are the unworn
-    ones — wear opens the gap, it does not change who touches whom — so they
-    are computed before the motion and handed to ``build_bundle``.
-
-    HOOK for the assembly engineer: replace this patch by a ``pairs=``
-    argument of ``reduction.assemble.build_bundle``.
-    """
-    import reduction.assemble as assemble
-    from reduction import dolfinx_compat as dc
-    from reduction.pairs import contact_pairs
-
-    unworn = contact_pairs(dc.vector_space(mesh, assemble.DEGREE), ft)
-    original = assemble.contact_pairs
-    assemble.contact_pairs = lambda V, facet_tags, *a, **k: {key: np.copy(v) for key, v in unworn.items()}
-    try:
-        yield unworn
-    finally:
-        assemble.contact_pairs = original
 
 
 def _match_pairs(pos_new: np.ndarray, pos_worn: np.ndarray, W: np.ndarray) -> np.ndarray:

@@ -1,0 +1,80 @@
+"""Newton and hybrid Powell: same roots, honest failure reports, no NaN leaks."""
+import numpy as np
+import pytest
+
+from hbmodels import condense, law_for, root_model
+from workflow.hb import HBProblem
+from workflow.solvers import newton, powell
+
+
+def _problem():
+    m = root_model(2, force=0.5)
+    nh = 3
+    Zr, Fr, _, _ = condense(m, 2 * np.pi * 25.0, nh)
+    return HBProblem(Zr, Fr, law_for(2, mu=0.3, eps=7e4), nh, 32, "hbm")
+
+
+def test_newton_and_powell_reach_the_same_solution():
+    pr = _problem()
+    x0 = pr.x0()
+    rn = newton(pr.residual_jacobian, x0, fun=pr.residual, tol=1e-11, scale=pr.residual_scale())
+    rp = powell(pr.residual, pr.residual_jacobian, x0, tol=1e-11, scale=pr.residual_scale())
+    assert rn.converged and rp.converged, (rn.reason, rp.reason)
+    assert rn.reason == rp.reason == "converged"
+    assert np.allclose(rn.x, rp.x, rtol=1e-7, atol=1e-9 * np.abs(rn.x).max())
+    assert rn.residual_norm <= 1e-11 * pr.residual_scale()
+    assert rn.jacobian_evaluations >= 1 and rn.seconds > 0 and len(rn.history) == rn.iterations + 1
+
+
+def test_newton_converges_quadratically_on_a_smooth_system():
+    def fj(x):
+        R = np.array([x[0] ** 2 + x[1] ** 2 - 4.0, x[0] - x[1]])
+        return R, np.array([[2 * x[0], 2 * x[1]], [1.0, -1.0]])
+    r = newton(fj, [3.0, 1.0], tol=1e-14, scale=4.0)
+    assert r.converged and np.allclose(r.x, [np.sqrt(2), np.sqrt(2)])
+    h = r.history
+    assert h[-2] < 1e-5 * h[0] and r.iterations <= 7
+
+
+def test_tolerance_is_relative_to_scale():
+    fj = lambda x: (np.array([x[0] - 1e6]), np.array([[1.0]]))  # noqa: E731
+    r = newton(fj, [0.0], tol=1e-9, scale=1e6)
+    assert r.converged and r.iterations == 1
+
+
+def test_max_iterations_reported_without_nan():
+    pr = _problem()
+    r = newton(pr.residual_jacobian, pr.x0(), fun=pr.residual, tol=1e-14, scale=pr.residual_scale(),
+               maxiter=1)
+    assert not r.converged and r.reason == "max iterations"
+    assert np.all(np.isfinite(r.x)) and np.isfinite(r.residual_norm)
+
+
+@pytest.mark.parametrize("which", ["newton", "powell"])
+def test_no_root_is_reported(which):
+    fun = lambda x: np.array([x[0] ** 2 + 1.0])  # noqa: E731
+    fj = lambda x: (fun(x), np.array([[2 * x[0]]]))  # noqa: E731
+    r = newton(fj, [1.0], fun=fun, maxiter=30) if which == "newton" else powell(fun, fj, [1.0], maxfev=50)
+    assert not r.converged and r.reason != "converged"
+    assert np.all(np.isfinite(r.x)) and np.isfinite(r.residual_norm)
+
+
+@pytest.mark.parametrize("which", ["newton", "powell"])
+def test_non_finite_residual_stops_with_diagnosis(which):
+    # finite at the start, NaN once x leaves (−1, 1): the solvers must not return NaN
+    def fun(x):
+        return np.array([np.sqrt(1.0 - x[0] ** 2) - 2.0 + 0 * x[0]]) if abs(x[0]) < 1 else np.array([np.nan])
+
+    def fj(x):
+        return fun(x), np.array([[-x[0] / np.sqrt(max(1 - x[0] ** 2, 1e-300))]])
+
+    r = newton(fj, [0.5], fun=fun, maxiter=20) if which == "newton" else powell(fun, fj, [0.5])
+    assert not r.converged
+    assert np.all(np.isfinite(r.x))
+    assert r.reason != "converged"
+    if which == "powell":
+        r2 = powell(lambda x: np.array([np.nan]), lambda x: (np.array([np.nan]), np.eye(1)), [0.0])
+        assert r2.reason == "non-finite residual" and np.all(np.isfinite(r2.x))
+    else:
+        r2 = newton(lambda x: (np.array([np.nan]), np.eye(1)), [0.0])
+        assert r2.reason == "non-finite residual" and np.all(np.isfinite(r2.x))
