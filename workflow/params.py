@@ -160,7 +160,29 @@ class Remap:
 
 @dataclass
 class Extreme:
-    cases: list = param(["all"], "", "which stiff/extreme cases to run")
+    cases: list = param(["all"], "", "case groups to run: all, or any of penalty, friction, excitation, contact, "
+                                     "resolution, frequency, wear, conditioning, divergence",
+                        item_choices=("all", "penalty", "friction", "excitation", "contact", "resolution",
+                                      "frequency", "wear", "conditioning", "divergence"))
+    methods: list = param(["hbm", "tcm", "hdhb"], "", "formulations of the matrix",
+                          item_choices=("hbm", "tcm", "hdhb"))
+    solvers: list = param(["newton", "powell", "pseudo-time"], "", "solvers of the matrix",
+                          item_choices=("newton", "powell", "pseudo-time"))
+    harmonics: int = param(3, "", "Nh of the base cases", min=0)
+    time_samples: int = param(32, "", "nit of the base cases (HDHB always 2Nh+1)", min=1)
+    frequency_ratio: float = param(0.97, "", "base frequency / first tied resonance", min=0.0, min_exclusive=True)
+    max_harmonics: int = param(31, "", "Nh of the high-order case", min=1)
+    max_time_samples: int = param(1024, "", "nit of the fine time-grid case", min=3)
+    penalty_decades: int = param(3, "", "ε from 10^-d to 10^d × the reference stiffness", min=0, max=12)
+    wear_k: float = param(1e-11, "m²/N", "Archard coefficient of the very-large-wear case", min=0.0,
+                          min_exclusive=True)
+    wear_blocks: int = param(30, "", "blocks at most of the reference wear march", min=1)
+    pseudo_steps: int = param(400, "", "pseudo-time steps at most", min=1)
+
+    def check(self):
+        if self.max_time_samples < 2 * self.harmonics + 1:
+            raise SceneError(f"extreme.max_time_samples = {self.max_time_samples} < 2·extreme.harmonics+1 = "
+                             f"{2 * self.harmonics + 1}")
 
 
 SECTIONS = {

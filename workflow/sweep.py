@@ -8,7 +8,8 @@ The contact law does not depend on ω; ∂R/∂ω comes from dZr, dFr through
 :meth:`workflow.hb.HBProblem.residual_jacobian_omega`.
 
 ``observe(problem, x) -> float`` gives the amplitude reported per point (e.g.
-the tip displacement recovered from the contact forces). ``progress(i, n)``
+the tip displacement recovered from the contact forces); the sweep sets
+``problem.omega`` (rad/s) before calling it. ``progress(i, n)``
 is called after each point when given.
 """
 from __future__ import annotations
@@ -81,6 +82,7 @@ def stepped_sweep(frequencies_hz, linear, make_problem, observe, *, x0=None, sol
         w = TWO_PI * f
         Zr, Fr, _, _ = linear(w)
         pr = make_problem(Zr, Fr)
+        pr.omega = w                      # for observe(); the problem itself is ω-free
         if anchor is not None:
             pr.set_stick_anchor(anchor)
         guesses = []
@@ -232,6 +234,7 @@ def arclength_sweep(f_start_hz: float, f_end_hz: float, linear, make_problem, ob
         if pr is None:
             Zr, Fr, dZr, dFr = linear(w)
             pr = make_problem(Zr, Fr)
+            pr.omega = w
             if state["anchor"] is not None:
                 pr.set_stick_anchor(state["anchor"])
             pr._dZ = (dZr, dFr)

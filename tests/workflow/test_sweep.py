@@ -12,7 +12,7 @@ def _tip_amplitude(model, nh):
     from the contact-force harmonics (contracts §5, q_j = H_j (f_j − Bᵀ λ_j))."""
     def observe(pr, x):
         lam = pr.contact_harmonics(x)
-        w = pr._omega
+        w = pr.omega
         D = model["K"] - w ** 2 * model["M"] + 1j * w * model["C"]
         q1 = np.linalg.solve(D, model["f1"] - model["B"].T @ lam[1])
         return abs(q1[model["tip"]])
@@ -24,17 +24,9 @@ def _sweep(mu, freqs, progress=None):
     nh, nit = 3, 32
     law = law_for(2, mu=mu, eps=7e4)
 
-    def linear(w):
-        out = condense(model, w, nh)
-        linear.w = w
-        return out
-
-    def make(Zr, Fr):
-        pr = HBProblem(Zr, Fr, law, nh, nit, "hbm")
-        pr._omega = linear.w
-        return pr
-
-    return stepped_sweep(freqs, linear, make, _tip_amplitude(model, nh), progress=progress)
+    return stepped_sweep(freqs, lambda w: condense(model, w, nh),
+                         lambda Zr, Fr: HBProblem(Zr, Fr, law, nh, nit, "hbm"),
+                         _tip_amplitude(model, nh), progress=progress)
 
 
 def test_stepped_sweep_through_friction_damped_resonance():

@@ -105,6 +105,10 @@ def variants(hb) -> list[Variant]:
         for nh in hb.harmonics:
             for nit in hb.time_samples:
                 n = 2 * int(nh) + 1 if int(nit) == 0 else int(nit)
+                if n < 2 * int(nh) + 1:
+                    from workflow.errors import SceneError
+
+                    raise SceneError(f"hb.time_samples = {nit} < 2·Nh+1 = {2 * int(nh) + 1} for hb.harmonics = {nh}")
                 if method == "hdhb" and n != 2 * int(nh) + 1:
                     continue
                 v = Variant(method, int(nh), n)
@@ -240,20 +244,32 @@ def _observed(rc, omega, Ur) -> tuple[float, float]:
 
 
 def _solve_point(prob, guesses, solver: str, tol: float, maxiter: int):
-    """Solve one frequency from the first guess that converges; returns
-    (SolveResult of the last attempt, total iterations)."""
+    """Solve one frequency from the first guess that converges.
+
+    ``guesses``: initial guesses in order (None = the problem's own x0). Every
+    attempt runs ``solver`` with at most ``maxiter`` iterations (Powell:
+    ``10·maxiter`` residual evaluations) while the point's total stays below
+    ``2·maxiter`` iterations; a failed Newton point gets one last Powell try
+    from the best iterate. Returns (best SolveResult, total iterations).
+    """
     from workflow.errors import SceneError
 
     total = 0
-    res = None
+    best = None
     attempts = [(g, solver) for g in guesses]
     if solver == "newton":
-        attempts.append((guesses[-1], "powell"))
+        attempts.append(("best", "powell"))
     for x0, s in attempts:
-        if x0 is None:
+        if best is not None and total >= 2 * maxiter and s == solver:
+            continue
+        if isinstance(x0, str):
+            x0 = best.x
+        elif x0 is None:
             x0 = prob.x0()
-        if s in ("newton", "powell"):
-            res = prob.solve(x0, solver=s, tol=tol, maxiter=maxiter)
+        if s == "newton":
+            res = prob.solve(x0, solver="newton", tol=tol, maxiter=maxiter, max_backtracks=10)
+        elif s == "powell":
+            res = prob.solve(x0, solver="powell", tol=tol, maxiter=maxiter, maxfev=10 * maxiter)
         elif s == "pseudo-time":
             from workflow.pseudotime import integrate
 
@@ -262,9 +278,11 @@ def _solve_point(prob, guesses, solver: str, tol: float, maxiter: int):
         else:
             raise SceneError(f"hb.solver: {s!r} is not one of newton, powell, pseudo-time")
         total += int(res.iterations)
+        if best is None or res.converged or not (res.residual_norm >= best.residual_norm):
+            best = res
         if res.converged:
             break
-    return res, total
+    return best, total
 
 
 def sweep_variant(rc, cond: list, law, anchor, v: Variant, *, solver: str, tol: float, maxiter: int,
@@ -383,9 +401,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     tied, slide = linear_frfs(rc, cond, static)
 
     kw = dict(solver=hb.solver, tol=hb.tol, maxiter=hb.max_iterations, max_passes=ct.max_passes,
-              progress=log.progress, continuation=bool(sw.continuation), log=log)
+              continuation=bool(sw.continuation), log=log)
     runs: list[SweepResult] = []
-    for v in todo:
+    for v in log.progress(todo, total=len(todo), label="hb variants"):
         r = sweep_variant(rc, cond, law, static.anchor, v, **kw)
         runs.append(r)
         log.info(f"{v.label}: {r.total_seconds:.2f} s, {r.converged_points}/{len(freqs)} converged, "

@@ -1,0 +1,143 @@
+"""The extreme-case runner (workflow/extreme.py) on the synthetic reduced model."""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from workflow import extreme as X
+
+
+@pytest.fixture(scope="module")
+def su():
+    return X.setup(X.synthetic_model(4), X.Settings(max_iterations=30, pseudo_steps=150))
+
+
+def cases(su, *names):
+    by = {c.name: c for c in X.build_cases(su)}
+    return [by[n] for n in names]
+
+
+def finite_or_none(r: X.CaseResult):
+    for k, v in r.row().items():
+        if isinstance(v, float):
+            assert math.isfinite(v), (k, v)
+    json.dumps(r.row(), allow_nan=False)
+
+
+def test_synthetic_model_is_valid_and_partially_slips(su):
+    su.model.validate()
+    assert su.omega_free > su.omega_tied > 0
+    r = X.run_case(su, cases(su, "mu-0.5")[0], "hbm", "newton")
+    assert r.converged and r.slipping > 0.2 and r.sticking > 0.2 and r.separated == 0.0
+
+
+def test_penalty_independence_over_six_decades(su):
+    names = [f"penalty-1e{e:+d}" for e in range(-3, 4)]
+    res = X.run_matrix(replace(su, settings=replace(su.settings, methods=("hbm",), solvers=("newton",))),
+                       cases(su, *names))
+    assert [r.name for r in res] == names
+    for r in res:
+        assert r.converged, r.diagnosis
+        assert r.error is not None and r.error < 1e-6, (r.name, r.error)
+
+
+@pytest.mark.parametrize("method", ["hbm", "hdhb"])
+def test_large_friction_and_tiny_excitation_reach_tied_limit(su, method):
+    for c in cases(su, "mu-1e4", "force-1e-06"):
+        r = X.run_case(su, c, method, "newton")
+        assert r.converged and r.sticking == 1.0
+        assert r.error is not None and r.error < 1e-10
+
+
+def test_zero_friction_reaches_free_limit(su):
+    r = X.run_case(su, cases(su, "mu-0")[0], "hbm", "newton")
+    assert r.converged and r.error < 1e-10
+
+
+def test_contact_open_all_period_equals_linear_response(su):
+    for c in cases(su, "lift-off", "gap-open"):
+        r = X.run_case(su, c, "tcm", "newton")
+        assert r.converged and r.separated == 1.0 and r.error < 1e-8
+
+
+@pytest.mark.parametrize("solver", X.SOLVERS)
+def test_no_preload_reports_separation_or_diagnosis_never_nan(su, solver):
+    r = X.run_case(su, cases(su, "no-preload")[0], "hbm", solver)
+    finite_or_none(r)
+    assert r.separated is not None and r.separated > 0.0        # the contact opens
+    if r.converged:
+        assert r.diagnosis == ""
+    else:
+        assert r.diagnosis and ("opens and closes" in r.diagnosis or "open" in r.diagnosis)
+    if r.x is not None:
+        assert np.all(np.isfinite(r.x))
+
+
+@pytest.mark.parametrize("solver", X.SOLVERS)
+def test_diverging_case_reports_failure_with_diagnosis(su, solver):
+    r = X.run_case(su, cases(su, "diverge-maxiter")[0], "hbm", solver)
+    assert r.converged is False and r.diagnosis
+    finite_or_none(r)
+
+
+def test_explicit_pseudo_time_beyond_stability_limit_diagnosed(su):
+    r = X.run_case(su, cases(su, "diverge-explicit")[0], "hbm", "pseudo-time")
+    assert not r.converged and "unstable" in r.diagnosis
+
+
+def test_verify_refuses_a_wrong_claim(su):
+    prob = X.problem(su, cases(su, "mu-0.5")[0], "hbm")
+    x = prob.x0()                                   # tied guess: not the stick-slip solution
+    ok, why, facts = X.verify(prob, x, 1e-8)
+    assert not ok and "residual" in why
+    ok, why, _ = X.verify(prob, np.full(prob.n, np.nan), 1e-8)
+    assert not ok and "non-finite" in why
+
+
+def test_scaling_reduces_condition_number(su):
+    prob = X.problem(su, cases(su, "mu-0.5")[0], "hbm")
+    cj, cs = X.conditioning(prob, prob.x0())
+    assert cs <= cj
+
+
+def test_stage_writes_tables_and_summary(su, tmp_path):
+    from workflow.scene import resolve
+    from workflow.stages import extreme as stage
+
+    scene = resolve({"extreme": {"cases": ["friction", "divergence"], "methods": ["hdhb"],
+                                 "solvers": ["newton", "pseudo-time"], "pseudo_steps": 100},
+                     "hb": {"max_iterations": 30}})
+    X.synthetic_model(3).save(tmp_path / "reduced.npz")
+
+    class Log:
+        def info(self, msg):
+            pass
+
+        def progress(self, it, total=None, label=""):
+            yield from it
+
+    out = tmp_path / "out"
+    out.mkdir()
+    s = stage.run(scene, {"reduced": tmp_path}, out, Log())
+    json.dumps(s, allow_nan=False)
+    assert len(s["cases"]) == 6 * 2
+    for row in s["cases"]:
+        assert set(row) == {"name", "method", "solver", "converged", "iterations", "seconds", "error", "diagnosis"}
+        assert row["converged"] or row["diagnosis"]
+        assert (not row["converged"]) or row["diagnosis"] == ""
+    assert (out / "extreme.csv").read_text().startswith("name,group,method,solver,converged")
+    assert "| mu-1e4 | hdhb | newton | yes |" in (out / "extreme.md").read_text()
+
+
+def test_stage_missing_reduced_model_is_bundle_error(tmp_path):
+    from workflow.errors import BundleError
+    from workflow.scene import resolve
+    from workflow.stages import extreme as stage
+
+    with pytest.raises(BundleError, match="reduced.npz"):
+        stage.run(resolve({}), {"reduced": tmp_path}, tmp_path, None)

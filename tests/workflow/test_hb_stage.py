@@ -1,0 +1,217 @@
+"""The harmonic-balance stage on a synthetic reduced model (no FE): physics of its outputs.
+
+The model: a "blade" — a root block carrying a tip mass through a bending
+spring — held by p contact nodes (3 DOFs each, the disk rigid so
+``u_r = u_node``) with a normal preload in ``f_static``, plus a soft
+ground spring on the block (the rest of the disk), excitation and
+observation at the tip. Tied first mode ≈ 100 Hz; with the tangential
+contact DOFs free (μ = 0) the first mode drops well below.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from reduction.reduced import ReducedModel
+from workflow.errors import SceneError, SolverError
+from workflow.params import HB, Contact, Excitation, Sweep
+from workflow.pipeline import RunLog
+from workflow.stages import hb as stage
+
+F_TIED = 100.0
+
+
+def blade_chain(p: int = 3, *, preload: float = 10.0, force: float = 0.3, ground: float = 2e4,
+                zeta: float = 0.005, seed: int = 1) -> ReducedModel:
+    rng = np.random.default_rng(seed)
+    nd = 3 * p + 4
+    blk = 3 * p + np.arange(3)
+    tip = 3 * p + 3
+    M = np.zeros((nd, nd))
+    K = np.zeros((nd, nd))
+    mc, mb, mt = 0.01, 0.2, 0.1
+    for i in range(p):
+        for c in range(3):
+            d = 3 * i + c
+            M[d, d] = mc
+            k = (2.0e6 if c == 0 else 1.0e6) * (0.7 + 0.6 * rng.random())
+            K[np.ix_([d, blk[c]], [d, blk[c]])] += k * np.array([[1, -1], [-1, 1]])
+    for c in range(3):
+        M[blk[c], blk[c]] = mb
+        K[blk[c], blk[c]] += ground
+    M[tip, tip] = mt
+    kb = mt * (2 * np.pi * F_TIED) ** 2
+    K[np.ix_([blk[1], tip], [blk[1], tip])] += kb * np.array([[1, -1], [-1, 1]])
+    C = (2 * zeta / (2 * np.pi * F_TIED)) * K
+    B = np.zeros((3 * p, nd))
+    B[:, :3 * p] = np.eye(3 * p)
+    f0 = np.zeros(nd)
+    f0[0:3 * p:3] = -preload
+    f1 = np.zeros(nd)
+    f1[tip] = force
+    O = np.zeros((1, nd))
+    O[0, tip] = 1.0
+    pos = np.zeros((p, 3))
+    pos[:, 0] = 0.01 * np.arange(p)
+    return ReducedModel(M=M, K=K, C=C, B=B, f_static=f0, f_harmonic=f1, O=O, area=np.full(p, 1e-6),
+                        gap=np.zeros(p), flank=np.arange(p) % 2, position=pos)
+
+
+def sliding_frequency(model: ReducedModel) -> float:
+    """First eigenfrequency (Hz) with only the contact normal DOFs fixed (μ = 0)."""
+    import scipy.linalg as sla
+
+    p = model.n_pairs
+    keep = np.setdiff1d(np.arange(model.size), np.arange(0, 3 * p, 3))
+    w2 = sla.eigh(model.K[np.ix_(keep, keep)], model.M[np.ix_(keep, keep)], eigvals_only=True)
+    # the first mode that moves the tip along the excitation is the bending one
+    return float(np.sqrt(w2[0]) / (2 * np.pi))
+
+
+def run_stage(tmp: Path, model: ReducedModel, *, mu=0.3, **hb) -> tuple[dict, Path]:
+    src = tmp / "reduced"
+    src.mkdir(parents=True, exist_ok=True)
+    model.save(src / "reduced.npz")
+    sweep = hb.pop("sweep", {})
+    scene = {"contact": Contact(mu=mu), "hb": HB(**hb), "sweep": Sweep(**sweep), "excitation": Excitation()}
+    out = tmp / "out"
+    out.mkdir(exist_ok=True)
+    return stage.run(scene, {"reduced": src}, out, RunLog(quiet=True)), out
+
+
+def read_frf(out: Path) -> list[dict]:
+    with open(out / "frf.csv") as fh:
+        return list(csv.DictReader(fh))
+
+
+def curve(rows, method, nh, nit, role="variant"):
+    sel = [r for r in rows if r["method"] == method and int(r["Nh"]) == nh and int(r["nit"]) == nit
+           and r["role"] == role]
+    f = np.array([float(r["frequency_hz"]) for r in sel])
+    a = np.array([float(r["amplitude_m"]) for r in sel])
+    ok = np.array([r["converged"] == "1" for r in sel])
+    return f, a, ok
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    """One stage run: HBM nit=64 for Nh = 1, 3, 5, the three collocated forms at Nh = 3, a reference."""
+    tmp = tmp_path_factory.mktemp("hbstage")
+    model = blade_chain()
+    summary, out = run_stage(tmp, model, methods=["hbm", "tcm", "hdhb"], harmonics=[1, 3, 5],
+                             time_samples=[64, 0], reference_harmonics=11, reference_time_samples=64,
+                             sweep=dict(f_start_hz=85.0, f_stop_hz=103.0, points=19))
+    return model, summary, out
+
+
+def test_variants_resolve_nit_and_skip_hdhb_off_grid():
+    v = stage.variants(HB(methods=["hbm", "hdhb"], harmonics=[1, 3], time_samples=[105, 0, 7]))
+    assert [(x.method, x.nh, x.nit) for x in v] == [
+        ("hbm", 1, 105), ("hbm", 1, 3), ("hbm", 1, 7), ("hbm", 3, 105), ("hbm", 3, 7), ("hdhb", 1, 3),
+        ("hdhb", 3, 7)]
+    with pytest.raises(SceneError, match="time_samples"):
+        stage.variants(HB(methods=["hbm"], harmonics=[3], time_samples=[5]))
+
+
+def test_files_columns_and_summary(study):
+    model, summary, out = study
+    for name in ("frf.csv", "linear.csv", "cpu_table.csv", "cpu_table.md", "error_vs_time.csv",
+                 "error_vs_time.png", "iterations.png", "tangential.png", "frf_nh1_3.png", "frf_nh5.png",
+                 "frf_nit_aliasing.png"):
+        assert (out / name).stat().st_size > 0, name
+    rows = read_frf(out)
+    for col in ("method", "Nh", "nit", "solver", "frequency_hz", "amplitude_m", "iterations", "seconds", "converged"):
+        assert col in rows[0]
+    runs = summary["runs"]
+    # hbm × 3 Nh × 2 nit + tcm × 6 + hdhb × 3
+    assert len(runs) == 15
+    for r in runs:
+        assert set(r) >= {"method", "harmonics", "time_samples", "solver", "seconds", "error",
+                          "converged_points", "points"}
+        assert r["points"] == 19 and r["seconds"] > 0 and r["error"] is not None
+        if r["method"] == "hdhb":
+            assert r["time_samples"] == 2 * r["harmonics"] + 1
+    assert summary["band_hz"] == [85.0, 103.0]
+    assert summary["reference"]["harmonics"] == 11 and summary["reference"]["converged_points"] == 19
+    assert len(rows) == 16 * 19
+    with open(out / "error_vs_time.csv") as fh:
+        assert next(csv.reader(fh)) == ["method", "Nh", "nit", "solver", "seconds", "error", "converged_points",
+                                        "points"]
+    assert set(summary["files"].values()) <= {p.name for p in out.iterdir()}
+    import json
+
+    json.dumps(summary)  # JSON-serialisable
+
+
+def test_peak_between_sliding_and_tied_resonances(study):
+    model, summary, out = study
+    f_tied = summary["tied_frequency_hz"]
+    f_slide = sliding_frequency(model)
+    assert f_slide < 0.8 * f_tied
+    rows = read_frf(out)
+    f, a, ok = curve(rows, "hbm", 11, 64, role="reference")
+    assert ok.all()
+    peak = f[np.argmax(a)]
+    assert f_slide < peak < f_tied
+    # friction damps: the peak is well below the tied linear peak (same damping)
+    with open(out / "linear.csv") as fh:
+        tied = max(float(r["tied_m"]) for r in csv.DictReader(fh))
+    assert a.max() < 0.9 * tied
+    # …and slip did shift it off the tied resonance by more than the grid step
+    assert peak < f_tied - (f[1] - f[0])
+
+
+def test_error_decreases_with_harmonics(study):
+    _, summary, _ = study
+    err = {r["harmonics"]: r["error"] for r in summary["runs"] if r["method"] == "hbm" and r["time_samples"] == 64}
+    assert err[1] > err[3] > err[5]
+    assert err[5] < 0.05
+
+
+def test_collocated_forms_give_the_same_frf(study):
+    """With nit = 2Nh+1, HBM, TCM and HDHB are the same equations in other unknowns."""
+    _, summary, out = study
+    rows = read_frf(out)
+    f1, a1, ok1 = curve(rows, "hbm", 3, 7)
+    _, a2, ok2 = curve(rows, "tcm", 3, 7)
+    _, a3, ok3 = curve(rows, "hdhb", 3, 7)
+    ok = ok1 & ok2 & ok3
+    assert ok.sum() >= 0.8 * len(ok)
+    top = a1[ok].max()
+    assert np.max(np.abs(a1[ok] - a2[ok])) < 1e-5 * top
+    assert np.max(np.abs(a1[ok] - a3[ok])) < 1e-5 * top
+
+
+def test_tiny_excitation_is_the_tied_linear_frf(tmp_path):
+    model = blade_chain(force=1e-5)
+    summary, out = run_stage(tmp_path, model, methods=["hbm", "hdhb"], harmonics=[2], time_samples=[32, 0],
+                             sweep=dict(points=9))
+    rows = read_frf(out)
+    with open(out / "linear.csv") as fh:
+        tied = np.array([float(r["tied_m"]) for r in csv.DictReader(fh)])
+    for method, nit in (("hbm", 32), ("hbm", 5), ("hdhb", 5)):
+        f, a, ok = curve(rows, method, 2, nit)
+        assert ok.all()
+        np.testing.assert_allclose(a, tied, rtol=1e-6)
+    # band: ±10 % around the tied bending mode
+    lo, hi = summary["band_hz"]
+    assert math.isclose(0.5 * (lo + hi), summary["tied_frequency_hz"], rel_tol=1e-12)
+    assert math.isclose(hi / lo, 1.1 / 0.9, rel_tol=1e-12)
+
+
+def test_no_preload_is_an_ill_posed_static_problem(tmp_path):
+    model = blade_chain(preload=0.0, ground=0.0)
+    with pytest.raises(SolverError, match="preload"):
+        run_stage(tmp_path, model, methods=["hbm"], harmonics=[1], time_samples=[0], sweep=dict(points=3))
+
+
+def test_stage_contract():
+    from workflow import stages
+
+    mod = stages.load("hb")
+    assert mod.PRODUCES == ("frf",) and mod.NEEDS == ("reduced",)
+    assert set(mod.SECTIONS) == {"contact", "hb", "sweep", "excitation"}
