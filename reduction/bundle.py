@@ -8,6 +8,7 @@ that knows the file names. All quantities are SI (m, kg, s, N).
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -149,7 +150,8 @@ def read_bundle(path: str | Path) -> Bundle:
         meta = json.loads((path / "meta.json").read_text()) if (path / "meta.json").is_file() else {}
     except BundleError:
         raise
-    except (OSError, ValueError, KeyError) as exc:
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        # A truncated or foreign file: name it rather than leak a zipfile error.
         raise BundleError(f"model bundle {path} cannot be read: {exc}") from exc
     bundle = Bundle(**mats, contact=contact, loads=loads, meta=meta, coords=coords, path=path)
     validate(bundle)

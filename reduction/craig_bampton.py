@@ -134,26 +134,53 @@ class SparseFactor:
             self._A.destroy()
 
 
-def _m_orthonormalize(W, M, Q=None, MQ=None, drop=1e-10):
-    """Columns of W made M-orthonormal and M-orthogonal to Q (twice, CGS2).
+def _m_orthonormalize(W, M, Q=None, MQ=None, drop=1e-10, MW=None):
+    """Columns of W made M-orthonormal and M-orthogonal to Q (CGS, twice).
 
-    Returns ``(W, MW)``; directions already in span(Q) (relative M-norm below
-    ``drop``) are dropped, so the result may have fewer columns.
+    ``MQ = M Q`` is given; ``M W`` is formed once and then updated with the
+    same dense operations as W (sparse products are the expensive part).
+    ``MW`` may be passed when known. Returns ``(W, MW)``; directions already in span(Q) (M-norm² below
+    ``drop`` × the largest one before projection) are dropped, so the result
+    may have fewer columns.
     """
-    scale = np.einsum("ij,ij->j", W, M @ W).max(initial=0.0)  # M-norm² before projection
+    MW = M @ W if MW is None else MW
+    scale = np.einsum("ij,ij->j", W, MW).max(initial=0.0)
     for sweep in range(2):  # the second sweep repairs what round-off left of the first
-        for _ in range(2):
+        for _ in range(2 - sweep):  # CGS2, then once more after the rescaling
             if Q is not None and Q.shape[1]:
-                W = W - Q @ (MQ.T @ W)
-        G = W.T @ (M @ W)
+                C = MQ.T @ W
+                W = W - Q @ C
+                MW = MW - MQ @ C
+        G = W.T @ MW
         g, U = np.linalg.eigh(0.5 * (G + G.T))
         keep = g > (drop * max(scale, np.finfo(float).tiny) if sweep == 0 else 0.0)
-        W = W @ (U[:, keep] / np.sqrt(g[keep]))
-    return W, M @ W
+        T = U[:, keep] / np.sqrt(g[keep])
+        W, MW = W @ T, MW @ T
+    return W, MW
+
+
+class _Columns:
+    """A growing (n, k) array without a copy per append (capacity doubles)."""
+
+    def __init__(self, n, capacity):
+        self.a = np.empty((n, max(capacity, 1)))
+        self.k = 0
+
+    def append(self, X):
+        if self.k + X.shape[1] > self.a.shape[1]:
+            grown = np.empty((self.a.shape[0], 2 * (self.k + X.shape[1])))
+            grown[:, :self.k] = self.a[:, :self.k]
+            self.a = grown
+        self.a[:, self.k:self.k + X.shape[1]] = X
+        self.k += X.shape[1]
+
+    @property
+    def view(self):
+        return self.a[:, :self.k]
 
 
 def fixed_interface_modes(K, M, factor: SparseFactor, n_modes: int | None = None, cutoff: float | None = None,
-                          block: int = 32, tol: float = 1e-6, seed: int = 0, stats: dict | None = None):
+                          block: int = 16, tol: float = 1e-6, seed: int = 0, stats: dict | None = None):
     """Lowest eigenpairs of ``K φ = ω² M φ`` by block shift-invert Lanczos (σ = 0).
 
     ``factor`` factorises K (K regular). Either ``n_modes`` (count) or
@@ -173,38 +200,43 @@ def fixed_interface_modes(K, M, factor: SparseFactor, n_modes: int | None = None
         raise SolverError(f"{n_modes} fixed-interface modes asked, but only {n} interior DOFs exist")
     rng = np.random.default_rng(seed)
     b = min(block, n)
-    Q, MQ = _m_orthonormalize(factor.solve(M @ rng.standard_normal((n, b))), M)
-    KQ = K @ Q
-    A = Q.T @ KQ  # Rayleigh quotient matrix, grown block by block (Q is M-orthonormal)
-    SQ = np.empty((n, 0))  # S = K⁻¹M applied to the columns of Q: residuals without extra solves
-    last = Q
+    cap = min(n, 3 * (n_modes or 16) + 4 * b)
+    # SQ = S Q with S = K⁻¹M, and M S Q: residuals of Ritz pairs without extra solves or sparse products
+    Q, MQ, KQ, SQ, MSQ = (_Columns(n, cap) for _ in range(5))
+    first = 0  # Ritz pairs below this index have converged already
+    W, MW = _m_orthonormalize(factor.solve(M @ rng.standard_normal((n, b))), M)
+    KW = K @ W
+    A = W.T @ KW  # Rayleigh quotient matrix, grown block by block (Q is M-orthonormal)
     while True:
-        S_last = factor.solve(M @ last)  # the next Krylov block, before orthogonalisation
-        SQ = np.hstack([SQ, S_last])
+        Q.append(W), MQ.append(MW), KQ.append(KW)
+        S_last = factor.solve(MW)  # the next Krylov block, before orthogonalisation
+        MS_last = M @ S_last
+        SQ.append(S_last), MSQ.append(MS_last)
         theta, Y = np.linalg.eigh(0.5 * (A + A.T))
-        complete = Q.shape[1] >= n
+        complete = Q.k >= n
         want = _wanted(theta, n_modes, cutoff, complete)
         if want is not None:
             k = min(want + (n_modes is None), theta.size)  # with a cut-off: also the first mode above it
             # Residual of the shift-invert operator, ‖ω² S φ − φ‖_M: scale-free,
             # unlike ‖Kφ − ω²Mφ‖, which the stiffest elements dominate.
-            X = Q @ Y[:, :k]
-            D = (SQ @ Y[:, :k]) * theta[:k] - X
-            rel = np.sqrt(np.abs(np.einsum("ij,ij->j", D, M @ D)))
-            if complete or np.all(rel <= tol):
+            j = np.arange(min(first, k), k)
+            D = (SQ.view @ Y[:, j]) * theta[j] - Q.view @ Y[:, j]
+            MD = (MSQ.view @ Y[:, j]) * theta[j] - MQ.view @ Y[:, j]
+            rel = np.sqrt(np.abs(np.einsum("ij,ij->j", D, MD)))
+            bad = np.flatnonzero(rel > tol)
+            first = int(j[bad[0]]) if bad.size else k
+            if complete or not bad.size:
                 if stats is not None:
-                    stats.update(krylov_dim=int(Q.shape[1]), max_residual=float(rel[:want].max(initial=0.0)))
-                return theta[:want], X[:, :want]
-        W, MW = _m_orthonormalize(S_last, M, Q, MQ)
+                    stats.update(krylov_dim=int(Q.k), max_residual=float(rel.max(initial=0.0)))
+                return theta[:want], Q.view @ Y[:, :want]
+        W, MW = _m_orthonormalize(S_last, M, Q.view, MQ.view, MW=MS_last)
         if W.shape[1] == 0:  # invariant subspace: continue from a fresh random block
-            W, MW = _m_orthonormalize(factor.solve(M @ rng.standard_normal((n, b))), M, Q, MQ)
+            W, MW = _m_orthonormalize(factor.solve(M @ rng.standard_normal((n, b))), M, Q.view, MQ.view)
             if W.shape[1] == 0:
                 raise SolverError("block Lanczos stalled: no new direction")
         KW = K @ W
-        QKW = Q.T @ KW
+        QKW = Q.view.T @ KW
         A = np.block([[A, QKW], [QKW.T, W.T @ KW]])
-        Q, MQ, KQ = np.hstack([Q, W]), np.hstack([MQ, MW]), np.hstack([KQ, KW])
-        last = W
 
 
 def _wanted(theta, n_modes, cutoff, complete):

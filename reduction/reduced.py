@@ -10,6 +10,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
+import zipfile
 
 from workflow.errors import BundleError
 from workflow.io import write_npz
@@ -67,7 +68,7 @@ class ReducedModel:
             with np.load(path) as z:
                 arrays = {k: z[k] for k in _ARRAYS}
                 info = json.loads(str(z["info"])) if "info" in z else {}
-        except (OSError, KeyError, ValueError) as exc:
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             raise BundleError(f"reduced model {path} cannot be read: {exc}") from exc
         model = cls(**arrays, info=info)
         model.validate()

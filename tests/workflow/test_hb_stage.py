@@ -25,26 +25,26 @@ from workflow.stages import hb as stage
 F_TIED = 100.0
 
 
-def blade_chain(p: int = 3, *, preload: float = 10.0, force: float = 0.3, ground: float = 2e4,
-                zeta: float = 0.005, seed: int = 1) -> ReducedModel:
+def blade_chain(p: int = 3, *, preload: float = 10.0, force: float = 0.3, ground: float = 5e3,
+                k_t: float = 3e4, zeta: float = 0.005, seed: int = 1) -> ReducedModel:
     rng = np.random.default_rng(seed)
     nd = 3 * p + 4
     blk = 3 * p + np.arange(3)
     tip = 3 * p + 3
     M = np.zeros((nd, nd))
     K = np.zeros((nd, nd))
-    mc, mb, mt = 0.01, 0.2, 0.1
+    mc, mb, mt = 0.01, 0.02, 0.1
     for i in range(p):
         for c in range(3):
             d = 3 * i + c
             M[d, d] = mc
-            k = (2.0e6 if c == 0 else 1.0e6) * (0.7 + 0.6 * rng.random())
+            k = (2.0e6 if c == 0 else k_t) * (0.7 + 0.6 * rng.random())
             K[np.ix_([d, blk[c]], [d, blk[c]])] += k * np.array([[1, -1], [-1, 1]])
     for c in range(3):
         M[blk[c], blk[c]] = mb
         K[blk[c], blk[c]] += ground
     M[tip, tip] = mt
-    kb = mt * (2 * np.pi * F_TIED) ** 2
+    kb = 2 * mt * (2 * np.pi * F_TIED) ** 2
     K[np.ix_([blk[1], tip], [blk[1], tip])] += kb * np.array([[1, -1], [-1, 1]])
     C = (2 * zeta / (2 * np.pi * F_TIED)) * K
     B = np.zeros((3 * p, nd))
@@ -99,13 +99,22 @@ def curve(rows, method, nh, nit, role="variant"):
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    """One stage run: HBM nit=64 for Nh = 1, 3, 5, the three collocated forms at Nh = 3, a reference."""
+    """Micro- to macroslip (preloads 2, 8, 30 N): HBM (nit = 32) for Nh = 1, 3, 5 against a reference Nh = 9."""
     tmp = tmp_path_factory.mktemp("hbstage")
-    model = blade_chain()
-    summary, out = run_stage(tmp, model, methods=["hbm", "tcm", "hdhb"], harmonics=[1, 3, 5],
-                             time_samples=[64, 0], reference_harmonics=11, reference_time_samples=64,
-                             sweep=dict(f_start_hz=85.0, f_stop_hz=103.0, points=19))
+    model = blade_chain(force=0.2, preload=np.array([2.0, 8.0, 30.0]))
+    summary, out = run_stage(tmp, model, methods=["hbm"], harmonics=[1, 3, 5], time_samples=[32],
+                             reference_harmonics=9, reference_time_samples=64,
+                             sweep=dict(f_start_hz=94.0, f_stop_hz=104.0, points=11))
     return model, summary, out
+
+
+@pytest.fixture(scope="module")
+def collocated(tmp_path_factory):
+    """Mild slip: the three formulations with nit = 2Nh+1, and HBM with nit = 32."""
+    tmp = tmp_path_factory.mktemp("hbcolloc")
+    summary, out = run_stage(tmp, blade_chain(force=0.1, preload=np.array([2.0, 8.0, 30.0])), methods=["hbm", "tcm", "hdhb"], harmonics=[2],
+                             time_samples=[0, 32], sweep=dict(f_start_hz=99.0, f_stop_hz=105.0, points=7))
+    return summary, out
 
 
 def test_variants_resolve_nit_and_skip_hdhb_off_grid():
@@ -127,17 +136,19 @@ def test_files_columns_and_summary(study):
     for col in ("method", "Nh", "nit", "solver", "frequency_hz", "amplitude_m", "iterations", "seconds", "converged"):
         assert col in rows[0]
     runs = summary["runs"]
-    # hbm × 3 Nh × 2 nit + tcm × 6 + hdhb × 3
-    assert len(runs) == 15
+    assert [(r["method"], r["harmonics"], r["time_samples"]) for r in runs] == [("hbm", 1, 32), ("hbm", 3, 32),
+                                                                                ("hbm", 5, 32)]
     for r in runs:
         assert set(r) >= {"method", "harmonics", "time_samples", "solver", "seconds", "error",
                           "converged_points", "points"}
-        assert r["points"] == 19 and r["seconds"] > 0 and r["error"] is not None
-        if r["method"] == "hdhb":
-            assert r["time_samples"] == 2 * r["harmonics"] + 1
-    assert summary["band_hz"] == [85.0, 103.0]
-    assert summary["reference"]["harmonics"] == 11 and summary["reference"]["converged_points"] == 19
-    assert len(rows) == 16 * 19
+        assert r["points"] == 11 and r["seconds"] > 0 and r["error"] is not None
+        assert r["converged_points"] == 11
+    assert summary["band_hz"] == [94.0, 104.0]
+    assert summary["reference"]["harmonics"] == 9 and summary["reference"]["converged_points"] == 11
+    assert len(rows) == 4 * 11
+    with open(out / "cpu_table.csv") as fh:
+        cpu = list(csv.DictReader(fh))
+    assert float(cpu[0]["normalised"]) == 1.0 and len(cpu) == 3
     with open(out / "error_vs_time.csv") as fh:
         assert next(csv.reader(fh)) == ["method", "Nh", "nit", "solver", "seconds", "error", "converged_points",
                                         "points"]
@@ -153,7 +164,7 @@ def test_peak_between_sliding_and_tied_resonances(study):
     f_slide = sliding_frequency(model)
     assert f_slide < 0.8 * f_tied
     rows = read_frf(out)
-    f, a, ok = curve(rows, "hbm", 11, 64, role="reference")
+    f, a, ok = curve(rows, "hbm", 9, 64, role="reference")
     assert ok.all()
     peak = f[np.argmax(a)]
     assert f_slide < peak < f_tied
@@ -167,20 +178,25 @@ def test_peak_between_sliding_and_tied_resonances(study):
 
 def test_error_decreases_with_harmonics(study):
     _, summary, _ = study
-    err = {r["harmonics"]: r["error"] for r in summary["runs"] if r["method"] == "hbm" and r["time_samples"] == 64}
+    err = {r["harmonics"]: r["error"] for r in summary["runs"]}
     assert err[1] > err[3] > err[5]
     assert err[5] < 0.05
 
 
-def test_collocated_forms_give_the_same_frf(study):
+def test_collocated_forms_give_the_same_frf(collocated):
     """With nit = 2Nh+1, HBM, TCM and HDHB are the same equations in other unknowns."""
-    _, summary, out = study
+    summary, out = collocated
+    assert [(r["method"], r["time_samples"]) for r in summary["runs"]] == [
+        ("hbm", 5), ("hbm", 32), ("tcm", 5), ("tcm", 32), ("hdhb", 5)]
     rows = read_frf(out)
-    f1, a1, ok1 = curve(rows, "hbm", 3, 7)
-    _, a2, ok2 = curve(rows, "tcm", 3, 7)
-    _, a3, ok3 = curve(rows, "hdhb", 3, 7)
+    f1, a1, ok1 = curve(rows, "hbm", 2, 5)
+    _, a2, ok2 = curve(rows, "tcm", 2, 5)
+    _, a3, ok3 = curve(rows, "hdhb", 2, 5)
+    _, a4, ok4 = curve(rows, "hbm", 2, 32)
     ok = ok1 & ok2 & ok3
-    assert ok.sum() >= 0.8 * len(ok)
+    assert ok.sum() >= 5
+    # slip happened: the aliased FRF differs from the well-sampled one somewhere
+    assert np.max(np.abs(a1[ok & ok4] - a4[ok & ok4])) > 1e-3 * a4.max()
     top = a1[ok].max()
     assert np.max(np.abs(a1[ok] - a2[ok])) < 1e-5 * top
     assert np.max(np.abs(a1[ok] - a3[ok])) < 1e-5 * top
