@@ -121,8 +121,14 @@ def write_bundle(bundle: Bundle, path: str | Path, extra_files: dict[str, Path] 
     return path
 
 
-def read_bundle(path: str | Path) -> Bundle:
-    """Read and validate the bundle folder ``path``; errors name the file at fault."""
+def read_bundle(path: str | Path, matrices: bool = True) -> Bundle:
+    """Read and validate the bundle folder ``path``; errors name the file at fault.
+
+    ``matrices=False`` reads everything but M, K, C, which are then empty
+    sparse matrices of the right shape (a *skeleton*: contact, loads, coords
+    and meta for the ranks of a parallel reduction, which read their own rows
+    with :func:`matrix_rows`).
+    """
     path = Path(path)
     if not path.is_dir():
         raise BundleError(f"model bundle {path} is not a folder")
@@ -130,7 +136,8 @@ def read_bundle(path: str | Path) -> Bundle:
     if missing:
         raise BundleError(f"model bundle {path} lacks {', '.join(missing)}")
     try:
-        mats = {name: sp.load_npz(path / f"{name}.npz").tocsr() for name in MATRICES}
+        mats = {name: sp.load_npz(path / f"{name}.npz").tocsr() if matrices else
+                sp.csr_matrix(tuple(_matrix_shape(path / f"{name}.npz"))) for name in MATRICES}
         with np.load(path / "contact.npz") as z:
             absent = [k for k in CONTACT_KEYS if k not in z]
             if absent:
@@ -156,6 +163,57 @@ def read_bundle(path: str | Path) -> Bundle:
     bundle = Bundle(**mats, contact=contact, loads=loads, meta=meta, coords=coords, path=path)
     validate(bundle)
     return bundle
+
+
+def matrix_rows(path: str | Path, name: str, r0: int, r1: int) -> sp.csr_matrix:
+    """Rows ``r0:r1`` of bundle matrix ``name`` (``"M"``, ``"K"``, ``"C"``) as CSR, shape (r1 − r0, n).
+
+    The bundle's matrices are uncompressed CSR npz files (:func:`write_bundle`),
+    so only the wanted slice of ``indices``/``data`` is read from disk (memory
+    map); a compressed or non-CSR file (a user's bundle) is loaded whole and
+    sliced.
+    """
+    f = Path(path) / f"{name}.npz"
+    try:
+        with np.load(f) as z:
+            fmt, shape = z["format"].item(), tuple(int(v) for v in z["shape"])
+        fmt = fmt.decode() if isinstance(fmt, bytes) else str(fmt)
+        arrays = {k: _stored_array(f, k) for k in ("indptr", "indices", "data")} if fmt == "csr" else {}
+        if fmt != "csr" or any(a is None for a in arrays.values()):
+            return sp.load_npz(f).tocsr()[r0:r1]
+        indptr = np.asarray(arrays["indptr"][r0:r1 + 1], dtype=np.int64)
+        a, b = int(indptr[0]), int(indptr[-1])
+        return sp.csr_matrix((np.array(arrays["data"][a:b]), np.array(arrays["indices"][a:b]), indptr - a),
+                             shape=(r1 - r0, shape[1]))
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        raise BundleError(f"model bundle matrix {f} cannot be read: {exc}") from exc
+
+
+def _matrix_shape(f: Path) -> tuple[int, int]:
+    with np.load(f) as z:
+        return tuple(int(v) for v in z["shape"])
+
+
+def _stored_array(f: Path, key: str):
+    """A read-only memory map of array ``key`` stored uncompressed in the npz ``f`` (None if compressed)."""
+    import struct
+
+    with zipfile.ZipFile(f) as zf:
+        info = zf.getinfo(f"{key}.npy")
+    if info.compress_type != zipfile.ZIP_STORED:
+        return None
+    with open(f, "rb") as fh:
+        fh.seek(info.header_offset)
+        head = fh.read(30)
+        name_len, extra_len = struct.unpack("<HH", head[26:30])
+        fh.seek(info.header_offset + 30 + name_len + extra_len)
+        version = np.lib.format.read_magic(fh)
+        reader = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, fortran, dtype = reader(fh)
+        offset = fh.tell()
+    if not shape or 0 in shape:
+        return np.zeros(shape, dtype=dtype)
+    return np.memmap(f, dtype=dtype, mode="r", shape=shape, offset=offset, order="F" if fortran else "C")
 
 
 def validate(b: Bundle) -> None:

@@ -26,6 +26,14 @@ response ``K_ii⁻¹ f_i`` (made M- and K-orthogonal to Φ and to each other).
 With them a distributed load (centrifugal) has an exact static response in
 the reduced model, without making every loaded DOF a boundary DOF.
 
+Distributed use (:mod:`reduction.parallel`): :class:`SparseFactor` also
+takes an assembled PETSc MPIAIJ matrix (parallel MUMPS; ``solve`` then maps
+this rank's rows of the right-hand sides to its rows of the solution), and
+the block Lanczos / load-vector helpers take ``gsum`` (sum of an array over
+the ranks; the identity here) and ``rows`` (this rank's slice of the global
+rows), with operators that map row-distributed blocks to row-distributed
+blocks. Serial calls are unchanged.
+
 Units: M [kg], K [N/m]; frequencies in rad/s unless named ``_hz``.
 """
 from __future__ import annotations
@@ -44,6 +52,15 @@ from workflow.errors import SolverError
 _CHUNK = 64
 
 
+def _same(a):
+    """The serial ``gsum``: an array summed over one rank is itself."""
+    return a
+
+
+def _is_petsc(A) -> bool:
+    return type(A).__module__.startswith("petsc4py")
+
+
 class SparseFactor:
     """One factorisation of a sparse symmetric matrix, reused for many solves.
 
@@ -53,8 +70,9 @@ class SparseFactor:
     """
 
     def __init__(self, A: sp.spmatrix, solver: str = "mumps"):
-        self.n = A.shape[0]
+        self.n = A.getSize()[0] if _is_petsc(A) else A.shape[0]
         self.solver = solver
+        self.parallel = _is_petsc(A) and A.getComm().getSize() > 1
         if self.n == 0:
             return
         if solver == "splu":
@@ -74,13 +92,17 @@ class SparseFactor:
         from reduction.eigen import to_petsc
 
         self._PETSc = PETSc
-        self._A = to_petsc(A)
-        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        self._own = not _is_petsc(A)
+        self._A = to_petsc(A) if self._own else A
+        self._comm = self._A.getComm()
+        ksp = PETSc.KSP().create(self._comm)
         ksp.setOperators(self._A)
         ksp.setType("preonly")
         pc = ksp.getPC()
         pc.setType("cholesky")  # LDLᵀ (MUMPS SYM=2: symmetric, not assumed definite)
         pc.setFactorSolverType("mumps")
+        if self.parallel:
+            ksp.setFromOptions()  # PETSC_OPTIONS: -mat_mumps_icntl_* (memory, ordering) on clusters
         try:
             ksp.setUp()
             F = pc.getFactorMatrix()
@@ -119,8 +141,10 @@ class SparseFactor:
             return self._lu.solve(B)
         PETSc = self._PETSc
         n, k = B.shape
-        Bd = PETSc.Mat().createDense(size=(n, k), array=np.asfortranarray(B), comm=PETSc.COMM_SELF)
-        Xd = PETSc.Mat().createDense(size=(n, k), comm=PETSc.COMM_SELF)
+        size = ((n, self.n), (PETSc.DECIDE, k)) if self.parallel else (n, k)  # parallel: this rank's rows
+        comm = self._comm if self.parallel else PETSc.COMM_SELF
+        Bd = PETSc.Mat().createDense(size=size, array=np.asfortranarray(B), comm=comm)
+        Xd = PETSc.Mat().createDense(size=size, comm=comm)
         Xd.setUp()
         self._F.matSolve(Bd, Xd)
         X = Xd.getDenseArray().copy()
@@ -131,27 +155,28 @@ class SparseFactor:
     def destroy(self):
         if self.solver == "mumps" and self.n:
             self._ksp.destroy()
-            self._A.destroy()
+            if self._own:
+                self._A.destroy()
 
 
-def _m_orthonormalize(W, M, Q=None, MQ=None, drop=1e-10, MW=None):
+def _m_orthonormalize(W, M, Q=None, MQ=None, drop=1e-10, MW=None, gsum=_same):
     """Columns of W made M-orthonormal and M-orthogonal to Q (CGS, twice).
 
     ``MQ = M Q`` is given; ``M W`` is formed once and then updated with the
     same dense operations as W (sparse products are the expensive part).
     ``MW`` may be passed when known. Returns ``(W, MW)``; directions already in span(Q) (M-norm² below
     ``drop`` × the largest one before projection) are dropped, so the result
-    may have fewer columns.
+    may have fewer columns. ``gsum``: see the module docstring (distributed rows).
     """
     MW = M @ W if MW is None else MW
-    scale = np.einsum("ij,ij->j", W, MW).max(initial=0.0)
+    scale = gsum(np.einsum("ij,ij->j", W, MW)).max(initial=0.0)
     for sweep in range(2):  # the second sweep repairs what round-off left of the first
         for _ in range(2 - sweep):  # CGS2, then once more after the rescaling
             if Q is not None and Q.shape[1]:
-                C = MQ.T @ W
+                C = gsum(MQ.T @ W)
                 W = W - Q @ C
                 MW = MW - MQ @ C
-        G = W.T @ MW
+        G = gsum(W.T @ MW)
         g, U = np.linalg.eigh(0.5 * (G + G.T))
         keep = g > (drop * max(scale, np.finfo(float).tiny) if sweep == 0 else 0.0)
         T = U[:, keep] / np.sqrt(g[keep])
@@ -180,7 +205,8 @@ class _Columns:
 
 
 def fixed_interface_modes(K, M, factor: SparseFactor, n_modes: int | None = None, cutoff: float | None = None,
-                          block: int = 16, tol: float = 1e-6, seed: int = 0, stats: dict | None = None):
+                          block: int = 16, tol: float = 1e-6, seed: int = 0, stats: dict | None = None,
+                          gsum=_same, rows: slice | None = None):
     """Lowest eigenpairs of ``K φ = ω² M φ`` by block shift-invert Lanczos (σ = 0).
 
     ``factor`` factorises K (K regular). Either ``n_modes`` (count) or
@@ -189,9 +215,13 @@ def fixed_interface_modes(K, M, factor: SparseFactor, n_modes: int | None = None
     after each block a Rayleigh–Ritz step gives ω² and M-normalised vectors.
     Converged when ‖ω² K⁻¹Mφ − φ‖_M ≤ tol for every wanted pair (K⁻¹M of
     the basis is kept, so checking costs no solve).
-    Returns ``(omega2 [rad²/s²], Phi (n, k))``.
+    Returns ``(omega2 [rad²/s²], Phi (n, k))``. Distributed (``gsum``,
+    ``rows``): ``K``, ``M`` map this rank's rows to its rows, Phi is this
+    rank's rows, and the start blocks are the serial ones' rows (same result).
     """
     n = K.shape[0]
+    rows = slice(0, n) if rows is None else rows
+    n_local = rows.stop - rows.start
     if n_modes is None and cutoff is None:
         raise ValueError("give n_modes or cutoff")
     if n == 0 or n_modes == 0:
@@ -202,11 +232,11 @@ def fixed_interface_modes(K, M, factor: SparseFactor, n_modes: int | None = None
     b = min(block, n)
     cap = min(n, 3 * (n_modes or 16) + 4 * b)
     # SQ = S Q with S = K⁻¹M, and M S Q: residuals of Ritz pairs without extra solves or sparse products
-    Q, MQ, KQ, SQ, MSQ = (_Columns(n, cap) for _ in range(5))
+    Q, MQ, KQ, SQ, MSQ = (_Columns(n_local, cap) for _ in range(5))
     first = 0  # Ritz pairs below this index have converged already
-    W, MW = _m_orthonormalize(factor.solve(M @ rng.standard_normal((n, b))), M)
+    W, MW = _m_orthonormalize(factor.solve(M @ rng.standard_normal((n, b))[rows]), M, gsum=gsum)
     KW = K @ W
-    A = W.T @ KW  # Rayleigh quotient matrix, grown block by block (Q is M-orthonormal)
+    A = gsum(W.T @ KW)  # Rayleigh quotient matrix, grown block by block (Q is M-orthonormal)
     while True:
         Q.append(W), MQ.append(MW), KQ.append(KW)
         S_last = factor.solve(MW)  # the next Krylov block, before orthogonalisation
@@ -222,21 +252,22 @@ def fixed_interface_modes(K, M, factor: SparseFactor, n_modes: int | None = None
             j = np.arange(min(first, k), k)
             D = (SQ.view @ Y[:, j]) * theta[j] - Q.view @ Y[:, j]
             MD = (MSQ.view @ Y[:, j]) * theta[j] - MQ.view @ Y[:, j]
-            rel = np.sqrt(np.abs(np.einsum("ij,ij->j", D, MD)))
+            rel = np.sqrt(np.abs(gsum(np.einsum("ij,ij->j", D, MD))))
             bad = np.flatnonzero(rel > tol)
             first = int(j[bad[0]]) if bad.size else k
             if complete or not bad.size:
                 if stats is not None:
                     stats.update(krylov_dim=int(Q.k), max_residual=float(rel.max(initial=0.0)))
                 return theta[:want], Q.view @ Y[:, :want]
-        W, MW = _m_orthonormalize(S_last, M, Q.view, MQ.view, MW=MS_last)
+        W, MW = _m_orthonormalize(S_last, M, Q.view, MQ.view, MW=MS_last, gsum=gsum)
         if W.shape[1] == 0:  # invariant subspace: continue from a fresh random block
-            W, MW = _m_orthonormalize(factor.solve(M @ rng.standard_normal((n, b))), M, Q.view, MQ.view)
+            W, MW = _m_orthonormalize(factor.solve(M @ rng.standard_normal((n, b))[rows]), M, Q.view, MQ.view,
+                                      gsum=gsum)
             if W.shape[1] == 0:
                 raise SolverError("block Lanczos stalled: no new direction")
         KW = K @ W
-        QKW = Q.view.T @ KW
-        A = np.block([[A, QKW], [QKW.T, W.T @ KW]])
+        QKW = gsum(Q.view.T @ KW)
+        A = np.block([[A, QKW], [QKW.T, gsum(W.T @ KW)]])
 
 
 def _wanted(theta, n_modes, cutoff, complete):
@@ -318,22 +349,22 @@ def craig_bampton(M: sp.spmatrix, K: sp.spmatrix, boundary: np.ndarray, n_modes:
     return V, np.sqrt(np.clip(omega2, 0.0, None))
 
 
-def _load_vectors(F, Kii, Mii, factor, Phi, drop=1e-8):
+def _load_vectors(F, Kii, Mii, factor, Phi, drop=1e-8, gsum=_same):
     """Interior static responses ``K_ii⁻¹ F`` made M- and K-orthogonal to Φ and to each other.
 
     A small Rayleigh–Ritz on the cleaned vectors diagonalises them, so the
     whole interior block of VᵀMV is I and of VᵀKV diagonal.
     """
-    norms = np.linalg.norm(F, axis=0)
+    norms = np.linalg.norm(F, axis=0) if gsum is _same else np.sqrt(gsum(np.einsum("ij,ij->j", F, F)))
     F = F[:, norms > 0]
     if F.shape[1] == 0:
-        return np.zeros((Kii.shape[0], 0))
+        return np.zeros((F.shape[0], 0))
     X = factor.solve(F)
     MPhi = Mii @ Phi
-    X, _ = _m_orthonormalize(X, Mii, Phi, MPhi, drop=drop)
+    X, _ = _m_orthonormalize(X, Mii, Phi, MPhi, drop=drop, gsum=gsum)
     if X.shape[1] == 0:
         return X
-    k2, Y = sla.eigh(X.T @ (Kii @ X))
+    k2, Y = sla.eigh(gsum(X.T @ (Kii @ X)))
     return X @ Y
 
 

@@ -9,6 +9,10 @@ Every :class:`~workflow.errors.BladewearError` is printed as one line
 ``error: …`` on stderr with exit status 2; other exceptions are bugs and keep
 their traceback. Ctrl-C or SIGTERM stop the run between two writes: cache
 entries and the run folder's summary are written whole or not at all.
+
+Under MPI (``mpirun -n 2 bladewear run SCENE``) every rank runs this; only
+rank 0 prints (its log, the summary path, the error line), and every rank
+exits with the same status (see :mod:`workflow.mpi`).
 """
 from __future__ import annotations
 
@@ -55,11 +59,20 @@ def main(argv: list[str] | None = None) -> int:
         with _sigterm_as_interrupt():
             return {"run": cmd_run, "scenes": cmd_scenes, "show": cmd_show}[args.command](args)
     except BladewearError as exc:
-        print(f"error: {_one_line(exc)}", file=sys.stderr)
+        if _rank() == 0:
+            print(f"error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_ERROR
     except KeyboardInterrupt:
-        print("error: interrupted; completed stages stay cached, the next run resumes from them", file=sys.stderr)
+        if _rank() == 0:
+            print("error: interrupted; completed stages stay cached, the next run resumes from them",
+                  file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+def _rank() -> int:
+    from workflow.mpi import rank
+
+    return rank()
 
 
 def _one_line(exc: BaseException) -> str:
@@ -96,7 +109,7 @@ def cmd_run(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     out = _default_out(args, scene)
     summary = run_scene(scene, out, cache=args.cache, fresh=args.fresh, quiet=args.quiet)
-    if not args.quiet:
+    if not args.quiet and _rank() == 0:
         print(f"{out / 'summary.json'}")
     return 0 if summary else EXIT_ERROR
 

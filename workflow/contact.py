@@ -45,6 +45,9 @@ __all__ = ["SEPARATION", "STICK", "SLIP", "ContactLaw", "DLFTResult", "dlft_pass
 SEPARATION, STICK, SLIP = 0, 1, 2
 
 _TINY = 1e-300
+#: relative distance to the Coulomb cone within which a stuck instant is "touching"
+#: (takes the slip derivative); above the periodic-pass tolerance.
+_TOUCH = 1e-7
 
 
 def _per_pair(value, p: int, name: str, *, positive: bool = False,
@@ -169,6 +172,22 @@ def _inv2(A: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return inv
 
 
+def _pinv2(A: np.ndarray, ok: np.ndarray, rcond: float = 1e-8) -> np.ndarray:
+    """Pseudo-inverse of (p, 2, 2) matrices where ``ok``; zero elsewhere.
+
+    ``I − ∂Φ/∂r`` is singular along directions in which any reference is a
+    periodic fixed point (a pair touching the cone at one instant can shift
+    its reference across the slip direction): the reference does not move
+    along those, so they are dropped rather than inverted.
+    """
+    U, s, Vt = np.linalg.svd(A)
+    keep = s > rcond * np.maximum(s[:, :1], 1.0)
+    sinv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
+    out = np.einsum("pji,pj,pkj->pik", Vt, sinv, U)
+    out[~ok] = 0.0
+    return out
+
+
 def _one_pass(lam_u, mu, ref, dlu):
     """One sequential pass over the period from reference ``ref`` (p, 2).
 
@@ -205,7 +224,11 @@ def _one_pass(lam_u, mu, ref, dlu):
         lim = limit_all[k]
         slip = (nT >= lim) & ~sep
         stick = ~(slip | sep)
-        state[k] = np.where(sep, SEPARATION, np.where(slip, SLIP, STICK))
+        # A pair that slipped while the periods settled ends *on* the cone
+        # (shakedown): its forces are those of stick to O(δ), but its reference
+        # follows the touching instant, so it takes the slip derivative.
+        touch = stick & (nT >= lim * (1.0 - _TOUCH))
+        state[k] = np.where(sep, SEPARATION, np.where(slip | touch, SLIP, STICK))
         inv = 1.0 / np.maximum(nT, _TINY)
         fac = np.where(stick, 1.0, np.where(slip, lim * inv, 0.0))
         lamT = fac[:, None] * preT
@@ -217,10 +240,10 @@ def _one_pass(lam_u, mu, ref, dlu):
         # df = −(μ dλ_pre^N + f t·dλ_pre^T)/‖λ_pre^T‖  (|λ_pre^N| = −λ_pre^N, t = λ_pre^T/‖λ_pre^T‖)
         dpreT = dlu[k, 1:][None] - S
         dT = fac[:, None, None] * dpreT
-        if slip.any():
+        if slip.any() or touch.any():
             that = preT * inv[:, None]
             tdp = that[:, 0, None] * dpreT[:, 0] + that[:, 1, None] * dpreT[:, 1]
-            dfac = -(mu_col * dlu[k, 0][None] + fac[:, None] * tdp) * (inv * slip)[:, None]
+            dfac = -(mu_col * dlu[k, 0][None] + fac[:, None] * tdp) * (inv * (slip | touch))[:, None]
             dT += preT[:, :, None] * dfac[:, None, :]
         dlam[k, :, 1:] = dT
         S = dlu[k, 1:][None] - dT
@@ -316,9 +339,7 @@ def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray 
         if periodic:
             stuck = np.all(state == STICK, axis=0)
             IA = np.eye(2)[None] - S[:, :, ncol:]
-            det = IA[:, 0, 0] * IA[:, 1, 1] - IA[:, 0, 1] * IA[:, 1, 0]
-            ok = ~stuck & (np.abs(det) > 1e-12)
-            dr = np.einsum("iab,ibn->ian", _inv2(IA, ok), S[:, :, :ncol])
+            dr = np.einsum("iab,ibn->ian", _pinv2(IA, ~stuck), S[:, :, :ncol])
             dl = dl + np.einsum("kicr,irn->kicn", dlam[..., ncol:], dr)
         out_dlam = dl
     return DLFTResult(lam=lam, lam_x_T=lxT, state=state, passes=passes, converged=converged,

@@ -22,6 +22,15 @@ Run folder
     updated only after every stage has succeeded, then ``<out>/summary.json``
     (written atomically, last), ``<out>/scene.json`` (the resolved scene) and
     ``<out>/run.log``. A failed run leaves the previous summary and links.
+
+Under MPI (``mpirun -n N bladewear run …``; :mod:`workflow.mpi`)
+    Every rank plans (the plan is deterministic); rank 0 alone decides what is
+    cached, holds the cache lock and writes every file (cache entries, run
+    folder, summary, log) and broadcasts its decisions. A stage declaring
+    ``MPI = True`` (assembly, reduction, modes) is collective: every rank runs
+    it into the temporary entry folder that rank 0 opened, and only rank 0
+    writes there. Any other stage runs on rank 0 while the others wait. A
+    failure on any rank makes every rank raise the same error.
 """
 from __future__ import annotations
 
@@ -40,6 +49,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Iterable, Iterator
 
+from workflow import mpi
 from workflow import stages as registry
 from workflow.errors import OutputError, SceneError
 from workflow.io import atomic_dir, write_json
@@ -357,13 +367,17 @@ def run_scene(scene: Scene, out: str | os.PathLike, *, cache: str | os.PathLike 
     """Run the stages ``scene`` needs; write ``out``; return the summary dict."""
     out = Path(out).resolve()
     cache_root = Path(cache).resolve() if cache else default_cache(out)
+    grp = mpi.group()
     # Plan first: a scene that cannot run must not touch the run folder.
-    p = plan(scene)
-    model = _check_bundle(p.external["bundle"]) if "bundle" in p.external else None
-    _prepare_out(out)
-    log = RunLog(out / "run.log", quiet=quiet, stream=stream)
+    p = grp.together(plan, scene)
+    model = grp.on_root(_check_bundle, p.external["bundle"]) if "bundle" in p.external else None
+    grp.on_root(_prepare_out, out)
+    # Only rank 0 logs (to run.log and the terminal); the other ranks' stages talk to no one.
+    log = grp.root_only(RunLog, out / "run.log", quiet=quiet, stream=stream) or RunLog(quiet=True)
+    if grp.parallel:
+        log.info(f"MPI: {grp.size} ranks")
     try:
-        return _run(scene, p, out, cache_root, fresh, log, model)
+        return _run(scene, p, out, cache_root, fresh, log, model, grp)
     finally:
         log.close()
 
@@ -384,7 +398,8 @@ def _prepare_out(out: Path) -> None:
 
 
 def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: RunLog,
-         model: dict | None = None) -> dict:
+         model: dict | None = None, grp=None) -> dict:
+    grp = grp or mpi.Serial()
     t_start = time.monotonic()
     log.info(f"scene {scene.path or '(in memory)'}: {scene.title}")
     log.info("stages: " + " → ".join(p.stages) + (f" (bundle from {p.external['bundle']})"
@@ -399,34 +414,40 @@ def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: R
                  f"{model.get('contact_pairs')} contact pairs")
         summaries["model"] = model
         status["model"] = "external"
-    with cache_lock(cache_root):
+    with contextlib.ExitStack() as stack:
+        grp.root_only(stack.enter_context, cache_lock(cache_root) if grp.root else None)
         for name in p.stages:
             module = p.modules[name]
             if getattr(module, "NEEDS_ALL", False) or not getattr(module, "CACHE", True):
                 continue  # runs after the links are in place (the report)
             entry = cache_root / name / p.keys[name]
             t0 = time.monotonic()
-            got = None if fresh else read_entry(entry)
+            got = None if fresh else grp.on_root(read_entry, entry)
             if got is not None:
                 status[name] = "cached"
                 log.info(f"{name}: cached ({entry})")
             else:
                 inputs = {need: products[need] for need in module.NEEDS}
-                got = _compute(scene, module, inputs, entry, p.keys[name], log)
+                got = _compute(scene, module, inputs, entry, p.keys[name], log, grp)
                 status[name] = "computed"
             timings[name] = round(time.monotonic() - t0, 3)
             summaries[name] = got.get("summary", {})
             folders[name] = entry
             for product in module.PRODUCES:
                 products[product] = entry
-        _link(out, folders, p)
+        grp.on_root(_link, out, folders, p)
         for name in p.stages:
             if name in status:
                 continue
             t0 = time.monotonic()
-            summaries[name] = _run_uncached(scene, p, name, out, products, status, timings, summaries, log)
+            summaries[name] = grp.on_root(_run_uncached, scene, p, name, out, products, status, timings, summaries,
+                                          log)
             status[name] = "computed"
             timings[name] = round(time.monotonic() - t0, 3)
+    return grp.on_root(_finish, scene, p, out, cache_root, status, timings, summaries, log, t_start)
+
+
+def _finish(scene, p, out, cache_root, status, timings, summaries, log, t_start) -> dict:
     summary = _summary(scene, p, cache_root, status, timings, summaries)
     summary["total_seconds"] = round(time.monotonic() - t_start, 3)
     write_json(out / "scene.json", json.loads(scene.canonical()))
@@ -436,8 +457,47 @@ def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: R
     return summary
 
 
-def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: str, log: RunLog) -> dict:
-    """Run one stage into a fresh temporary folder that becomes ``entry`` whole."""
+def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: str, log: RunLog, grp=None) -> dict:
+    """Run one stage into a fresh temporary folder that becomes ``entry`` whole.
+
+    Under MPI a stage with ``MPI = True`` runs on every rank (rank 0 owns the
+    folder and the entry file); any other stage runs on rank 0 alone.
+    """
+    grp = grp or mpi.Serial()
+    if not grp.parallel:
+        return _compute_here(scene, module, inputs, entry, key, log)
+    if not getattr(module, "MPI", False):
+        return grp.on_root(_compute_here, scene, module, inputs, entry, key, log)
+    name = module.NAME
+    cm = atomic_dir(entry) if grp.root else None
+    tmp = grp.on_root(lambda: (log.info(f"{name}: computing (collective, {grp.size} ranks)"), cm.__enter__())[1])
+    t0 = time.monotonic()
+    try:
+        summary = grp.together(module.run, scene, dict(inputs), tmp, log.child(name))
+    except BaseException as exc:
+        if grp.root:
+            cm.__exit__(type(exc), exc, exc.__traceback__)  # removes the temporary folder
+        raise
+
+    def commit() -> dict:
+        got = {"stage": name, "key": key, "summary": summary if summary is not None else {},
+               "seconds": round(time.monotonic() - t0, 3), "created": _now(),
+               "inputs": {k: str(v) for k, v in inputs.items()},
+               "sections": json.loads(scene.canonical(module.SECTIONS)), "mpi_ranks": grp.size}
+        try:
+            write_json(tmp / STAGE_FILE, got)
+        except BaseException as exc:
+            cm.__exit__(type(exc), exc, exc.__traceback__)
+            raise
+        cm.__exit__(None, None, None)
+        log.info(f"{name}: computed in {got['seconds']:.1f} s on {grp.size} ranks")
+        return json.loads((entry / STAGE_FILE).read_text())
+
+    return grp.on_root(commit)
+
+
+def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: str, log: RunLog) -> dict:
+    """:func:`_compute` in this process alone (serial runs; non-MPI stages on rank 0)."""
     name = module.NAME
     log.info(f"{name}: computing")
     t0 = time.monotonic()
