@@ -391,19 +391,36 @@ def problem(su: Setup, case: Case, method: str) -> HBProblem:
 
 # ---------------------------------------------------------------- limits
 
-def free_limit(Zr: np.ndarray, Fr: np.ndarray) -> np.ndarray:
-    """μ = 0 limit for harmonics ≥ 1 (Nh+1, 3p): normal tied, tangential free.
-
-    ``U_N,j = 0``, ``Z_TT,j U_T,j = F_T,j`` (j ≥ 1); row 0 is left zero
-    (the static offset is not part of the comparison).
-    """
+def constrained_response(Zr: np.ndarray, Fr: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """Linear response for harmonics ≥ 1 (Nh+1, 3p) with the relative DOFs ``fixed`` (bool, 3p)
+    held at 0 and the others free of contact force: ``Z_ff,j U_f,j = F_f,j``; row 0 left zero."""
     nh1, r = Fr.shape
-    T = np.ones(r, dtype=bool)
-    T[0::3] = False
+    free = ~np.asarray(fixed, dtype=bool)
     U = np.zeros((nh1, r), dtype=complex)
-    for j in range(1, nh1):
-        U[j, T] = np.linalg.solve(Zr[j][np.ix_(T, T)], Fr[j, T])
+    if free.any():
+        for j in range(1, nh1):
+            U[j, free] = np.linalg.solve(Zr[j][np.ix_(free, free)], Fr[j, free])
     return U
+
+
+def free_limit(Zr: np.ndarray, Fr: np.ndarray, open_pairs: np.ndarray | None = None) -> np.ndarray:
+    """μ = 0 limit for harmonics ≥ 1: normal tied on closed pairs, everything else free.
+
+    ``open_pairs`` (bool, p): pairs separated all period (free in all directions); default none.
+    """
+    r = Fr.shape[1]
+    fixed = np.zeros(r, dtype=bool)
+    fixed[0::3] = True
+    if open_pairs is not None:
+        fixed[0::3] &= ~np.asarray(open_pairs, dtype=bool)
+    return constrained_response(Zr, Fr, fixed)
+
+
+def tied_limit(Zr: np.ndarray, Fr: np.ndarray, open_pairs: np.ndarray | None = None) -> np.ndarray:
+    """μ → ∞ / excitation → 0 limit for harmonics ≥ 1: closed pairs tied (U = 0), open pairs free."""
+    p = Fr.shape[1] // 3
+    closed = np.ones(p, dtype=bool) if open_pairs is None else ~np.asarray(open_pairs, dtype=bool)
+    return constrained_response(Zr, Fr, np.repeat(closed, 3))
 
 
 def linear_open(Zr: np.ndarray, Fr: np.ndarray) -> np.ndarray:
@@ -418,6 +435,11 @@ def linear_open(Zr: np.ndarray, Fr: np.ndarray) -> np.ndarray:
 def tied_scale(Zr: np.ndarray, Fr: np.ndarray) -> float:
     """Norm of the free-limit harmonics ≥ 1 (m): the yardstick of "U ≈ 0" (tied limit)."""
     return float(np.linalg.norm(free_limit(Zr, Fr)[1:]))
+
+
+def _open_pairs(prob: HBProblem, x) -> np.ndarray:
+    """Pairs separated during the whole period at x (bool, p)."""
+    return np.all(prob.contact_state(x) == SEPARATION, axis=0)
 
 
 def _rel(a, b, scale=None) -> float | None:
@@ -452,6 +474,9 @@ def verify(prob: HBProblem, x: np.ndarray, tol: float) -> tuple[bool, str, dict]
     facts["separated"] = float(np.mean(st == SEPARATION))
     facts["slipping"] = float(np.mean(st == SLIP))
     facts["sticking"] = float(np.mean(st == STICK))
+    sep = st == SEPARATION
+    facts["intermittent"] = float(np.mean(np.any(sep, axis=0) & ~np.all(sep, axis=0)))   # pairs that open and close
+    facts["open_pairs"] = int(np.sum(np.all(sep, axis=0)))
     if not math.isfinite(rel):
         return False, "non-finite residual at the returned point", facts
     if not res.converged:
@@ -542,11 +567,14 @@ def _diagnose(res, prob: HBProblem, x, solver: str, facts: dict, cond: float | N
     if facts.get("residual") is not None:
         parts.append(f"‖R‖/‖F‖ = {facts['residual']:.1e}")
     sep = facts.get("separated") or 0.0
-    if 0.0 < sep < 1.0:
-        parts.append(f"contact opens and closes within the period ({sep:.0%} of instants × pairs separated): "
-                     "stalled at a kink of the piecewise-smooth residual, no smooth root nearby")
-    elif sep >= 1.0:
-        parts.append("contact open everywhere")
+    inter = facts.get("intermittent") or 0.0
+    if inter > 0.0:
+        parts.append(f"{inter:.0%} of the pairs open and close within the period: stalled at a kink of the "
+                     "piecewise-smooth residual (separation/contact switches)")
+    if sep >= 1.0:
+        parts.append("contact open everywhere (is the blade held without it?)")
+    elif facts.get("open_pairs"):
+        parts.append(f"{facts['open_pairs']} pair(s) open all period")
     if solver == "pseudo-time" and x is not None and prob.n <= 1500:
         try:
             _, J = prob.residual_jacobian(x)
@@ -624,10 +652,12 @@ def _error(su: Setup, case: Case, prob: HBProblem, U: np.ndarray, reference: dic
             return None
         # a fully stuck interface has U ≡ 0: measure against the free-response yardstick then
         return _rel(U, ref, scale=max(float(np.linalg.norm(ref)), tied_scale(prob.Zr, prob.Fr)))
-    if case.limit == "free":
-        return _rel(U[1:], free_limit(prob.Zr, prob.Fr)[1:])
-    if case.limit == "tied":
-        return _rel(U[1:], np.zeros_like(U[1:]), scale=tied_scale(prob.Zr, prob.Fr))
+    if case.limit in ("free", "tied"):
+        x = prob.unknowns_from_harmonics(U)
+        op = _open_pairs(prob, x)
+        if case.limit == "free":
+            return _rel(U[1:], free_limit(prob.Zr, prob.Fr, op)[1:])
+        return _rel(U[1:], tied_limit(prob.Zr, prob.Fr, op)[1:], scale=tied_scale(prob.Zr, prob.Fr))
     if case.limit == "open":
         return _rel(U, linear_open(prob.Zr, prob.Fr))
     return None

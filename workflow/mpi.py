@@ -177,3 +177,35 @@ def group(comm=None):
     if comm is None or comm.Get_size() == 1:
         return Serial()
     return Group(comm)
+
+
+def mpirun_command(n: int) -> list[str] | None:
+    """``[mpirun, -n, N, …]`` for launching ``n`` ranks from a script or a test; None without mpirun.
+
+    Open MPI gets ``--oversubscribe`` (more ranks than cores is fine for a
+    test) and, as root, ``--allow-run-as-root``.
+    """
+    import shutil
+    import subprocess
+
+    exe = shutil.which("mpirun") or shutil.which("mpiexec")
+    if exe is None:
+        return None
+    cmd = [exe, "-n", str(int(n))]
+    try:
+        version = subprocess.run([exe, "--version"], capture_output=True, text=True, timeout=30).stdout
+    except (OSError, subprocess.SubprocessError):
+        version = ""
+    if "Open MPI" in version or "OpenRTE" in version:
+        cmd.insert(1, "--oversubscribe")
+        if hasattr(os, "geteuid") and os.geteuid() == 0:
+            cmd.insert(1, "--allow-run-as-root")
+    return cmd
+
+
+def single_thread_env(env: dict | None = None) -> dict:
+    """``env`` (default: this process's) with one BLAS/OpenMP thread per rank (no oversubscription)."""
+    env = dict(os.environ if env is None else env)
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env[k] = "1"
+    return env

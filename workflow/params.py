@@ -132,6 +132,9 @@ class PseudoTime:
     max_steps: int = param(2000, "", "pseudo-time steps at most", min=1)
     dt_growth: float = param(1.2, "", "SER: smallest growth factor of the pseudo-time step per step (1: pure "
                                       "SER)", min=1.0)
+    wear_dt_max: float = param(1.0, "blocks", "wear system: largest pseudo-time step in blocks of "
+                                              "wear.cycles_per_block (path resolution as the reference; the "
+                                              "worn steady state depends on the path); 0: uncapped", min=0.0)
 
 
 @dataclass

@@ -14,6 +14,9 @@ Optional module attributes:
   this run's timings).
 * ``NEEDS_ALL = True`` — receives every other product of the run, plus
   ``inputs["summary"]``: a JSON file with the run summary so far (the report).
+* ``MPI = True`` — collective under ``mpirun``: every rank runs ``run`` (with
+  the same ``out``, which only rank 0 may write to); without it a stage runs
+  on rank 0 while the others wait (``workflow/pipeline.py``, ``workflow/mpi.py``).
 """
 from __future__ import annotations
 

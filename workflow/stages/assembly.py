@@ -16,6 +16,7 @@ NAME = "assembly"
 SECTIONS = ("material", "rotation", "damping", "excitation")
 NEEDS = ("mesh",)
 PRODUCES = ("bundle",)
+MPI = True  # collective under mpirun: dolfinx distributes the mesh and assembles in parallel; rank 0 writes
 
 BUNDLE_DIR = "model"
 

@@ -14,6 +14,7 @@ NAME = "geometry"
 SECTIONS = ("geometry",)
 NEEDS = ()
 PRODUCES = ("mesh",)
+MPI = False  # gmsh meshes on rank 0 alone; the assembly then distributes the mesh over the ranks
 
 MESH_FILE = "sector.msh"
 INFO_FILE = "geometry.json"

@@ -103,6 +103,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
             if scheme != pt.scheme:
                 log.info(f"pseudotime.scheme = {pt.scheme} is explicit/block: the wear system uses ser")
             h = pseudo_time_wear(wp, base.x, scheme=scheme, max_steps=pt.max_steps, dt_growth=pt.dt_growth,
+                                 dt_max_blocks=pt.wear_dt_max,
                                  **common)
         log.info(f"{m}: {'steady' if h.steady else 'NOT steady'} after {h.iterations} iterations, "
                  f"{h.seconds:.2f} s, max W = {np.max(h.W):.3e} m ({h.reason})")

@@ -1,0 +1,164 @@
+"""Two MPI ranks give the serial reduced model (issue 9).
+
+``mpirun -n 2 bladewear run`` (geometry on rank 0; assembly, reduction and
+modes collective) against the same scene on one process, on a coarse sector
+(~12k DOFs). The two bundles differ by dolfinx's partition-dependent DOF
+numbering, so the comparison is on what does not depend on it: frequencies
+(fixed-interface, full tied, reduced tied), the contact pairs (ordered by
+position on both), and the tied FRF at the tip. A second check reduces the
+*serial* bundle on two ranks (``python -m reduction.parallel``): then even the
+boundary blocks of the reduced matrices agree to round-off.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from workflow.mpi import mpirun_command, single_thread_env
+
+pytestmark = pytest.mark.mpi
+
+MPIRUN = mpirun_command(2)
+if MPIRUN is None:
+    pytest.skip("mpirun/mpiexec not found on PATH: the 2-rank comparison needs an MPI launcher",
+                allow_module_level=True)
+
+BIN = Path(sys.executable).parent
+SCENE = """
+[run]
+title = "MPI equality check"
+outputs = ["reduced", "modes"]
+[geometry]
+h_blade = 0.006
+h_disk = 0.010
+h_airfoil = 0.009
+[rotation]
+speed_rpm = 3000.0
+[reduction]
+modes = 10
+[modes]
+count = 6
+"""
+REL = 1e-8
+
+
+def _env():
+    env = single_thread_env()
+    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
+    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+    env.pop("BLADEWEAR_CACHE", None)
+    return env
+
+
+def _run(cmd, timeout=300):
+    r = subprocess.run(cmd, capture_output=True, text=True, env=_env(), timeout=timeout)
+    assert r.returncode == 0, f"{' '.join(map(str, cmd))} failed ({r.returncode}):\n{r.stdout}\n{r.stderr}"
+    return r
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """(serial run folder, 2-rank run folder) of the same scene."""
+    tmp = tmp_path_factory.mktemp("mpi")
+    scene = tmp / "scene.toml"
+    scene.write_text(SCENE)
+    serial, parallel = tmp / "serial", tmp / "parallel"
+    _run([str(BIN / "bladewear"), "run", str(scene), "--out", str(serial), "--cache", str(tmp / "c1"), "--quiet"])
+    _run(MPIRUN + [str(BIN / "bladewear"), "run", str(scene), "--out", str(parallel), "--cache",
+                   str(tmp / "c2"), "--quiet"])
+    return serial, parallel
+
+
+def _reduced(folder):
+    from reduction.reduced import ReducedModel
+
+    return ReducedModel.load(Path(folder) / "reduction" / "reduced.npz")
+
+
+def _tied(m, k=8):
+    """Lowest k frequencies [Hz] of the reduced model with the interface tied (B q = 0)."""
+    N = sla.null_space(m.B)
+    w2 = sla.eigh(N.T @ m.K @ N, N.T @ m.M @ N, eigvals_only=True)
+    return np.sqrt(np.abs(w2[:k])) / (2 * np.pi), N
+
+
+def _tied_frf(m, freqs):
+    _, N = _tied(m, 1)
+    out = []
+    for f in freqs:
+        w = 2 * np.pi * f
+        D = m.K - w * w * m.M + 1j * w * m.C
+        out.append(m.O @ (N @ np.linalg.solve(N.T @ D @ N, N.T @ m.f_harmonic)))
+    return np.array(out)
+
+
+def _rel(a, b):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return float(np.max(np.abs(a - b) / np.abs(b)))
+
+
+def test_pipeline_two_ranks_equals_serial(runs):
+    import json
+
+    serial, parallel = runs
+    s, p = _reduced(serial), _reduced(parallel)
+    assert p.info["mpi_ranks"] == 2 and "mpi_ranks" not in s.info
+    summary = json.loads((parallel / "summary.json").read_text())
+    assert summary["stages"] == {"geometry": "computed", "assembly": "computed", "reduction": "computed",
+                                 "modes": "computed"}
+    # contact pairs: same order (by flank, then position), same data
+    np.testing.assert_array_equal(p.flank, s.flank)
+    np.testing.assert_allclose(p.position, s.position, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(p.area, s.area, rtol=1e-10)
+    assert p.size == s.size and p.info["boundary_dofs"] == s.info["boundary_dofs"]
+    # frequencies: fixed-interface modes, full tied model (modes stage), reduced tied model
+    assert _rel(p.info["fixed_interface_hz"], s.info["fixed_interface_hz"]) < REL
+    ft = [np.loadtxt(d / "modes" / "modes.csv", delimiter=",", skiprows=1)[:, 1] for d in (serial, parallel)]
+    assert _rel(ft[1], ft[0]) < REL
+    fs, fp = _tied(s)[0], _tied(p)[0]
+    assert _rel(fp, fs) < REL
+    # tied FRF at the tip over ±10 % of the first tied mode (ζ = 0.2 %: a 1e-10 frequency shift is ~1e-7 here)
+    band = np.linspace(0.9, 1.1, 9) * fs[0]
+    hs, hp = _tied_frf(s, band), _tied_frf(p, band)
+    assert np.max(np.abs(hp - hs)) / np.max(np.abs(hs)) < 1e-6
+
+
+def test_serial_bundle_reduced_on_two_ranks(runs, tmp_path):
+    """Same bundle, 1 vs 2 ranks: the reduced model agrees block by block (modal block up to signs)."""
+    from reduction.reduced import ReducedModel
+
+    serial, _ = runs
+    out = tmp_path / "r2.npz"
+    _run(MPIRUN + [sys.executable, "-m", "reduction.parallel", str(serial / "assembly" / "model"), str(out),
+                   "--modes", "10"])
+    s, p = _reduced(serial), ReducedModel.load(out)
+    nb = s.info["boundary_dofs"]
+    scale = np.abs(s.K[:nb, :nb]).max()
+    np.testing.assert_allclose(p.K[:nb, :nb], s.K[:nb, :nb], rtol=0, atol=1e-10 * scale)
+    np.testing.assert_allclose(p.M[:nb, :nb], s.M[:nb, :nb], rtol=0, atol=1e-10 * np.abs(s.M[:nb, :nb]).max())
+    np.testing.assert_array_equal(p.B[:, :nb], s.B[:, :nb])
+    # modal coordinates: diag(ω²) identical; vectors up to sign
+    nm = s.info["modes"]
+    np.testing.assert_allclose(np.diag(p.K)[nb:nb + nm], np.diag(s.K)[nb:nb + nm], rtol=1e-9)
+    assert _rel(_tied(p)[0], _tied(s)[0]) < REL
+
+
+def test_failure_on_two_ranks_is_one_error(runs, tmp_path):
+    """A stage error under MPI: one line from rank 0, exit status 2 on the job, no hang."""
+    _, parallel = runs
+    cache = parallel.parent / "c2"  # geometry and assembly cached: only the reduction runs (and fails)
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE.replace("modes = 10", "modes = 1000000"))
+    r = subprocess.run(MPIRUN + [str(BIN / "bladewear"), "run", str(scene), "--out", str(tmp_path / "o"),
+                                 "--cache", str(cache), "--quiet"],
+                       capture_output=True, text=True, env=_env(), timeout=300)
+    assert r.returncode == 2, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and "fixed-interface modes asked" in lines[0], r.stderr
+    assert not any(n.name.endswith(".tmp") for n in (cache / "reduction").iterdir())
