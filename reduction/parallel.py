@@ -383,6 +383,12 @@ def main(argv=None) -> int:
         model.save(a.out)
         print(f"{a.out}: {model.size} coordinates, {model.info['mpi_ranks']} ranks, "
               f"{model.info['seconds']['total']:.2f} s")
+    import gc
+
+    from petsc4py import PETSc
+
+    gc.collect()
+    PETSc.garbage_cleanup(PETSc.COMM_WORLD)  # collective, before MPI_Finalize (see workflow.mpi.collect_garbage)
     return 0
 
 

@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``bladewear`` console script; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        with _sigterm_as_interrupt():
+        with _sigterm_as_interrupt(), _mpi_exit():
             return {"run": cmd_run, "scenes": cmd_scenes, "show": cmd_show}[args.command](args)
     except BladewearError as exc:
         if _rank() == 0:
@@ -67,6 +67,18 @@ def main(argv: list[str] | None = None) -> int:
             print("error: interrupted; completed stages stay cached, the next run resumes from them",
                   file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+@contextlib.contextmanager
+def _mpi_exit():
+    """Under MPI: free PETSc's deferred parallel objects on every rank before exit (else a hang)."""
+    try:
+        yield
+    finally:
+        from workflow.mpi import collect_garbage, world
+
+        if world() is not None:
+            collect_garbage()
 
 
 def _rank() -> int:

@@ -698,8 +698,9 @@ def _run_wear(su: Setup, case: Case, method: str, solver: str, out: CaseResult, 
     elif out.converged:
         rate = np.asarray(h.final_rate)
         out.error = float(np.max(rate) * cycles / max(float(np.max(W)), 1e-300)) if W.max() > 0 else 0.0
-        approach = max(float(np.max(-_static_free_normal(su))), 1e-300)
-        if W.max() > 10.0 * approach:
+        # yardstick: the static normal relative displacement without contact (m)
+        approach = float(np.max(np.abs(_static_free_normal(su))))
+        if approach > 0 and W.max() > 10.0 * approach:
             out.converged = False
             out.diagnosis = (f"wear overshoot: max W = {W.max():.3g} m is {W.max() / approach:.3g}× the static "
                              "approach; the contact was opened by one long step, not by wear (the steady state "

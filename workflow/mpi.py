@@ -132,9 +132,10 @@ class Group:
         errors = self.ctl.allgather(None if err is None else _portable(err))
         failed = [e for e in errors if e is not None]
         if failed:
-            if err is not None and failed[0] is errors[self.rank]:
+            if err is not None and errors[self.rank] is not None and failed[0] is errors[self.rank]:
                 raise err  # this rank's own exception, with its traceback
             raise failed[0]
+        collect_garbage()
         return value
 
     # ------------------------------------------------------------ helpers
@@ -160,6 +161,25 @@ class Group:
         print(f"error (rank {self.rank}): the other ranks did not finish within {self.grace:.0f} s "
               "(blocked in a collective call?); aborting the MPI job", file=sys.stderr, flush=True)
         self.comm.Abort(ABORT_STATUS)
+
+
+def collect_garbage() -> None:
+    """Destroy, on every rank together, the PETSc objects Python has dropped (collective).
+
+    PETSc ≥ 3.18 defers destroying parallel objects that the garbage collector
+    frees (it may free them at different times on different ranks) and
+    cleans them up collectively; left to interpreter exit, that cleanup can
+    run on one rank while another is already in ``MPI_Finalize`` — a hang.
+    Call on every rank of the job, after each collective stage and at exit.
+    """
+    if "petsc4py.PETSc" not in sys.modules:
+        return
+    import gc
+
+    from petsc4py import PETSc
+
+    gc.collect()
+    PETSc.garbage_cleanup(PETSc.COMM_WORLD)
 
 
 def _portable(exc: BaseException) -> BaseException:

@@ -90,7 +90,9 @@ class HB:
                           item_choices=("hbm", "tcm", "hdhb"))
     harmonics: list = param([3], "", "numbers of harmonics Nh", min=0)
     time_samples: list = param([0], "", "nit per period; 0 means 2Nh+1 (HDHB always uses 2Nh+1)", min=0)
-    solver: str = param("newton", "", "nonlinear solver", choices=("newton", "powell", "pseudo-time"))
+    solver: str = param("newton", "", "nonlinear solver; newton-powell: ≤10 Newton steps from the predictor, then "
+                                      "hybrid Powell from the best iterate",
+                        choices=("newton", "powell", "newton-powell", "pseudo-time"))
     tol: float = param(1e-8, "", "residual tolerance relative to ‖F_r‖", min=0.0, min_exclusive=True)
     max_iterations: int = param(100, "", "solver iterations at most", min=1)
     reference_harmonics: int = param(0, "", "Nh of the converged reference for the error table (0: off)", min=0)

@@ -50,7 +50,6 @@ import scipy.linalg
 from workflow import fourier
 from workflow.errors import SolverError
 from workflow.io import atomic_path, write_text
-from workflow.pseudotime import PseudoTimeResult, integrate
 from workflow.solvers import newton, powell
 
 __all__ = ["slip_increments", "wear_per_cycle", "pressure", "WearProblem", "WearState", "WearHistory",
@@ -285,23 +284,48 @@ def _h1(wp: WearProblem, x, track: int) -> float:
     return float(np.abs(wp.hb.harmonics(x)[1, track])) if wp.hb.nh >= 1 else 0.0
 
 
+# ------------------------------------------------------------------ step control
+
+def penetration_scale(wp: WearProblem, st: WearState) -> float:
+    """Largest mean normal interpenetration ``−⟨λ_N⟩/ε_N`` [m] of the pairs (the W scale of the dynamics).
+
+    A wear depth of that order unloads a pair completely, so it is the
+    natural absolute scale of W for the step controls (W starts at 0, where a
+    purely relative control is undefined).
+    """
+    pen = np.maximum(-np.mean(st.lam[..., 0], axis=0), 0.0) / wp.hb.law.eps_n
+    return max(float(np.max(pen)) if pen.size else 0.0, 1e-300)
+
+
+def _wscale(W, pen) -> float:
+    return max(float(np.max(W)) if W.size else 0.0, pen)
+
+
 # ------------------------------------------------------------------ reference
 
 def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per_block: float = 1e5,
                     max_blocks: int = 400, steady_tol: float = 1e-3, tol: float = 1e-9,
-                    track: int = 1, newton_w_iterations: int = 8) -> WearHistory:
-    """Wear marched in physical time by blocks of ``cycles_per_block`` cycles (refs. 5, 7).
+                    track: int = 1, newton_w_iterations: int = 8, block_tol: float = 0.0) -> WearHistory:
+    """Wear marched in physical time by blocks of N cycles (refs. 5, 7).
 
     explicit: ``W_{k+1} = W_k + N·rate(x_k, W_k)``;
     implicit: ``W_{k+1} = W_k + N·rate(x(W_{k+1}), W_{k+1})`` by Newton on W
     (Jacobian ``I − N d rate/dW`` along the HB solutions), W never decreasing.
-    Each W needs a converged HB solve (Newton, warm start). Stops at the steady
-    state (:func:`_steady`) or after ``max_blocks``.
+    Each W needs a converged HB solve (Newton, warm start).
+
+    Block size: ``block_tol`` = 0: fixed, N = ``cycles_per_block``;
+    ``block_tol`` > 0: adaptive, the block wears at most ``block_tol`` of the
+    current W scale, ``N·max rate ≤ block_tol·max(max W, pen)`` (pen: the
+    largest normal interpenetration at W = 0, :func:`penetration_scale`), so
+    the slow time step resolves the wear dynamics; the profile converges
+    (first order) as ``block_tol`` → 0. Stops at the steady state
+    (:func:`_steady`, judged over ``cycles_per_block`` cycles) or after
+    ``max_blocks``.
     """
     if scheme not in ("explicit", "implicit"):
         raise ValueError(f"wear reference scheme {scheme!r}: explicit or implicit")
     t0 = time.perf_counter()
-    N = float(cycles_per_block)
+    Nref = float(cycles_per_block)
     W = np.zeros(wp.p) if wp.W is None else wp.W
     solves = 0
     nje = 0
@@ -310,6 +334,7 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     nje += res.jacobian_evaluations + 1
     if not res.converged:
         raise SolverError(f"wear reference: HB solve at W = 0 failed: {res.reason}")
+    pen = penetration_scale(wp, st)
     x = res.x
     hist = WearHistory(method=f"reference-{scheme}", W=W, x=x, steady=False, seconds=0.0, iterations=0,
                        hb_solves=0, jacobian_evaluations=0)
@@ -326,10 +351,13 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     steady = False
     k = 0
     for k in range(1, max_blocks + 1):
-        if _steady(st.rate, W, N, steady_tol) and (k > 1 or st.rate.max() == 0):
+        if _steady(st.rate, W, Nref, steady_tol) and (k > 1 or st.rate.max() == 0):
             steady, reason = True, "steady"
             k -= 1
             break
+        N = Nref
+        if block_tol > 0:
+            N = block_tol * _wscale(W, pen) / max(float(st.rate.max()), 1e-300)
         if scheme == "explicit":
             Wn = W + N * st.rate
             res, stn = wp.solve_hb(x, Wn, tol=tol)
@@ -372,153 +400,116 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
 
 def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_block: float = 1e5,
                      steady_tol: float = 1e-3, tol: float = 1e-9, max_steps: int = 400,
-                     theta: float | None = None, rtol: float = 1e-3, dt_growth: float = 1.2,
-                     track: int = 1, stall_window: int = 10, max_corrections: int = 20,
-                     dt_max_blocks: float = 0.0) -> WearHistory:
-    """Integrate the augmented system (eq. 22a–b) to R = 0 and zero wear rates.
+                     rtol: float = 1e-3, track: int = 1, x_tol: float = 1e-5, x_corrections: int = 3,
+                     dt_max_blocks: float = 0.0, **_ignored) -> WearHistory:
+    """Integrate the augmented system (eq. 22a–b) along the wear trajectory to zero wear rates.
 
-    Unknowns ``z = [x; W]``; residual ``R_aug = [R(x; W); −c·rate(x; W)]``,
-    pseudo-time mass ``diag(θ J(x0), c I)`` so that ``θ J0 ẋ = −R`` and
-    ``Ẇ = rate`` with t* in cycles (see module docstring for the scaling).
-    ``scheme``: an implicit scheme of :mod:`workflow.pseudotime` ("ser" —
-    linearly implicit Euler with SER growth, first Δt* = one block —, "bdf"
-    (NDF, the paper's choice) or "rosenbrock"). Same steady-state test as
-    :func:`march_reference`. ``dt_max_blocks`` > 0 caps Δt* at that many
-    blocks (the wear path then follows the reference's time resolution; the
+    Unknowns ``z = [x; W]``. The vibration is the fast part of the dual
+    time scales (pseudo-time mass θ J → 0: it is slaved to W), the wear
+    ``Ẇ = rate(x; W)`` the slow part, t* in cycles. Each pseudo-time step is
+    one linearly implicit (Rosenbrock–Euler) step of the augmented DAE with
+    its exact Jacobian
+
+        [ J          ∂R/∂W        ] [Δx]   [ −R(x; W)  ]
+        [ −h ∂r/∂x   I − h ∂r/∂W  ] [ΔW] = [ h·rate    ]
+
+    i.e. a Newton step on the vibration and a linearly implicit Euler step
+    on the wear, with one Jacobian per step — the HB problem is *not*
+    converged at each slow step (only corrected by up to ``x_corrections``
+    Newton steps at fixed W when ``‖R‖ > x_tol·‖F‖``, a relaxed tolerance).
+    Step control on the wear variables only (the vibration error is
+    excluded): local error ``½h‖rate(z⁺) − rate(z)‖∞ ≤ rtol·max(max W,
+    pen)`` (pen: :func:`penetration_scale`), rejected steps retried with a
+    smaller h, so the integration tracks the physical wear trajectory (the
     worn steady state is a manifold — any W where every pair sticks or
-    separates — so the profile reached depends on the path); 0: uncapped.
+    separates — and the profile reached is the end of the path). Stops at
+    the steady state of :func:`march_reference` after a final HB solve to
+    ``tol`` at the reached W. ``scheme`` is kept for the scene key (every
+    implicit choice maps to this integrator); ``dt_max_blocks`` > 0 caps h
+    at that many ``cycles_per_block``.
     """
     t0 = time.perf_counter()
     N = float(cycles_per_block)
-    theta = 1e-3 * N if theta is None else float(theta)
     n, p = wp.n, wp.p
-    W0 = wp.W
+    W = wp.W
     hb = wp.hb
     scale = hb.residual_scale()
-    # start from the converged vibration at W0 so that early pseudo-time is wear, not vibration transient
-    res0, st0 = wp.solve_hb(x0, W0, tol=tol)
-    nje0 = res0.jacobian_evaluations + 1
-    x0 = res0.x
-    rate0 = float(st0.rate.max())
-    hist = WearHistory(method=f"pseudo-time-{scheme}", W=W0, x=x0, steady=False, seconds=0.0, iterations=0,
-                       hb_solves=1, jacobian_evaluations=nje0)
-    if rate0 == 0.0:
-        hist.steady, hist.reason, hist.final_rate = True, "steady (no wear at W0)", st0.rate
-        hist.cycles, hist.max_wear = [0.0], [float(W0.max())]
-        hist.harmonic1, hist.W_history = [_h1(wp, x0, track)], [W0.copy()]
+    res0, st = wp.solve_hb(x0, W, tol=tol)
+    nje = res0.jacobian_evaluations + 1
+    x = res0.x
+    pen = penetration_scale(wp, st)
+    hist = WearHistory(method=f"pseudo-time-{scheme}", W=W, x=x, steady=False, seconds=0.0, iterations=0,
+                       hb_solves=1, jacobian_evaluations=nje)
+    t = 0.0
+    hist.cycles, hist.max_wear, hist.harmonic1, hist.W_history = [0.0], [float(W.max())], [_h1(wp, x, track)], \
+        [W.copy()]
+    rmax = float(st.rate.max())
+    if rmax == 0.0:
+        hist.steady, hist.reason, hist.final_rate = True, "steady (no wear at W0)", st.rate
         hist.seconds = time.perf_counter() - t0
         return hist
-    c = scale / rate0
-    cache = {}
-
-    def split(z):
-        return z[:n], np.maximum(z[n:], 0.0)
-
-    def fun(z):
-        x, W = split(z)
-        st = wp.evaluate(x, W)
-        cache["st"] = st
-        return np.concatenate([st.R, -c * st.rate])
-
-    def fun_jac(z):
-        x, W = split(z)
-        st = wp.evaluate(x, W, jacobian=True)
-        cache["st"] = st
-        Ja = np.zeros((n + p, n + p))
-        Ja[:n, :n] = st.J
-        Ja[:n, n:] = st.R_W
-        Ja[n:, :n] = -c * st.G_x
-        Ja[n:, n:] = -c * np.diag(st.G_W)
-        return np.concatenate([st.R, -c * st.rate]), Ja
-
-    track_hist = {"max": [float(W0.max())], "h1": [_h1(wp, x0, track)], "W": [W0.copy()]}
-
-    def done(z, Raug):
-        x, W = split(z)
-        rate = -Raug[n:] / c
-        return (np.linalg.norm(Raug[:n]) <= tol * scale) and _steady(rate, W, N, steady_tol)
-
-    def callback(k, z, norm):
-        if k == 0:
-            return
-        x, W = split(z)
-        track_hist["max"].append(float(W.max()))
-        track_hist["h1"].append(_h1(wp, x, track))
-        track_hist["W"].append(W.copy())
-
-    # Segments of SER on the augmented system. Near the worn steady state the
-    # pairs sit on the Coulomb cone (shakedown) and the DLFT residual is
-    # non-smooth there: the linearly implicit steps, which tend to Newton as
-    # Δt* grows, end in a 2-cycle across the kink with ‖R‖ stuck (measured on
-    # the sector: ‖R_x‖ alternating 0.06/0.11 N with the rates already ≈ 0).
-    # Each segment stops on such a stall (no 1 % progress in ``stall_window``
-    # steps); the vibration is then corrected at fixed W (Newton, Powell
-    # fallback) and, if the rates are not yet steady, pseudo-time restarts
-    # from the corrected state with the pseudo-time mass θ·J refreshed there
-    # (the contact states, hence J, have changed since the last refresh) and
-    # Δt* back to one block.
-    z = np.concatenate([x0, W0])
-    J_mass = st0.J
-    dts: list[float] = []
-    steps = nje = polishes = 0
-    converged = False
-    reason = ""
-    dt_start = N
-    while True:
-        Mass = np.zeros((n + p, n + p))
-        Mass[:n, :n] = theta * J_mass
-        Mass[n:, n:] = c * np.eye(p)
-        left = max_steps - steps
-        if left <= 0:
+    hmax = dt_max_blocks * N if dt_max_blocks else np.inf
+    h = min(math.sqrt(rtol) * _wscale(W, pen) / rmax, hmax)
+    steps = rejected = corrections = 0
+    steady = False
+    reason = f"max steps ({max_steps})"
+    while steps + rejected < max_steps:
+        if _steady(st.rate, W, N, steady_tol) and steps > 0:
+            steady, reason = True, "steady"
             break
-        r: PseudoTimeResult = integrate(fun, fun_jac, z, scheme, precond=Mass, tol=tol, scale=scale,
-                                        max_steps=left, dt0=dt_start, rtol=rtol,
-                                        dt_max=None if not dt_max_blocks else dt_max_blocks * N,
-                                        atol=np.concatenate([np.full(n, 1e-6 * max(np.abs(x0).max(), 1e-300)),
-                                                             np.full(p, 1e-4 * N * rate0)]),
-                                        done=done, callback=callback, growth=1e8, window=stall_window,
-                                        keep="last", dt_growth=dt_growth)
-        steps += r.steps
-        nje += r.jacobian_evaluations
-        dts += list(r.dt_history)
-        if np.all(np.isfinite(r.x)):
-            z = r.x
-        reason = r.reason
-        if r.converged:
-            converged = True
-            break
-        # correct the vibration at the current W and test the steady state there
-        x, W = split(z)
-        res, stp = wp.solve_hb(x, W, tol=tol)
-        polishes += 1
-        nje += res.jacobian_evaluations + 1
-        if res.converged:
-            z = np.concatenate([res.x, W])
-            J_mass = stp.J
-            if _steady(stp.rate, W, N, steady_tol):
-                converged = True
-                reason = (f"converged (vibration corrected at fixed W after {r.reason.split(':')[0]}, "
-                          f"{polishes} correction(s))")
+        A = np.zeros((n + p, n + p))
+        A[:n, :n] = st.J
+        A[:n, n:] = st.R_W
+        A[n:, :n] = -h * st.G_x
+        A[n:, n:] = np.eye(p) - h * np.diag(st.G_W)
+        b = np.concatenate([-st.R, h * st.rate])
+        try:
+            dz = np.linalg.solve(A, b)
+        except np.linalg.LinAlgError:
+            dz = scipy.linalg.lstsq(A, b)[0]
+        xn = x + dz[:n]
+        Wn = np.maximum(W + dz[n:], W)          # wear never decreases
+        stn = wp.evaluate(xn, Wn, jacobian=True)
+        nje += 1
+        for _ in range(x_corrections):          # relaxed vibration convergence at fixed W
+            if np.linalg.norm(stn.R) <= x_tol * scale:
                 break
+            try:
+                xn = xn - np.linalg.solve(stn.J, stn.R)
+            except np.linalg.LinAlgError:
+                break
+            stn = wp.evaluate(xn, Wn, jacobian=True)
+            nje += 1
+            corrections += 1
+        err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))
+        ws = _wscale(Wn, pen)
+        ok = np.all(np.isfinite(stn.R)) and np.linalg.norm(stn.R) <= max(10 * x_tol, 1e-3) * scale
+        fac = 0.9 * math.sqrt(rtol * ws / err) if err > 0 else 4.0
+        if ok and err <= rtol * ws:
+            x, W, st = xn, Wn, stn
+            t += h
+            steps += 1
+            hist.cycles.append(t)
+            hist.max_wear.append(float(W.max()))
+            hist.harmonic1.append(_h1(wp, x, track))
+            hist.W_history.append(W.copy())
+            h = min(h * min(4.0, max(0.3, fac)), hmax)
         else:
-            _, J_mass = wp.hb.residual_jacobian(x)
-        if polishes >= max_corrections:
-            reason = f"{r.reason}; {polishes} vibration corrections without reaching the steady state"
-            break
-        dt_start = N
-    x, W = split(z)
-    st = wp.evaluate(x, W)
-    if not converged and not reason.startswith("max steps") and steps >= max_steps:
-        reason = f"max steps ({max_steps}): {reason}"
-    hist.W, hist.x = W, x
+            rejected += 1
+            h *= min(0.5, max(0.1, fac)) if ok else 0.25
+    # final vibration solve at the reached W (the profile is W; x to full tolerance for the outputs)
+    res, stf = wp.solve_hb(x, W, tol=tol)
+    nje += res.jacobian_evaluations + 1
+    if res.converged:
+        x, st = res.x, stf
+        if steady and not _steady(st.rate, W, N, steady_tol):
+            steady, reason = False, "not steady after the final vibration solve"
+    hist.W, hist.x, hist.steady = W, x, steady
     hist.final_rate = st.rate
-    hist.steady = bool(converged)
-    hist.reason = reason
+    hist.reason = f"{reason} ({steps} steps, {rejected} rejected, {corrections} vibration corrections)"
     hist.iterations = steps
-    hist.jacobian_evaluations = nje0 + nje
-    hist.hb_solves = 1 + polishes
-    hist.cycles = list(np.concatenate([[0.0], np.cumsum(dts)]))[: len(track_hist["max"])]
-    hist.max_wear, hist.harmonic1, hist.W_history = track_hist["max"], track_hist["h1"], track_hist["W"]
+    hist.hb_solves = 2
+    hist.jacobian_evaluations = nje
     hist.seconds = time.perf_counter() - t0
     return hist
 

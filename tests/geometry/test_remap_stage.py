@@ -25,8 +25,10 @@ def upstream(tmp_path_factory):
     p = TwoBlockParams(h=0.004, nodes_along=5, nodes_across=3)
     msh, ct, ft = build_two_block(p)
     info = {"tip_point": [p.length / 2, 0.0, p.height], "excitation_direction": [1.0, 0.0, 0.0]}
+    # A static tip force presses the trapezoidal root into its slot (preload for the FRF).
+    excitation = params.Excitation(amplitude=0.5, static_force=200.0)
     bundle, _ = build_bundle(msh, ct, ft, info, params.Material(), params.Rotation(),
-                             params.Damping(modal_ratio=0.0), params.Excitation())
+                             params.Damping(modal_ratio=0.01), excitation)
     (root / "stage").mkdir()
     dc.write_mesh_xdmf(msh, ct, ft, root / "stage" / "mesh.xdmf")
     write_bundle(bundle, root / "assembly" / "model",
@@ -36,18 +38,45 @@ def upstream(tmp_path_factory):
     write_wear_csv(root / "wear" / "wear.csv", pos, bundle.contact.flank,
                    {"implicit": types.SimpleNamespace(W=W), "pseudo-time": types.SimpleNamespace(W=0.9 * W)}, 0.5)
     scene = {k: cls() for k, cls in params.SECTIONS.items()}
-    scene["damping"] = params.Damping(modal_ratio=0.0)
+    scene["damping"] = params.Damping(modal_ratio=0.01)
+    scene["excitation"] = excitation
+    scene["reduction"] = params.Reduction(modes=20)
+    scene["sweep"] = params.Sweep(points=9)
     scene["wear"] = params.Wear(methods=["pseudo-time", "implicit"], blade_share=0.5)
     scene["modes"] = params.Modes(count=3)
     return root, scene, W
 
 
-def test_remap_stage_outputs(upstream, tmp_path):
+def _reduced_new(root, scene):
+    """The reduction stage's product for the upstream bundle (same settings as the stage's)."""
+    from reduction.bundle import read_bundle
+    from reduction.reduce import reduce_bundle
+
+    folder = root / "reduction"
+    if not (folder / "reduced.npz").is_file():
+        folder.mkdir(exist_ok=True)
+        reduce_bundle(read_bundle(root / "assembly" / "model"), n_modes=scene["reduction"].modes).save(
+            folder / "reduced.npz")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def worn_run(upstream, tmp_path_factory):
+    """The stage run once on the upstream wear (reassemble on): (summary, out folder, logged lines)."""
     from workflow.stages import remap as stage
 
+    root, scene, _ = upstream
+    out = tmp_path_factory.mktemp("remap_out")
+    lines = []
+    log = types.SimpleNamespace(info=lines.append, progress=lambda it, total=None, label="": it)
+    s = stage.run(scene, {"bundle": root / "assembly", "wear": root / "wear", "reduced": _reduced_new(root, scene)},
+                  out, log)
+    return s, out, lines
+
+
+def test_remap_stage_outputs(upstream, worn_run):
     root, scene, W = upstream
-    log = types.SimpleNamespace(info=lambda msg: None, progress=lambda it, total=None, label="": it)
-    s = stage.run(scene, {"bundle": root / "assembly", "wear": root / "wear"}, tmp_path, log)
+    s, tmp_path, lines = worn_run
     json.dumps(s)  # JSON-serialisable summary
     assert s["wear_column"] == "pseudo-time"  # first of wear.methods present in the CSV
     # Largest node motion = largest share (0.5 × 0.9 × max W on both bodies).
@@ -55,7 +84,18 @@ def test_remap_stage_outputs(upstream, tmp_path):
     np.testing.assert_allclose(s["max_node_motion_m"], s["max_wear_share_m"], rtol=1e-12)
     for key in ("worn_mesh", "wear_map", "worn_nodes"):
         assert (tmp_path / s[key]).is_file()
-    assert len(s["figures"]) == 2 and all((tmp_path / f).stat().st_size > 50_000 for f in s["figures"])
+    assert len(s["figures"]) == 3 and all((tmp_path / f).stat().st_size > 20_000 for f in s["figures"])
+    assert "figures/frf_worn_vs_new.png" in s["figures"]
+    # Every figure's path is logged (make demo shows where the maps are).
+    for f in s["figures"]:
+        assert any(f"remap/{f}" in line for line in lines)
+    # The worn reduced model is saved for a wear study on the worn geometry.
+    from reduction.reduced import ReducedModel
+
+    red = ReducedModel.load(tmp_path / s["reduced"])
+    np.testing.assert_allclose(np.sort(red.gap), np.sort(0.9 * W), rtol=1e-8)
+    for key in ("frf_peak_hz", "frf_peak_amplitude_m"):
+        assert set(s[key]) == {"new", "worn"} and all(np.isfinite(v) and v > 0 for v in s[key].values())
     # Re-assembled worn model: a bundle that reads back, wear carried into the gap.
     from reduction.bundle import read_bundle
 
@@ -96,6 +136,64 @@ def test_zero_wear_reassembly_has_no_frequency_shift(upstream, tmp_path):
     write_wear_csv(tmp_path / "wear" / "wear.csv", b.contact.position, b.contact.flank,
                    {"implicit": types.SimpleNamespace(W=np.zeros(b.contact.n_pairs))}, 0.5)
     log = types.SimpleNamespace(info=lambda msg: None)
-    s = stage.run(scene, {"bundle": root / "assembly", "wear": tmp_path / "wear"}, tmp_path / "out", log)
+    s = stage.run(scene, {"bundle": root / "assembly", "wear": tmp_path / "wear",
+                          "reduced": _reduced_new(root, scene)}, tmp_path / "out", log)
     assert s["max_node_motion_m"] == 0.0
     np.testing.assert_allclose(s["freq_shift_hz"], 0.0, atol=1e-8 * max(s["freq_new_hz"]))
+    # Zero wear: the worn model is the new one, so is its nonlinear FRF peak.
+    assert s["frf_converged"]["new"] == s["frf_converged"]["worn"] == s["frf_points"]
+    assert s["frf_peak_hz"]["worn"] == s["frf_peak_hz"]["new"]
+    np.testing.assert_allclose(s["frf_peak_amplitude_m"]["worn"], s["frf_peak_amplitude_m"]["new"], rtol=1e-6)
+
+
+def test_worn_reduced_model_keeps_the_full_worn_tied_frequencies(worn_run):
+    """The worn reduced model's tied frequencies are those of the re-assembled
+    full worn model (the freq shift computation) to reduction accuracy."""
+    from reduction.condense import relative_coordinates
+    from reduction.reduced import ReducedModel
+    from workflow.stages.hb import tied_modes
+
+    s, out, _ = worn_run
+    f_full = np.array(s["freq_worn_hz"])
+    f_red = np.sort(tied_modes(relative_coordinates(ReducedModel.load(out / s["reduced"])))[0])
+    f_red = f_red[f_red > 1e-3 * f_full[0]][:len(f_full)]  # drop rigid-body zeros, if any
+    np.testing.assert_allclose(f_red, f_full, rtol=1e-3)
+    # The FRF grid is centred on the new model's first excited tied mode, which the worn one barely moves.
+    assert abs(s["frf_tied_hz"]["worn"] - s["frf_tied_hz"]["new"]) < 1e-3 * s["frf_tied_hz"]["new"]
+
+
+def test_worn_static_state_is_the_new_one_with_wear_as_gap(upstream, worn_run):
+    """The worn bundle's gap carries W and its geometry the removed material:
+    its static contact state equals the new model's with the wear applied in
+    the contact law (gap + W), up to the O(W/h) stiffness change — not with
+    the wear counted twice."""
+    from reduction.condense import condense, relative_coordinates
+    from reduction.reduced import ReducedModel
+    from workflow.contact import ContactLaw
+    from workflow.stages import remap as stage
+    from workflow.stages.hb import contact_law, first_excited_mode
+
+    root, scene, W = upstream
+    s, out, _ = worn_run
+    new = ReducedModel.load(_reduced_new(root, scene) / "reduced.npz")
+    worn = ReducedModel.load(out / s["reduced"])
+    np.testing.assert_allclose(worn.position, new.position, atol=2 * W.max())  # same pair order
+    W_pairs = worn.gap - new.gap
+    assert W_pairs.max() > 0 and np.all(W_pairs >= 0)
+
+    def state(model, gap, wear):
+        rc = relative_coordinates(model)
+        c = condense(rc, 2 * np.pi * first_excited_mode(rc)[0], 0)
+        base = contact_law(scene["contact"], new, c.Zr[0])
+        law = ContactLaw(mu=base.mu, eps_n=base.eps_n, eps_t=base.eps_t, gap=gap, wear=wear)
+        return stage.static_state(c, law)
+
+    worn_st = state(worn, worn.gap, np.zeros_like(W_pairs))
+    new_st = state(new, new.gap, W_pairs)
+    twice = state(worn, worn.gap, W_pairs)
+    lam_w, lam_n, lam_2 = worn_st.lam[:, 0], new_st.lam[:, 0], twice.lam[:, 0]
+    top = np.abs(lam_n).max()
+    assert np.array_equal(worn_st.state != 0, new_st.state != 0)
+    assert np.abs(lam_w - lam_n).max() < 0.02 * top
+    # Counting the wear twice is visibly different (the check is sensitive).
+    assert np.abs(lam_2 - lam_n).max() > 5 * np.abs(lam_w - lam_n).max()

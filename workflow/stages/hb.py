@@ -256,8 +256,11 @@ def _run_solver(prob, x0, s: str, tol: float, maxiter: int):
 
         return integrate(prob.residual, prob.residual_jacobian, x0, "ser", precond="jacobian", tol=tol,
                          scale=prob.residual_scale(), max_steps=max(maxiter, 200))
-    raise SceneError(f"hb.solver: {s!r} is not one of newton, powell, pseudo-time")
+    raise SceneError(f"hb.solver: {s!r} is not one of newton, powell, newton-powell, pseudo-time")
 
+
+#: Newton steps of the ``newton-powell`` cascade before Powell takes over.
+NEWTON_STEPS = 10
 
 #: forcing fractions of the homotopy fall-back (harmonics ≥ 1 of F_r scaled).
 HOMOTOPY = (0.2, 0.4, 0.6, 0.8, 1.0)
@@ -278,6 +281,10 @@ def _solve_point(prob, guesses, solver: str, tol: float, maxiter: int, smooth=No
        per step;
     3. Powell (``4·maxiter`` residual evaluations) from the best iterate if
        ``solver`` was Newton.
+
+    With ``solver = "newton-powell"`` step 1 is replaced by at most
+    :data:`NEWTON_STEPS` Newton steps from the first guess (the predictor),
+    then Powell from Newton's best iterate; 1–3 follow with Powell if both fail.
 
     ``smooth`` (optional, tried between 1 and 2): a callable returning
     ``(x, iterations)`` — a guess from the same Nh solved with many time
@@ -307,6 +314,19 @@ def _solve_point(prob, guesses, solver: str, tol: float, maxiter: int, smooth=No
                                residual_norm=float(np.linalg.norm(R)), reason="converged",
                                function_evaluations=1), 0, f"guess{k}"
         break
+    if solver == "newton-powell":
+        # cheap cascade: a few Newton steps from the predictor (one or two when the
+        # stick/slip pattern is right: the DLFT residual is piecewise smooth), then
+        # Powell from Newton's best iterate when Newton stalls at a kink
+        x0 = next((g for g in guesses if g is not None), None)
+        if x0 is not None:
+            keep(_run_solver(prob, x0, "newton", tol, min(maxiter, NEWTON_STEPS)))
+            if best.converged:
+                return best, total, "newton"
+            keep(_run_solver(prob, best.x, "powell", tol, maxiter))
+            if best.converged:
+                return best, total, "powell"
+        solver = "powell"
     for k, x0 in enumerate(guesses):
         if x0 is None:
             continue

@@ -9,9 +9,28 @@ wear stage's ``wear.csv``; writes under ``out``:
 * ``worn_nodes.npz``: worn/new coordinates by gmsh node tag (for a ``.msh``);
 * ``figures/wear_flanks.png``, ``figures/wear_sector.png``;
 * with ``remap.reassemble``: ``model/`` the worn bundle (same loads and
-  material; ``gap`` = old gap + W so a wear study can continue from it),
-  ``reduced.npz`` when :func:`reduction.reduce.reduce_bundle` exists, and the
-  first tied frequencies new vs worn.
+  material), ``reduced.npz`` its Craig–Bampton reduction (same
+  ``reduction.modes`` as the reduction stage) so a scene can continue a wear
+  study on the worn geometry, the first tied frequencies new vs worn
+  (``freq_shift_hz``), and a short nonlinear FRF of the new and the worn
+  reduced models around the first excited tied mode (``frf_peak_hz``,
+  ``frf_peak_amplitude_m``, ``figures/frf_worn_vs_new.png``).
+
+Where the wear lives in the worn model (geometry *and* gap, not twice)
+----------------------------------------------------------------------
+The contact pairs are node-to-node and the contact law never reads the
+coordinates: its normal gap is ``g = u_N + gap + W`` (contracts §6), with
+``u_N`` measured from the reference configuration of the model it runs on.
+The worn geometry moves each blade flank node by ``+W_blade n`` and its disk
+partner by ``−W_disk n``, so in the worn reference configuration the pair is
+already ``W`` apart; the bundle's ``gap`` must say so, hence
+``gap_worn = gap_new + W``, and a wear study on the worn bundle starts at
+``W = 0``. The geometry carries the *stiffness* effect of the removed
+material (frequencies, static flexibility), the gap carries the *kinematic*
+opening; neither counts the wear twice. Check (``tests/geometry/
+test_remap_stage.py``): the worn model's static contact state equals the new
+model's with the wear applied as ``W`` in its contact law, up to the
+(tiny, O(W/h)) stiffness change of the removed material.
 """
 from __future__ import annotations
 
@@ -20,17 +39,22 @@ from pathlib import Path
 
 import numpy as np
 
-from workflow.errors import BundleError, GeometryError
+from workflow.errors import BundleError, GeometryError, SolverError
 
 NAME = "remap"
 SECTIONS = ("remap", "wear")
-NEEDS = ("bundle", "wear")
+# "reduced": the new model's reduction (same settings as the worn one) for the
+# new-vs-worn FRF; the wear stage needs it anyway, so it costs nothing.
+NEEDS = ("bundle", "wear", "reduced")
 PRODUCES = ("wear_map",)
 
 WEAR_CSV = "wear.csv"
 FIG_DIR = "figures"
 #: Tied frequencies compared new vs worn at most (the summary's freq_shift_hz).
 N_FREQ = 6
+#: Points of the new-vs-worn nonlinear FRF: the scene's sweep.points clipped to this range.
+FRF_POINTS = (9, 15)
+FRF_FIGURE = "frf_worn_vs_new.png"
 
 
 # ------------------------------------------------------------- reading inputs
@@ -142,13 +166,26 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
         "min_det_ratio": r.orientation, "smoothing": rp.smoothing, "freq_shift_hz": [],
     }
     if rp.reassemble:
-        summary.update(reassemble(scene, bundle, mesh, ct, ft, r, pairs, out, log))
+        summary.update(reassemble(scene, bundle, mesh, ct, ft, r, pairs, out, log, inputs.get("reduced")))
+        if summary.get("frf_figure"):
+            summary["figures"].append(summary["frf_figure"])
+    # ``out`` is a temporary (cache) folder: name the files as they appear in the
+    # run folder, <run>/remap/..., next to the summary.json the CLI prints.
+    for f in summary["figures"]:
+        log.info(f"remap: figure {NAME}/{f}")
+    log.info(f"remap: wear map {NAME}/{summary['wear_map']} (ParaView), worn mesh {NAME}/{summary['worn_mesh']}"
+             + (f", worn reduced model {NAME}/{summary['reduced']}" if summary.get("reduced") else ""))
     return summary
 
 
-def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log) -> dict:
-    """Assemble the worn model (new bundle under ``out/model``), reduce it if the
-    reduction is available, and compare the first tied frequencies."""
+def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log, reduced_dir=None) -> dict:
+    """Assemble the worn model (new bundle under ``out/model``), reduce it
+    (``out/reduced.npz``), compare the first tied frequencies and the nonlinear
+    FRF peak of the new and the worn reduced models.
+
+    The new reduced model is ``reduced_dir/reduced.npz`` (the reduction
+    stage's) when given, else the new bundle re-reduced with the same settings.
+    """
     import time
 
     from geometry.remap import moved
@@ -189,19 +226,148 @@ def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log) -> dict:
     f_new, f_worn = frequencies(bundle, n, tied=True), frequencies(worn, n, tied=True)
     res = {"worn_bundle": "model", "freq_new_hz": f_new.tolist(), "freq_worn_hz": f_worn.tolist(),
            "freq_shift_hz": (f_worn - f_new).tolist(), "reduced": None}
-    try:
-        from reduction.reduce import reduce_bundle
-    except ImportError:
-        log.info("remap: reduction.reduce.reduce_bundle is not available; worn bundle written, not reduced")
-    else:
-        red = scene.get("reduction")
-        reduced = reduce_bundle(worn, n_modes=int(getattr(red, "modes", 30)))
-        reduced.save(out / "reduced.npz")
-        res["reduced"] = "reduced.npz"
-    res["reassembly_s"] = time.perf_counter() - t0
     log.info("remap: first tied frequencies worn − new [Hz]: "
              + ", ".join(f"{d:+.4g}" for d in res["freq_shift_hz"]))
+    from reduction.reduce import reduce_bundle
+    from reduction.reduced import ReducedModel
+
+    red = scene.get("reduction")
+    kw = dict(n_modes=int(getattr(red, "modes", 30)))
+    worn_red = reduce_bundle(worn, **kw)
+    worn_red.save(out / "reduced.npz")
+    res["reduced"] = "reduced.npz"
+    new_path = Path(reduced_dir) / "reduced.npz" if reduced_dir is not None else None
+    new_red = ReducedModel.load(new_path) if new_path is not None and new_path.is_file() else reduce_bundle(bundle, **kw)
+    res["reassembly_s"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    try:
+        frf = worn_vs_new_frf(scene, new_red, worn_red)
+    except SolverError as exc:  # e.g. no preload: no static contact state to vibrate about
+        log.info(f"remap: no new-vs-worn FRF: {exc}")
+        res.update(frf_peak_hz=None, frf_peak_amplitude_m=None, frf_figure=None, frf_error=str(exc))
+        return res
+    res["frf_s"] = time.perf_counter() - t1
+    res.update(frf_summary(frf))
+    res["frf_figure"] = render_frf_worn_vs_new(frf, out / FIG_DIR / FRF_FIGURE)
+    res["frf_figure"] = str(Path(res["frf_figure"]).relative_to(out))
+    log.info(f"remap: nonlinear FRF peak new {res['frf_peak_hz']['new']:.4g} Hz / "
+             f"{res['frf_peak_amplitude_m']['new']:.4g} m, worn {res['frf_peak_hz']['worn']:.4g} Hz / "
+             f"{res['frf_peak_amplitude_m']['worn']:.4g} m ({res['frf_s']:.1f} s)")
     return res
+
+
+# ----------------------------------------------------- new vs worn nonlinear FRF
+
+def worn_vs_new_frf(scene, new, worn, points: int | None = None) -> dict:
+    """Nonlinear FRF (HBM with the scene's first Nh and nit, its contact,
+    excitation and solver) of the reduced models ``new`` and ``worn`` on one
+    frequency grid around the new model's first excited tied mode
+    (``sweep.f_start_hz``/``f_stop_hz``, else ±10 %).
+
+    Both use the new model's DLFT penalties (ε does not change the converged
+    solution; sharing them keeps the comparison free of it). Each model's
+    ``gap`` is its own: the worn bundle's already holds W, so both run at
+    contact-law W = 0. Returns ``{"freqs_hz", "new": SweepResult, "worn": ...,
+    "tied_hz": {"new", "worn"}, "variant"}``.
+    """
+    from reduction.condense import condense, relative_coordinates
+    from workflow.contact import ContactLaw
+    from workflow.stages.hb import Variant, band, contact_law, first_excited_mode, sweep_variant
+
+    hb, sw, ct = scene["hb"], scene["sweep"], scene["contact"]
+    nh = int(hb.harmonics[0])
+    nit = int(hb.time_samples[0]) or 2 * nh + 1
+    v = Variant("hbm", nh, max(nit, 2 * nh + 1))
+    lo, hi = FRF_POINTS
+    n = int(points or min(max(int(sw.points), lo), hi))
+    rcs = {"new": relative_coordinates(new), "worn": relative_coordinates(worn)}
+    f_new, _ = first_excited_mode(rcs["new"])
+    f_worn, _ = first_excited_mode(rcs["worn"])
+    f0, f1 = band(sw, f_new)
+    freqs = np.linspace(f0, f1, n)
+    out = {"freqs_hz": freqs, "tied_hz": {"new": f_new, "worn": f_worn}, "variant": v}
+    law0 = None
+    for key, model in (("new", new), ("worn", worn)):
+        rc = rcs[key]
+        cond = [condense(rc, 2 * np.pi * f, v.nh) for f in freqs]
+        mid = cond[len(cond) // 2]
+        if law0 is None:
+            law0 = contact_law(ct, model, mid.Zr[1])
+        law = ContactLaw(mu=law0.mu, eps_n=law0.eps_n, eps_t=law0.eps_t,
+                         gap=np.asarray(model.gap, dtype=float) + float(ct.gap))
+        static = static_state(mid, law, ct.max_passes, key)
+        out[key] = sweep_variant(rc, cond, law, static.anchor, v, solver=hb.solver, tol=hb.tol,
+                                 maxiter=hb.max_iterations, max_passes=ct.max_passes)
+        out[key].static = static
+    return out
+
+
+def static_state(cond, law, max_passes: int = 20, which: str = ""):
+    """The harmonic-0 contact state of one condensation ``cond`` under ``law``
+    (:meth:`workflow.hb.HBProblem.static_state`); :class:`SolverError` if it
+    has no equilibrium or no pair in contact."""
+    from workflow.errors import SolverError
+    from workflow.hb import HBProblem
+
+    st = HBProblem(cond.Zr[:1], cond.Fr[:1], law, 0, 1, "hbm", max_passes=max_passes).static_state()
+    if not st.result.converged or not np.any(st.state != 0):
+        raise SolverError(f"remap: static contact state of the {which} model has "
+                          f"{'no equilibrium' if not st.result.converged else 'every pair separated'} "
+                          f"({st.result.reason})")
+    return st
+
+
+def _peak(r) -> tuple[float | None, float | None]:
+    if not r.converged.any():
+        return None, None
+    a = np.where(r.converged, r.amplitude, -np.inf)
+    i = int(np.argmax(a))
+    return float(r.freqs_hz[i]), float(a[i])
+
+
+def frf_summary(frf: dict) -> dict:
+    """Summary entries of :func:`worn_vs_new_frf` (Hz, m)."""
+    pk = {k: _peak(frf[k]) for k in ("new", "worn")}
+    v = frf["variant"]
+    return {
+        "frf_peak_hz": {k: pk[k][0] for k in pk},
+        "frf_peak_amplitude_m": {k: pk[k][1] for k in pk},
+        "frf_tied_hz": dict(frf["tied_hz"]),
+        "frf_band_hz": [float(frf["freqs_hz"][0]), float(frf["freqs_hz"][-1])],
+        "frf_points": int(len(frf["freqs_hz"])),
+        "frf_converged": {k: frf[k].converged_points for k in ("new", "worn")},
+        "frf_variant": {"method": v.method, "harmonics": v.nh, "time_samples": v.nit},
+    }
+
+
+def render_frf_worn_vs_new(frf: dict, path: Path) -> Path:
+    """``path`` (.png): first-harmonic tip amplitude of the new and worn models."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from workflow.io import atomic_path
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for key, style in (("new", "o-"), ("worn", "s--")):
+        r = frf[key]
+        a = np.where(r.converged, r.amplitude, np.nan)
+        f_pk, a_pk = _peak(r)
+        lab = f"{key}" + (f": peak {f_pk:.2f} Hz, {a_pk:.3g} m" if f_pk is not None else " (no point converged)")
+        ax.plot(r.freqs_hz, a, style, ms=4, label=lab)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("tip amplitude, 1st harmonic (m)")
+    ax.set_title(f"nonlinear FRF, new vs worn ({frf['variant'].label})")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    return path
 
 
 def _match_pairs(pos_new: np.ndarray, pos_worn: np.ndarray, W: np.ndarray) -> np.ndarray:
