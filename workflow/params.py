@@ -134,9 +134,13 @@ class PseudoTime:
     max_steps: int = param(2000, "", "pseudo-time steps at most", min=1)
     dt_growth: float = param(1.2, "", "SER: smallest growth factor of the pseudo-time step per step (1: pure "
                                       "SER)", min=1.0)
-    wear_dt_max: float = param(1.0, "blocks", "wear system: largest pseudo-time step in blocks of "
-                                              "wear.cycles_per_block (path resolution as the reference; the "
-                                              "worn steady state depends on the path); 0: uncapped", min=0.0)
+    wear_dt_max: float = param(0.0, "blocks", "wear system: largest pseudo-time step in blocks of "
+                                              "wear.cycles_per_block; 0: uncapped (the step control follows the "
+                                              "wear trajectory)", min=0.0)
+    wear_rtol: float = param(3e-3, "", "wear system: local error of a pseudo-time step on W, relative to "
+                                       "max(max W, normal interpenetration) (the worn profile is the end of the "
+                                       "trajectory: smaller = closer to the physical path)",
+                             min=0.0, min_exclusive=True)
 
 
 @dataclass
@@ -146,10 +150,14 @@ class Wear:
                                min=0.0, max=1.0)
     methods: list = param(["pseudo-time", "implicit"], "", "wear methods",
                           item_choices=("pseudo-time", "explicit", "implicit"))
-    cycles_per_block: float = param(1e5, "cycles", "physical cycles per block for the reference marching",
+    cycles_per_block: float = param(1e5, "cycles", "physical cycles per reference block (fixed blocks, "
+                                                   "block_tol = 0) and the steady-state test's horizon",
                                     min=0.0, min_exclusive=True)
     max_blocks: int = param(400, "", "reference marching blocks at most", min=1)
-    steady_tol: float = param(1e-3, "", "steady state: max wear rate × cycles_per_block below this fraction of "
+    block_tol: float = param(0.01, "", "reference: adaptive blocks wearing at most this fraction of "
+                                       "max(max W, normal interpenetration) each (resolves the wear dynamics; "
+                                       "0: fixed blocks of cycles_per_block)", min=0.0)
+    steady_tol: float = param(1e-4, "", "steady state: max wear rate × cycles_per_block below this fraction of "
                                         "the max wear", min=0.0, min_exclusive=True)
     frequency_hz: float = param(0.0, "Hz", "excitation frequency of the wear study (0: first tied resonance)",
                                 min=0.0)

@@ -401,7 +401,7 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
 def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_block: float = 1e5,
                      steady_tol: float = 1e-3, tol: float = 1e-9, max_steps: int = 400,
                      rtol: float = 1e-3, track: int = 1, x_tol: float = 1e-5, x_corrections: int = 3,
-                     dt_max_blocks: float = 0.0, **_ignored) -> WearHistory:
+                     dt_max_blocks: float = 0.0, order: int = 2, **_ignored) -> WearHistory:
     """Integrate the augmented system (eq. 22a–b) along the wear trajectory to zero wear rates.
 
     Unknowns ``z = [x; W]``. The vibration is the fast part of the dual
@@ -486,6 +486,17 @@ def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_blo
         ok = np.all(np.isfinite(stn.R)) and np.linalg.norm(stn.R) <= max(10 * x_tol, 1e-3) * scale
         fac = 0.9 * math.sqrt(rtol * ws / err) if err > 0 else 4.0
         if ok and err <= rtol * ws:
+            if order == 2:
+                # local extrapolation to the trapezoidal rule (the estimate above is the
+                # Euler error): W⁺ = W + ½h(rate + rate⁺), x shifted along the HB manifold
+                Wc = np.maximum(W + 0.5 * h * (st.rate + stn.rate), W)
+                try:
+                    xn = xn - np.linalg.solve(stn.J, stn.R + stn.R_W @ (Wc - Wn))
+                except np.linalg.LinAlgError:
+                    pass
+                Wn = Wc
+                stn = wp.evaluate(xn, Wn, jacobian=True)
+                nje += 1
             x, W, st = xn, Wn, stn
             t += h
             steps += 1

@@ -97,12 +97,12 @@ def run_wear(model, scene, out: Path, log) -> dict:
     for m in w.methods:
         wp.set_wear(np.zeros(hb.p))
         if m in ("explicit", "implicit"):
-            h = march_reference(wp, base.x, scheme=m, max_blocks=w.max_blocks, **common)
+            h = march_reference(wp, base.x, scheme=m, max_blocks=w.max_blocks, block_tol=w.block_tol, **common)
         else:
             scheme = pt.scheme if pt.scheme in _IMPLICIT else "ser"
             if scheme != pt.scheme:
                 log.info(f"pseudotime.scheme = {pt.scheme} is explicit/block: the wear system uses ser")
-            h = pseudo_time_wear(wp, base.x, scheme=scheme, max_steps=pt.max_steps, dt_growth=pt.dt_growth,
+            h = pseudo_time_wear(wp, base.x, scheme=scheme, max_steps=pt.max_steps, rtol=pt.wear_rtol,
                                  dt_max_blocks=pt.wear_dt_max,
                                  **common)
         log.info(f"{m}: {'steady' if h.steady else 'NOT steady'} after {h.iterations} iterations, "
