@@ -198,3 +198,70 @@ def test_contact_law_broadcasts_and_offsets():
     assert np.allclose(law.with_wear([0, 1e-6]).offset()[:, 0], [1e-6, -1e-6])
     with pytest.raises(SceneError, match="contact.mu"):
         ContactLaw(mu=[0.3, 0.3, 0.3], eps_n=1e5, eps_t=1e5, gap=[0.0, 0.0])
+
+
+# ------------------------------------------------- compiled pass vs NumPy oracle
+def _pass_cases():
+    rng = np.random.default_rng(7)
+    for nh, nit, p in [(1, 3, 5), (3, 32, 6), (7, 105, 16)]:
+        E = fourier.time_from_coef_matrix(nh, nit)
+        m = E.shape[1]
+        a = rng.normal(size=(m, p, 3))
+        a[0, :, 0] = -3.0
+        a[1, :2, 0] = 5.0                          # pairs 0, 1 separate part of the period
+        mu = np.full(p, 0.5)
+        mu[2] = 10.0                               # pair 2 sticks
+        mu[3] = 0.0                                # frictionless: slips with a zero bound
+        a[1:, 4, 1:] = 0.0                         # pair 4: λ_pre^T = 0 at start (‖·‖ = 0 in slip)
+        ref = 0.1 * rng.normal(size=(p, 2))
+        ref[4] = a[0, 4, 1:]
+        yield E, np.einsum("kj,jic->kic", E, a), mu, ref
+
+
+def _dlu(E, jacobian):
+    nit, m = E.shape
+    if not jacobian:
+        return np.zeros((nit, 3, 2))
+    d = np.zeros((nit, 3, m, 3))
+    for c in range(3):
+        d[:, c, :, c] = E
+    return np.concatenate([d.reshape(nit, 3, 3 * m), np.zeros((nit, 3, 2))], axis=2)
+
+
+@pytest.mark.parametrize("jacobian", [False, True])
+def test_loop_pass_matches_numpy_pass(jacobian):
+    """The loop kernel (what numba compiles), run as plain Python, against the NumPy pass."""
+    from workflow import contact
+
+    for E, lam_u, mu, ref in _pass_cases():
+        a = contact._one_pass_numpy(lam_u, mu, ref, _dlu(E, jacobian))
+        b = contact._one_pass_loops(lam_u, mu, ref, _dlu(E, jacobian))
+        assert np.array_equal(a[2], b[2])
+        for x, y in zip(a, b):
+            assert np.allclose(x, y, rtol=1e-13, atol=1e-13 * np.abs(lam_u).max())
+
+
+@pytest.mark.parametrize("jacobian", [False, True])
+def test_numba_dlft_matches_numpy_dlft(jacobian, monkeypatch):
+    """Full periodic DLFT (passes, acceleration, Jacobian columns) compiled vs NumPy."""
+    from workflow import contact
+
+    if contact._one_pass_numba is None:
+        pytest.skip("numba not importable: the NumPy pass is in use")
+    for E, lam_u, mu, ref in _pass_cases():
+        kw = dict(basis=E, jacobian=jacobian, max_passes=40, tol=1e-12)
+        fast = contact.dlft_pass(lam_u, mu, ref, **kw)
+        # the shaken-down state (pairs touching the cone) is exercised too
+        fast2 = contact.dlft_pass(lam_u, mu, fast.ref_T, **kw)
+        monkeypatch.setattr(contact, "_one_pass_numba", None)
+        slow = contact.dlft_pass(lam_u, mu, ref, **kw)
+        slow2 = contact.dlft_pass(lam_u, mu, slow.ref_T, **kw)
+        monkeypatch.undo()
+        scale = np.abs(lam_u).max()
+        for f, s in ((fast, slow), (fast2, slow2)):
+            assert f.passes == s.passes and f.converged == s.converged
+            assert np.array_equal(f.state, s.state)
+            assert np.allclose(f.lam, s.lam, rtol=1e-12, atol=1e-12 * scale)
+            assert np.allclose(f.lam_x_T, s.lam_x_T, rtol=1e-12, atol=1e-12 * scale)
+            if jacobian:
+                assert np.allclose(f.dlam, s.dlam, rtol=1e-10, atol=1e-10 * max(1.0, np.abs(s.dlam).max()))
