@@ -10,7 +10,8 @@ PY          := $(VENV)/bin/python
 DEB_PKGS    := python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh \
                python3-scipy python3-venv libopenblas0-pthread
 # numpy<2: Debian's dolfinx/petsc4py are compiled against NumPy 1.x.
-PIP_PKGS    := "numpy<2" matplotlib pyvista vtk pytest hypothesis
+# numba ≥ 0.60 from PyPI (Debian's 0.56 refuses numpy 1.26); installed with "numpy<2" so pip keeps 1.x.
+PIP_PKGS    := "numpy<2" "numba>=0.60" matplotlib pyvista vtk pytest hypothesis
 STAMP_DEB   := $(VENV)/.deb-ok
 STAMP_PIP   := $(VENV)/.pip-ok
 SCENE       ?= workflow/scenes/quick.toml

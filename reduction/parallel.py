@@ -387,8 +387,11 @@ def main(argv=None) -> int:
 
     from petsc4py import PETSc
 
+    # End PETSc on every rank together, else a hang at exit (see workflow.mpi.finish).
     gc.collect()
-    PETSc.garbage_cleanup(PETSc.COMM_WORLD)  # collective, before MPI_Finalize (see workflow.mpi.collect_garbage)
+    PETSc.garbage_cleanup(PETSc.COMM_WORLD)
+    PETSc.COMM_WORLD.barrier()
+    PETSc._finalize()
     return 0
 
 

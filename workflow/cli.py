@@ -71,14 +71,14 @@ def main(argv: list[str] | None = None) -> int:
 
 @contextlib.contextmanager
 def _mpi_exit():
-    """Under MPI: free PETSc's deferred parallel objects on every rank before exit (else a hang)."""
+    """Under MPI: end PETSc on every rank together before exit (else a hang; :func:`workflow.mpi.finish`)."""
     try:
         yield
     finally:
-        from workflow.mpi import collect_garbage, world
+        from workflow.mpi import finish, world
 
         if world() is not None:
-            collect_garbage()
+            finish()
 
 
 def _rank() -> int:

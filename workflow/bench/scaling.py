@@ -134,9 +134,9 @@ def _worker(argv) -> int:
         r = worker_reduction(a.bundle, a.modes)
     if r is not None:
         a.json.write_text(json.dumps(r))
-    from workflow.mpi import collect_garbage
+    from workflow.mpi import finish
 
-    collect_garbage()  # on every rank, before MPI_Finalize
+    finish()  # on every rank together, before MPI_Finalize (else a hang at exit)
     return 0
 
 
