@@ -117,8 +117,12 @@ def time_from_coef_matrix(nh: int, nit: int) -> np.ndarray:
     Columns: 1, cos jτ, sin jτ for j = 1…Nh. Small; for Jacobians only.
     """
     check_nit(nit, nh)
-    tau = sample_times(nit)
-    E = np.empty((nit, n_coef(nh)))
+    return trig_matrix(nh, sample_times(nit))
+
+
+def trig_matrix(nh: int, tau: np.ndarray) -> np.ndarray:
+    """Rows ``[1, cos jτ, sin jτ]`` (len(τ) × 2Nh+1) at arbitrary instants τ [rad] (eq. 2)."""
+    E = np.empty((len(tau), n_coef(nh)))
     E[:, 0] = 1.0
     j = np.arange(1, nh + 1)
     E[:, 1::2] = np.cos(np.outer(tau, j))

@@ -55,16 +55,6 @@ __all__ = ["METHODS", "HBProblem", "StaticState"]
 METHODS = ("hbm", "tcm", "hdhb")
 
 
-def _trig_matrix(nh: int, tau: np.ndarray) -> np.ndarray:
-    """Rows [1, cos jτ, sin jτ] (len(tau) × 2Nh+1) at arbitrary instants τ (rad)."""
-    E = np.empty((len(tau), fourier.n_coef(nh)))
-    E[:, 0] = 1.0
-    j = np.arange(1, nh + 1)
-    E[:, 1::2] = np.cos(np.outer(tau, j))
-    E[:, 2::2] = np.sin(np.outer(tau, j))
-    return E
-
-
 @dataclass
 class StaticState:
     """The harmonic-0 (static preload) contact state, :meth:`HBProblem.static_state`.
@@ -156,7 +146,7 @@ class HBProblem:
             self._const = np.eye(nc)[0]                           # constant term = coef 0
         elif self.method == "tcm":
             self.kc = (np.arange(nc) * nit) // nc                 # collocation grid indices
-            Ec = _trig_matrix(nh, 2.0 * np.pi * self.kc / nit)   # (nc, nc) = T⁻¹ at τ_m
+            Ec = fourier.trig_matrix(nh, 2.0 * np.pi * self.kc / nit)   # (nc, nc) = T⁻¹ at τ_m
             self.basis = E
             self._Lr = Ec
             self._Lp = None
