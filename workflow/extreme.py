@@ -48,6 +48,7 @@ from reduction.reduced import ReducedModel
 from workflow.contact import SEPARATION, SLIP, STICK, ContactLaw
 from workflow.errors import BladewearError
 from workflow.hb import HBProblem
+from workflow.lumped import pairs_on_block
 
 __all__ = ["GROUPS", "METHODS", "SOLVERS", "Settings", "Setup", "Case", "CaseResult", "synthetic_model",
            "setup", "build_cases", "run_case", "run_matrix", "verify", "free_limit", "tied_scale",
@@ -77,25 +78,11 @@ def synthetic_model(p: int = 4, *, preload: float = 0.5, k_contact: float = 2.0e
     block (t2) and 0.02 N (n). Rayleigh damping ≈ 0.5 % on the first mode.
     """
     rng = np.random.default_rng(seed)
-    nd = 3 * p + 4 + extra_modes
-    blk = 3 * p + np.arange(3)
-    tip = 3 * p + 3
-    M = np.zeros((nd, nd))
-    K = np.zeros((nd, nd))
-    for i in range(p):
-        for c in range(3):
-            d = 3 * i + c
-            M[d, d] = 2e-3
-            k = k_contact * (2.0 if c == 0 else 1.0) * (1.0 + 0.3 * rng.random())
-            b = blk[c]
-            K[np.ix_([d, b], [d, b])] += k * np.array([[1.0, -1.0], [-1.0, 1.0]])
-    for c in range(3):
-        M[blk[c], blk[c]] = 0.2
-        K[blk[c], blk[c]] += 1.0e2
     mt = 0.05
-    M[tip, tip] = mt
-    kt = mt * (2 * np.pi * 120.0) ** 2
-    K[np.ix_([blk[1], tip], [blk[1], tip])] += kt * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    M, K, blk, tip = pairs_on_block(p, k_n=k_contact * 2.0, k_t=k_contact, scatter=(1.0, 0.3), m_node=2e-3,
+                                    m_block=0.2, ground=1.0e2, m_tip=mt, k_tip=mt * (2 * np.pi * 120.0) ** 2,
+                                    rng=rng, extra=extra_modes)
+    nd = M.shape[0]
     prev = blk[1]
     for e in range(extra_modes):
         d = 3 * p + 4 + e

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from workflow.contact import ContactLaw
+from workflow.lumped import pairs_on_block
 
 
 def condense(model: dict, omega: float, nh: int):
@@ -62,26 +63,11 @@ def root_model(p: int = 2, *, preload: float = 10.0, tangential_static: float = 
     (t1) and on the block (t2, and n with ``force_n``). ``preload`` may be
     one value per pair. First mode ≈ 25 Hz·2π when stuck.
     """
-    rng = np.random.default_rng(seed)
-    nd = 3 * p + 4
-    blk = 3 * p + np.arange(3)
-    tip = 3 * p + 3
-    M = np.zeros((nd, nd))
-    K = np.zeros((nd, nd))
-    mc, mb, mt = 0.01, 0.5, 0.2
-    for i in range(p):
-        for c in range(3):
-            d = 3 * i + c
-            M[d, d] = mc
-            k = (2.0e5 if c == 0 else 1.0e5) * (1.0 + 0.2 * rng.random())
-            b = blk[c]
-            K[np.ix_([d, b], [d, b])] += k * np.array([[1, -1], [-1, 1]])
-    for c in range(3):
-        M[blk[c], blk[c]] = mb
-        K[blk[c], blk[c]] += 10.0
-    M[tip, tip] = mt
-    kt = mt * (2 * np.pi * 25.0) ** 2
-    K[np.ix_([blk[1], tip], [blk[1], tip])] += kt * np.array([[1, -1], [-1, 1]])
+    mt = 0.2
+    M, K, blk, tip = pairs_on_block(p, k_n=2.0e5, k_t=1.0e5, scatter=(1.0, 0.2), m_node=0.01, m_block=0.5,
+                                    ground=10.0, m_tip=mt, k_tip=mt * (2 * np.pi * 25.0) ** 2,
+                                    rng=np.random.default_rng(seed))
+    nd = M.shape[0]
     C = 2e-4 * K + 0.5 * M
     B = np.zeros((3 * p, nd))
     B[:, : 3 * p] = np.eye(3 * p)

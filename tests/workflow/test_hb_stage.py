@@ -21,31 +21,18 @@ from workflow.errors import SceneError, SolverError
 from workflow.params import HB, Contact, Excitation, Sweep
 from workflow.pipeline import RunLog
 from workflow.stages import hb as stage
+from workflow.lumped import pairs_on_block
 
 F_TIED = 100.0
 
 
 def blade_chain(p: int = 3, *, preload: float = 10.0, force: float = 0.3, ground: float = 5e3,
                 k_t: float = 3e4, zeta: float = 0.005, seed: int = 1) -> ReducedModel:
-    rng = np.random.default_rng(seed)
-    nd = 3 * p + 4
-    blk = 3 * p + np.arange(3)
-    tip = 3 * p + 3
-    M = np.zeros((nd, nd))
-    K = np.zeros((nd, nd))
-    mc, mb, mt = 0.01, 0.02, 0.1
-    for i in range(p):
-        for c in range(3):
-            d = 3 * i + c
-            M[d, d] = mc
-            k = (2.0e6 if c == 0 else k_t) * (0.7 + 0.6 * rng.random())
-            K[np.ix_([d, blk[c]], [d, blk[c]])] += k * np.array([[1, -1], [-1, 1]])
-    for c in range(3):
-        M[blk[c], blk[c]] = mb
-        K[blk[c], blk[c]] += ground
-    M[tip, tip] = mt
-    kb = 2 * mt * (2 * np.pi * F_TIED) ** 2
-    K[np.ix_([blk[1], tip], [blk[1], tip])] += kb * np.array([[1, -1], [-1, 1]])
+    mt = 0.1
+    M, K, blk, tip = pairs_on_block(p, k_n=2.0e6, k_t=k_t, scatter=(0.7, 0.6), m_node=0.01, m_block=0.02,
+                                    ground=ground, m_tip=mt, k_tip=2 * mt * (2 * np.pi * F_TIED) ** 2,
+                                    rng=np.random.default_rng(seed))
+    nd = M.shape[0]
     C = (2 * zeta / (2 * np.pi * F_TIED)) * K
     B = np.zeros((3 * p, nd))
     B[:, :3 * p] = np.eye(3 * p)

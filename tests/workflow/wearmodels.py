@@ -12,29 +12,16 @@ import numpy as np
 
 from workflow.contact import ContactLaw
 from workflow.hb import HBProblem
+from workflow.lumped import pairs_on_block
 
 
 def block_model(preload=(6.0, 12.0, 6.0), force=2.0, seed=0) -> dict:
     preload = np.asarray(preload, dtype=float)
     p = preload.size
-    rng = np.random.default_rng(seed)
-    nd = 3 * p + 4
-    blk = 3 * p + np.arange(3)
-    tip = 3 * p + 3
-    M = np.zeros((nd, nd))
-    K = np.zeros((nd, nd))
-    for i in range(p):
-        for c in range(3):
-            d = 3 * i + c
-            M[d, d] = 0.01
-            k = (2.0e5 if c == 0 else 1.0e5) * (1.0 + 0.2 * rng.random())
-            K[np.ix_([d, blk[c]], [d, blk[c]])] += k * np.array([[1, -1], [-1, 1]])
-    for c in range(3):
-        M[blk[c], blk[c]] = 0.5
-        K[blk[c], blk[c]] += 10.0
-    M[tip, tip] = 0.2
-    kt = 0.2 * (2 * np.pi * 25.0) ** 2
-    K[np.ix_([blk[1], tip], [blk[1], tip])] += kt * np.array([[1, -1], [-1, 1]])
+    M, K, blk, tip = pairs_on_block(p, k_n=2.0e5, k_t=1.0e5, scatter=(1.0, 0.2), m_node=0.01, m_block=0.5,
+                                    ground=10.0, m_tip=0.2, k_tip=0.2 * (2 * np.pi * 25.0) ** 2,
+                                    rng=np.random.default_rng(seed))
+    nd = M.shape[0]
     C = 2e-4 * K + 0.5 * M
     B = np.zeros((3 * p, nd))
     B[:, : 3 * p] = np.eye(3 * p)
