@@ -52,6 +52,9 @@ from workflow.errors import SolverError
 from workflow.io import atomic_path, write_text
 from workflow.solvers import newton, powell
 
+#: times the reference march halves a block whose HB solve fails before it stops
+MAX_BLOCK_HALVINGS = 4
+
 __all__ = ["slip_increments", "wear_per_cycle", "pressure", "WearProblem", "WearState", "WearHistory",
            "march_reference", "pseudo_time_wear", "write_wear_csv", "plot_wear"]
 
@@ -358,31 +361,18 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
         N = Nref
         if block_tol > 0:
             N = block_tol * _wscale(W, pen) / max(float(st.rate.max()), 1e-300)
-        if scheme == "explicit":
-            Wn = W + N * st.rate
-            res, stn = wp.solve_hb(x, Wn, tol=tol)
-            solves += 1
-            nje += res.jacobian_evaluations + 1
+        # A block that crosses a contact-state change can leave the HB solver at
+        # a kink: halve the block (a smaller wear step) before giving up.
+        for halving in range(MAX_BLOCK_HALVINGS + 1):
+            res, stn, Wn, used = _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations)
+            solves += used[0]
+            nje += used[1]
+            if res.converged or (np.isfinite(res.residual_norm)
+                                 and res.residual_norm <= 1e3 * tol * wp.hb.residual_scale()):
+                break
+            N *= 0.5
         else:
-            Wn = W + N * st.rate          # explicit predictor
-            xn = x
-            for _ in range(newton_w_iterations):
-                res, stn = wp.solve_hb(xn, Wn, tol=tol)
-                solves += 1
-                nje += res.jacobian_evaluations + 1
-                xn = res.x
-                F = Wn - W - N * stn.rate
-                if np.max(np.abs(F)) <= 1e-6 * max(float(np.max(Wn)), 1e-300):
-                    break
-                Jw = np.eye(wp.p) - N * wp.total_rate_jacobian(stn)
-                try:
-                    dW = np.linalg.solve(Jw, -F)
-                except np.linalg.LinAlgError:
-                    dW = -F
-                Wn = np.maximum(Wn + dW, W)
-        if not res.converged and not (np.isfinite(res.residual_norm)
-                                      and res.residual_norm <= 1e3 * tol * wp.hb.residual_scale()):
-            reason = f"HB solve failed at block {k}: {res.reason}"
+            reason = f"HB solve failed at block {k} after {MAX_BLOCK_HALVINGS} halvings: {res.reason}"
             break
         W, x, st = np.maximum(Wn, W), res.x, stn
         cyc += N
@@ -394,6 +384,34 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     hist.reason = reason
     hist.seconds = time.perf_counter() - t0
     return hist
+
+
+def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
+    """One block of N cycles from wear W: ``(res, state, W_next, (solves, jacobians))``.
+
+    Explicit: ``W + N·rate(W)``. Implicit: ``W_n = W + N·rate(W_n)`` by Newton
+    on W, each residual an HB solve at the trial wear.
+    """
+    solves = nje = 0
+    Wn = W + N * st.rate          # explicit step, or the implicit predictor
+    res, stn = wp.solve_hb(x, Wn, tol=tol)
+    solves, nje = 1, res.jacobian_evaluations + 1
+    if scheme == "explicit":
+        return res, stn, Wn, (solves, nje)
+    for _ in range(newton_w_iterations):
+        F = Wn - W - N * stn.rate
+        if np.max(np.abs(F)) <= 1e-6 * max(float(np.max(Wn)), 1e-300):
+            break
+        Jw = np.eye(wp.p) - N * wp.total_rate_jacobian(stn)
+        try:
+            dW = np.linalg.solve(Jw, -F)
+        except np.linalg.LinAlgError:
+            dW = -F
+        Wn = np.maximum(Wn + dW, W)
+        res, stn = wp.solve_hb(res.x, Wn, tol=tol)
+        solves += 1
+        nje += res.jacobian_evaluations + 1
+    return res, stn, Wn, (solves, nje)
 
 
 # ------------------------------------------------------------------ pseudo-time
