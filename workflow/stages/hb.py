@@ -628,7 +628,9 @@ def _cpu_markdown(cpu_rows, base) -> str:
         lines.append(f"| {nh} | " + " | ".join("" if v is None else f"{v:.3g}" for v in vals) + " |")
     ref = f"{base.variant.label}" if base else "—"
     secs = f"{base.cpu_seconds * 50.0 / max(len(base.freqs_hz), 1):.3g} s" if base else ""
-    return (f"Process CPU time (all threads) for 50 frequencies, normalised by {ref} ({secs}) — cf. paper Table 1.\n\n"
+    n = len(base.freqs_hz) if base else 0
+    return (f"Process CPU time (all threads) scaled to 50 frequencies (from the {n} computed), normalised by "
+            f"{ref} ({secs}) — cf. paper Table 1.\n\n"
             + "\n".join(lines) + "\n")
 
 
