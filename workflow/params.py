@@ -113,7 +113,6 @@ class Sweep:
     f_start_hz: float = param(0.0, "Hz", "first frequency (0: 0.9 × the first tied bending frequency)", min=0.0)
     f_stop_hz: float = param(0.0, "Hz", "last frequency (0: 1.1 × the first tied bending frequency)", min=0.0)
     points: int = param(50, "", "frequencies in the sweep (paper: 50)", min=1)
-    continuation: bool = param(False, "", "arc-length continuation (follows turning points)")
 
     def check(self):
         if self.f_start_hz and self.f_stop_hz and self.f_stop_hz <= self.f_start_hz:

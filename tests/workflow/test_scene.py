@@ -82,7 +82,7 @@ def test_int_accepted_for_float_and_canonical_form(tmp_path):
     ("hb.harmonics=[1,3]", ("hb", "harmonics", [1, 3])),
     ("hb.solver=powell", ("hb", "solver", "powell")),
     ('hb.solver="powell"', ("hb", "solver", "powell")),
-    ("sweep.continuation=true", ("sweep", "continuation", True)),
+    ("rotation.stress_stiffening=false", ("rotation", "stress_stiffening", False)),
     ("model.bundle=some/dir", ("model", "bundle", "some/dir")),
 ])
 def test_parse_override(text, expected):

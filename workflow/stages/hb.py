@@ -31,7 +31,9 @@ Choices made here (and why):
 * **Sweep.** Sequential in frequency with a secant predictor from the two
   previous converged points; fall-backs, in order: the previous point, the
   problem's own initial guess (static + tied linear response), then Powell.
-  (``sweep.continuation`` is not wired yet: it warns and sweeps stepped.)
+  (Arc-length continuation through turning points is
+  :func:`workflow.sweep.arclength_sweep`; this stage sweeps a fixed grid,
+  which the error-against-run-time table needs.)
 * **Observed amplitude.** ``amplitude_m`` is the Euclidean norm over the
   observed DOFs of the first-harmonic complex amplitude (= |U₁| for a single
   observed DOF); ``amplitude_max_m`` the largest norm over the period of the
@@ -367,7 +369,7 @@ def _solve_point(prob, guesses, solver: str, tol: float, maxiter: int, smooth=No
 
 
 def sweep_variant(rc, cond: list, law, anchor, v: Variant, *, solver: str, tol: float, maxiter: int,
-                  max_passes: int = 20, progress=None, continuation: bool = False, log=None,
+                  max_passes: int = 20, progress=None, log=None,
                   smooth_nit: int = 64) -> SweepResult:
     """Sweep ``v`` over the precomputed condensations ``cond`` (one per frequency).
 
@@ -379,10 +381,6 @@ def sweep_variant(rc, cond: list, law, anchor, v: Variant, *, solver: str, tol: 
     """
     from workflow.hb import HBProblem
 
-    if continuation and log is not None:
-        log.warning("sweep.continuation: arc-length continuation (workflow.sweep.arclength_sweep) is not wired "
-                    "into this stage yet (its points are off the common frequency grid the error table needs); "
-                    "stepped sweep with a secant predictor instead")
     n = len(cond)
     out = SweepResult(variant=v, solver=solver, freqs_hz=np.array([c.omega / (2 * np.pi) for c in cond]),
                       amplitude=np.full(n, np.nan), amplitude_max=np.full(n, np.nan),
@@ -470,7 +468,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
         ref_v = Variant("hbm", int(hb.reference_harmonics), nit)
     nh_max = max([v.nh for v in todo] + ([ref_v.nh] if ref_v else []) + [1])
     t_c = time.perf_counter()
-    cond = [condense(rc, 2 * np.pi * f, nh_max, derivative=bool(sw.continuation)) for f in freqs]
+    cond = [condense(rc, 2 * np.pi * f, nh_max, derivative=False) for f in freqs]
     condense_seconds = time.perf_counter() - t_c
     log.info(f"{model.n_pairs} contact pairs, {model.size} reduced DOFs; first excited tied mode "
              f"#{mode_index + 1} at {f_mode:.2f} Hz; band {f0:.2f}–{f1:.2f} Hz, {len(freqs)} points; "
@@ -494,7 +492,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     tied, slide = linear_frfs(rc, cond, static)
 
     kw = dict(solver=hb.solver, tol=hb.tol, maxiter=hb.max_iterations, max_passes=ct.max_passes,
-              continuation=bool(sw.continuation), log=log)
+              log=log)
     runs: list[SweepResult] = []
     with blas_threads(1):   # small dense systems: threads only add spinning CPU time
         for v in log.progress(todo, total=len(todo), label="hb variants"):
