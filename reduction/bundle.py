@@ -93,6 +93,24 @@ class Bundle:
         return np.flatnonzero(mask)
 
 
+def pair_labels(bundle: "Bundle") -> tuple[np.ndarray, np.ndarray]:
+    """``(flank, position)`` of every pair, filled in where a bundle lacks them.
+
+    A user's bundle may omit both: flank defaults to 0 and the position to
+    the blade node's coordinates (``nodes.npz``), else the origin [m].
+    """
+    c = bundle.contact
+    p = c.n_pairs
+    flank = c.flank if c.flank is not None else np.zeros(p, dtype=np.int64)
+    if c.position is not None:
+        position = c.position
+    elif bundle.coords is not None:
+        position = bundle.coords[np.maximum(c.blade_dofs[:, 0], 0) // 3]
+    else:
+        position = np.zeros((p, 3))
+    return flank, position
+
+
 def write_bundle(bundle: Bundle, path: str | Path, extra_files: dict[str, Path] | None = None) -> Path:
     """Validate and write ``bundle`` to the folder ``path`` atomically.
 

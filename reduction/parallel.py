@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from reduction.bundle import matrix_rows, read_bundle
+from reduction.bundle import matrix_rows, pair_labels, read_bundle
 from reduction.craig_bampton import SparseFactor, _load_vectors, fixed_interface_modes
 from reduction.reduce import MAX_LOAD_DOFS, boundary_dofs, contact_map
 from reduction.reduced import ReducedModel
@@ -276,20 +276,13 @@ def reduce_bundle_mpi(folder: str | Path, n_modes: int | None = 30, cutoff_hz: f
     Mr = 0.5 * (Mr + Mr.T)
     Cr = 0.5 * (Cr + Cr.T) if Cr is not None else np.zeros_like(Mr)
     c = sk.contact
-    p = c.n_pairs
-    flank = c.flank if c.flank is not None else np.zeros(p, dtype=np.int64)
-    if c.position is not None:
-        position = c.position
-    elif sk.coords is not None:
-        position = sk.coords[np.maximum(c.blade_dofs[:, 0], 0) // 3]
-    else:
-        position = np.zeros((p, 3))
+    flank, position = pair_labels(sk)
     omega = np.sqrt(np.clip(omega2, 0.0, None))
     seconds = {k: float(v) for k, v in timings.items() if not k.startswith("lanczos_")}
     seconds["total"] = time.perf_counter() - t_all
     info = {
         "method": "craig-bampton", "modes": int(nm), "load_vectors": int(nl), "boundary_dofs": int(nb),
-        "size": int(m), "n_dofs": int(n), "free_dofs": int(nf), "pairs": int(p),
+        "size": int(m), "n_dofs": int(n), "free_dofs": int(nf), "pairs": int(c.n_pairs),
         "modes_requested": None if n_modes is None else int(n_modes), "cutoff_hz": float(cutoff_hz or 0.0),
         "fixed_interface_hz": (omega / (2 * np.pi)).tolist(), "solver": "mumps", "eigensolver": eigensolver,
         "eigen_stats": {k[8:]: v for k, v in timings.items() if k.startswith("lanczos_")},

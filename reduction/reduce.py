@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from reduction.bundle import Bundle
+from reduction.bundle import Bundle, pair_labels
 from reduction.craig_bampton import craig_bampton
 from reduction.reduced import ReducedModel
 from workflow.errors import BundleError
@@ -114,14 +114,7 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
     timings["projection"] = time.perf_counter() - t0
 
     c = bundle.contact
-    p = c.n_pairs
-    flank = c.flank if c.flank is not None else np.zeros(p, dtype=np.int64)
-    if c.position is not None:
-        position = c.position
-    elif bundle.coords is not None:
-        position = bundle.coords[np.maximum(c.blade_dofs[:, 0], 0) // 3]
-    else:
-        position = np.zeros((p, 3))
+    flank, position = pair_labels(bundle)
     seconds = {k: float(v) for k, v in timings.items() if not k.startswith("lanczos_")}
     seconds["total"] = time.perf_counter() - t_all
     info = {
@@ -132,7 +125,7 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
         "size": int(V.shape[1]),
         "n_dofs": int(n),
         "free_dofs": int(free.size),
-        "pairs": int(p),
+        "pairs": int(c.n_pairs),
         "modes_requested": None if n_modes is None else int(n_modes),
         "cutoff_hz": float(cutoff_hz or 0.0),
         "fixed_interface_hz": (omega / (2 * np.pi)).tolist(),

@@ -7,7 +7,6 @@ which carry identical meshes (``setPeriodic``, identity; no fragment: DESIGN
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import gmsh
 import numpy as np

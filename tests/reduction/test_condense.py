@@ -1,6 +1,5 @@
 """Condensation onto relative DOFs (paper eq. 3) against direct formulas."""
 import numpy as np
-import pytest
 
 from reduction.condense import condense, recover, relative_coordinates
 from reduction.reduced import ReducedModel

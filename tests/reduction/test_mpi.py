@@ -11,7 +11,6 @@ boundary blocks of the reduced matrices agree to round-off.
 """
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path

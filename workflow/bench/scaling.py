@@ -70,7 +70,7 @@ def worker_mesh(factor: float, folder: Path) -> dict:
 def worker_assembly(folder: Path, out: Path) -> dict | None:
     from mpi4py import MPI
 
-    from reduction.assemble import as_section, assemble_bundle
+    from reduction.assemble import assemble_bundle
     from workflow.params import Damping, Excitation, Material, Rotation
 
     comm = MPI.COMM_WORLD
