@@ -109,7 +109,7 @@ def _finite(a) -> bool:
 
 def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxiter: int = 50,
            max_backtracks: int = 20, armijo: float = 1e-4, lm_fallback: bool = True,
-           callback=None) -> SolveResult:
+           reuse_ratio: float = 0.0, callback=None) -> SolveResult:
     """Newton–Raphson with backtracking line search on ‖R‖₂.
 
     Each step solves ``J dx = −R`` (LU; least squares if J is singular) and
@@ -122,6 +122,11 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     giving up with "line search failed".
 
     tol, scale: converged when ``‖R‖₂ ≤ tol·scale`` (see module docstring).
+    reuse_ratio: if > 0, keep the LU factor of an earlier Jacobian (a chord
+    step, no new Jacobian) while each accepted step cuts ‖R‖ by at least
+    this factor; a fresh Jacobian otherwise, or when a stale direction fails
+    the line search. Pays where forming and factoring J dominates (large Nh)
+    and Newton converges only linearly anyway (non-smooth friction residual).
     callback(it, x, norm) is called after every accepted step.
     """
     t0 = time.perf_counter()
@@ -144,20 +149,28 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
         return done("non-finite residual", False, None, 0)
     norm = float(np.linalg.norm(R))
     history.append(norm)
+    lu = None           # LU of J, kept across chord steps when reuse_ratio > 0
     for it in range(maxiter + 1):
         if norm <= target:
             return done("converged", True, R, it)
         if it == maxiter:
             return done("max iterations", False, R, it)
-        if not _finite(J):
-            return done("non-finite Jacobian", False, R, it)
-        try:
-            with warnings.catch_warnings():       # ill-conditioned: lstsq below if not finite
-                warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
-                dx = scipy.linalg.solve(J, -R, check_finite=False)
-        except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
-            dx = None
+        if J is not None:
+            if not _finite(J):
+                return done("non-finite Jacobian", False, R, it)
+            try:
+                with warnings.catch_warnings():       # ill-conditioned: lstsq below if not finite
+                    warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+                    lu = scipy.linalg.lu_factor(J, check_finite=False)
+            except (np.linalg.LinAlgError, scipy.linalg.LinAlgError, ValueError):
+                lu = None
+        dx = scipy.linalg.lu_solve(lu, -R, check_finite=False) if lu is not None else None
         if dx is None or not _finite(dx):
+            if J is None:                 # stale factor went bad: fresh Jacobian
+                R, J = fun_jac(x)
+                nfev += 1
+                nje += 1
+                continue
             dx = np.linalg.lstsq(J, -R, rcond=None)[0]
             if not _finite(dx):
                 return done("singular Jacobian", False, R, it)
@@ -171,6 +184,12 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
                 accepted = True
                 break
             alpha *= 0.5
+        if not accepted and J is None:
+            # a chord direction from a stale Jacobian: refresh it and try again
+            R, J = fun_jac(x)
+            nfev += 1
+            nje += 1
+            continue
         if not accepted and lm_fallback:
             # At a stick/slip/separation kink the Newton direction of the active
             # branch can point into a branch where ‖R‖ grows. Levenberg–Marquardt
@@ -198,9 +217,13 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
         if not accepted:
             return done("line search failed", False, R, it)
         x = xt
-        R, J = fun_jac(x)
-        nfev += 1
-        nje += 1
+        norm_t = float(np.linalg.norm(Rt))
+        if reuse_ratio > 0.0 and lu is not None and norm_t <= reuse_ratio * norm:
+            R, J = Rt, None                       # chord step next: keep the factor
+        else:
+            R, J = fun_jac(x)
+            nfev += 1
+            nje += 1
         if not _finite(R):  # cannot happen after a finite trial, kept as a guard
             return done("non-finite residual", False, None, it + 1)
         norm = float(np.linalg.norm(R))

@@ -26,6 +26,29 @@ def test_newton_and_powell_reach_the_same_solution():
     assert rn.jacobian_evaluations >= 1 and rn.seconds > 0 and len(rn.history) == rn.iterations + 1
 
 
+def test_chord_steps_reach_the_same_root_with_fewer_jacobians():
+    """reuse_ratio keeps the LU of an old Jacobian while ‖R‖ keeps falling:
+    same friction-damped root as full Newton, fewer Jacobians formed."""
+    pr = _problem()
+    x0 = pr.x0()
+    full = newton(pr.residual_jacobian, x0, fun=pr.residual, tol=1e-11, scale=pr.residual_scale())
+    chord = newton(pr.residual_jacobian, x0, fun=pr.residual, tol=1e-11, scale=pr.residual_scale(),
+                   reuse_ratio=0.8, maxiter=200)
+    assert full.converged and chord.converged, (full.reason, chord.reason)
+    assert np.allclose(chord.x, full.x, rtol=1e-7, atol=1e-9 * np.abs(full.x).max())
+    assert chord.jacobian_evaluations < full.jacobian_evaluations
+
+
+def test_chord_steps_cross_a_kink_with_a_stale_slope():
+    """The slope changes at x = 1 (as at a stick/slip switch) after the only
+    Jacobian was formed: chord steps with the stale factor still converge."""
+    def fj(x):  # piecewise-linear: the slope changes at x = 1, as at a stick/slip switch
+        R = np.array([np.where(x[0] > 1.0, 10.0 * (x[0] - 1.0) + 1.0, x[0]) - 5.0])
+        return R, np.array([[10.0 if x[0] > 1.0 else 1.0]])
+    r = newton(fj, [0.0], tol=1e-12, scale=5.0, reuse_ratio=0.99)
+    assert r.converged and np.isclose(r.x[0], 1.4) and r.jacobian_evaluations == 1
+
+
 def test_newton_converges_quadratically_on_a_smooth_system():
     def fj(x):
         R = np.array([x[0] ** 2 + x[1] ** 2 - 4.0, x[0] - x[1]])
