@@ -255,6 +255,17 @@ CHORD_MIN_UNKNOWNS = 1200
 CHORD_RATIO = 0.8
 
 
+def _newton_steps(prob, maxiter: int) -> int:
+    """Newton steps before Powell takes over in ``newton-powell``.
+
+    MINPACK's hybrid Powell factors its n×n Jacobian with an unblocked QR:
+    ~10 s a call at n = 1680 (Nh = 17, 16 pairs; profiled: two such calls
+    were 21 of the variant's 25 s), while a chord step there costs ~0.02 s.
+    Large problems therefore get three times the Newton budget first.
+    """
+    return min(maxiter, NEWTON_STEPS * (3 if prob.n >= CHORD_MIN_UNKNOWNS else 1))
+
+
 def _run_solver(prob, x0, s: str, tol: float, maxiter: int):
     from workflow.errors import SceneError
 
@@ -336,7 +347,7 @@ def _solve_point(prob, guesses, solver: str, tol: float, maxiter: int, smooth=No
         # Powell from Newton's best iterate when Newton stalls at a kink
         x0 = next((g for g in guesses if g is not None), None)
         if x0 is not None:
-            keep(_run_solver(prob, x0, "newton", tol, min(maxiter, NEWTON_STEPS)))
+            keep(_run_solver(prob, x0, "newton", tol, _newton_steps(prob, maxiter)))
             if best.converged:
                 return best, total, "newton"
             keep(_run_solver(prob, best.x, "powell", tol, maxiter))
