@@ -118,3 +118,12 @@ def write_scene(path: Path, text: str) -> Path:
 
 def loaded(pkg: str) -> list[str]:
     return sorted(m.rsplit(".", 1)[1] for m in sys.modules if m.startswith(pkg + "."))
+
+
+def run(capsys, *argv):
+    """``bladewear argv…`` in-process: ``(exit code, stdout, stderr)``."""
+    from workflow.cli import main
+
+    rc = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return rc, out, err

@@ -17,20 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import fakestages
+from fakestages import run
 from workflow import io as wio
-from workflow.cli import main
 
 
-@pytest.fixture
-def fakes(tmp_path, monkeypatch):
-    return fakestages.install(tmp_path, monkeypatch)
-
-
-def run(capsys, *argv):
-    rc = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 def previous_run(tmp_path, capsys):

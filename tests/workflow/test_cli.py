@@ -11,21 +11,12 @@ from pathlib import Path
 import pytest
 
 import fakestages
+from fakestages import run
 from workflow import io as wio
-from workflow.cli import main
 
 BLADEWEAR = Path(sys.executable).parent / "bladewear"
 
 
-@pytest.fixture
-def fakes(tmp_path, monkeypatch):
-    return fakestages.install(tmp_path, monkeypatch)
-
-
-def run(capsys, *argv):
-    rc = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 def scene(tmp_path, text, name="scene.toml"):

@@ -12,24 +12,12 @@ import numpy as np
 
 from workflow.contact import ContactLaw
 from workflow.hb import HBProblem
-from workflow.lumped import pairs_on_block
+from hbmodels import root_model
 
 
 def block_model(preload=(6.0, 12.0, 6.0), force=2.0, seed=0) -> dict:
     preload = np.asarray(preload, dtype=float)
-    p = preload.size
-    M, K, blk, tip = pairs_on_block(p, k_n=2.0e5, k_t=1.0e5, scatter=(1.0, 0.2), m_node=0.01, m_block=0.5,
-                                    ground=10.0, m_tip=0.2, k_tip=0.2 * (2 * np.pi * 25.0) ** 2,
-                                    rng=np.random.default_rng(seed))
-    nd = M.shape[0]
-    C = 2e-4 * K + 0.5 * M
-    B = np.zeros((3 * p, nd))
-    B[:, : 3 * p] = np.eye(3 * p)
-    f0 = np.zeros(nd)
-    f0[0:3 * p:3] = -preload
-    f1 = np.zeros(nd)
-    f1[tip] = force
-    return {"M": M, "K": K, "C": C, "B": B, "f0": f0, "f1": f1, "tip": tip, "p": p}
+    return root_model(preload.size, preload=preload, force=force, force_t2=0.0, seed=seed)
 
 
 def condense(model: dict, omega: float, nh: int):
