@@ -12,6 +12,8 @@ import sys
 import uuid
 from pathlib import Path
 
+import pytest
+
 # name: (SECTIONS, NEEDS, PRODUCES) — the dependency shape of the real stages.
 STAGES = {
     "geometry": (("geometry",), (), ("mesh",)),
@@ -118,6 +120,12 @@ def write_scene(path: Path, text: str) -> Path:
 
 def loaded(pkg: str) -> list[str]:
     return sorted(m.rsplit(".", 1)[1] for m in sys.modules if m.startswith(pkg + "."))
+
+
+@pytest.fixture
+def fakes(tmp_path, monkeypatch):
+    """Fake stage modules registered in place of the real ones."""
+    return install(tmp_path, monkeypatch)
 
 
 def run(capsys, *argv):

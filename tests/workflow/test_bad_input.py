@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fakestages import run
+from fakestages import fakes, run  # noqa: F401 (fakes is a fixture)
 from workflow import io as wio
 
 

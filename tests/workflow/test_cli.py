@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import fakestages
-from fakestages import run
+from fakestages import fakes, run  # noqa: F401 (fakes is a fixture)
 from workflow import io as wio
 
 BLADEWEAR = Path(sys.executable).parent / "bladewear"
