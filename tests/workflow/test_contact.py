@@ -127,9 +127,10 @@ def _fd_check(a, E, mu, ref, atol=1e-6):
     return r
 
 
-@pytest.mark.parametrize("case", ["stick", "slip", "partial", "separation", "mixed"])
+@pytest.mark.parametrize("case", ["stick", "slip", "partial", "separation", "mixed", "shakedown"])
 def test_sensitivity_matches_finite_differences(case):
-    rng = np.random.default_rng({"stick": 1, "slip": 2, "partial": 3, "separation": 4, "mixed": 5}[case])
+    rng = np.random.default_rng({"stick": 1, "slip": 2, "partial": 3, "separation": 4, "mixed": 5,
+                                 "shakedown": 6}[case])
     nh, nit, p = 3, 32, 4
     E = fourier.time_from_coef_matrix(nh, nit)
     a = np.zeros((2 * nh + 1, p, 3))
@@ -151,10 +152,16 @@ def test_sensitivity_matches_finite_differences(case):
     elif case == "mixed":
         a[1, :2, 0] = 5.0
         mu[2] = 10.0
+    elif case == "shakedown":
+        # the start anchor lies far outside the cone in 2D: the pairs slip once,
+        # then stick touching it — a non-isolated periodic reference whose
+        # direction, and derivative across the slip direction, come from the anchor
+        a[1:, :, 1:] *= 0.2
+        ref = 4.0 * rng.normal(size=(p, 2))
     r = _fd_check(a, E, mu, ref)
     counts = np.bincount(r.state.ravel(), minlength=3)
     expect = {"stick": [0, 1, 0], "slip": [0, 0, 1], "partial": [0, 1, 1],
-              "separation": [1, 1, 1], "mixed": [1, 1, 1]}[case]
+              "separation": [1, 1, 1], "mixed": [1, 1, 1], "shakedown": [0, 1, 1]}[case]
     assert list(counts > 0) == [bool(e) for e in expect], counts
 
 
