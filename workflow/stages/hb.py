@@ -310,8 +310,9 @@ def _solve_point(prob, guesses, solver: str, tol: float, maxiter: int, smooth=No
        ``solver`` was Newton.
 
     With ``solver = "newton-powell"`` step 1 is replaced by at most
-    :data:`NEWTON_STEPS` Newton steps from the first guess (the predictor),
-    then Powell from Newton's best iterate; 1–3 follow with Powell if both fail.
+    :data:`NEWTON_STEPS` Newton steps from each guess in turn, the one with
+    the smallest residual first, then Powell from Newton's best iterate;
+    1–3 follow with Powell if both fail.
 
     ``smooth`` (optional, tried between 1 and 2): a callable returning
     ``(x, iterations)`` — a guess from the same Nh solved with many time
@@ -332,24 +333,29 @@ def _solve_point(prob, guesses, solver: str, tol: float, maxiter: int, smooth=No
             best = res
 
     # a guess that already satisfies R = 0 costs one residual, no Jacobian
-    for k, x0 in enumerate(g for g in guesses if g is not None):
+    norms = {}
+    for k, x0 in enumerate(guesses):
+        if x0 is None:
+            continue
         R = prob.residual(x0)
-        if np.linalg.norm(R) <= tol * prob.residual_scale():
+        norms[k] = float(np.linalg.norm(R))
+        if norms[k] <= tol * prob.residual_scale():
             from workflow.solvers import SolveResult
 
             return SolveResult(x=np.asarray(x0, float), converged=True, iterations=0,
-                               residual_norm=float(np.linalg.norm(R)), reason="converged",
+                               residual_norm=norms[k], reason="converged",
                                function_evaluations=1), 0, f"guess{k}"
-        break
     if solver == "newton-powell":
-        # cheap cascade: a few Newton steps from the predictor (one or two when the
-        # stick/slip pattern is right: the DLFT residual is piecewise smooth), then
-        # Powell from Newton's best iterate when Newton stalls at a kink
-        x0 = next((g for g in guesses if g is not None), None)
-        if x0 is not None:
-            keep(_run_solver(prob, x0, "newton", tol, _newton_steps(prob, maxiter)))
+        # cheap cascade: Newton from each guess, the smallest residual first (one
+        # or two steps when the stick/slip pattern is right: the DLFT residual is
+        # piecewise smooth; near resonance the secant predictor can be the worse
+        # start and lead Newton into a local minimum of ‖R‖), then Powell from
+        # the best iterate when Newton stalls at a kink
+        for k in sorted(norms, key=norms.get):
+            keep(_run_solver(prob, guesses[k], "newton", tol, _newton_steps(prob, maxiter)))
             if best.converged:
                 return best, total, "newton"
+        if best is not None:
             keep(_run_solver(prob, best.x, "powell", tol, maxiter))
             if best.converged:
                 return best, total, "powell"
