@@ -89,3 +89,17 @@ def test_nan_residual_is_reported_not_returned():
                   max_steps=50)
     assert np.all(np.isfinite(r.x))
     assert not r.converged and r.reason
+
+
+def test_ser_jacobian_mass_is_one_lu_per_step_and_the_same_iteration(solved):
+    # the fast path solves (J0/Δt* + J) dx = −R; the generic mass path solves
+    # (I/Δt* + J0⁻¹J) dx = −J0⁻¹R: the same steps in exact arithmetic
+    hb, x0, ref = solved
+    _, J0 = hb.residual_jacobian(x0)
+    kw = dict(tol=1e-10, scale=hb.residual_scale(), max_steps=500)
+    fast = integrate(hb.residual, hb.residual_jacobian, x0, "ser", precond="jacobian", dt0=3.0, **kw)
+    slow = integrate(hb.residual, hb.residual_jacobian, x0, "ser", precond=J0, dt0=3.0, **kw)
+    assert fast.converged and slow.converged
+    assert fast.steps == slow.steps
+    np.testing.assert_allclose(fast.history, slow.history, rtol=1e-6, atol=1e-9 * hb.residual_scale())
+    np.testing.assert_allclose(fast.x, ref.x, atol=1e-7 * np.abs(ref.x).max())

@@ -72,6 +72,24 @@ def build_problem(model, scene, omega=None):
     return hb, rc, omega
 
 
+def unworn_solvers(hb, x0, newton_result, *, tol: float, max_steps: int) -> dict:
+    """The unworn HB point solved by Newton (given) and by pseudo-time from the
+    same start: SER with the Jacobian mass (:func:`workflow.pseudotime.integrate`),
+    each with seconds, iterations (steps), Jacobians, and the relative
+    difference of the two solutions (max |Δx| / max |x|)."""
+    from workflow.pseudotime import integrate
+
+    pt = integrate(hb.residual, hb.residual_jacobian, x0, "ser", precond="jacobian", tol=tol,
+                   scale=hb.residual_scale(), max_steps=max_steps)
+    row = lambda r: {"seconds": r.seconds, "iterations": int(r.iterations),  # noqa: E731
+                     "jacobian_evaluations": int(r.jacobian_evaluations), "converged": bool(r.converged),
+                     "reason": r.reason}
+    top = max(float(np.abs(newton_result.x).max()), 1e-300)
+    return {"newton": row(newton_result), "pseudo-time": row(pt),
+            "max_rel_diff": float(np.abs(pt.x - newton_result.x).max() / top) if pt.converged else None,
+            "time_ratio_pseudo_over_newton": pt.seconds / max(newton_result.seconds, 1e-12)}
+
+
 def run_wear(model, scene, out: Path, log) -> dict:
     """The stage's work on a :class:`reduction.reduced.ReducedModel` (also used by tests)."""
     from reduction.condense import recover
@@ -88,6 +106,10 @@ def run_wear(model, scene, out: Path, log) -> dict:
     if not base.converged:
         raise SolverError(f"wear: HB solve of the unworn state failed at {omega / 2 / np.pi:.3f} Hz: "
                           f"{base.reason} (try hb.max_iterations or contact penalties)")
+    unworn = unworn_solvers(hb, x0, base, tol=hbs.tol, max_steps=pt.max_steps)
+    log.info(f"unworn point: newton {base.iterations} iterations {base.seconds:.3f} s; pseudo-time "
+             f"{unworn['pseudo-time']['iterations']} steps {unworn['pseudo-time']['seconds']:.3f} s "
+             f"({unworn['pseudo-time']['reason']})")
     wp = WearProblem(hb, model.area, w.k_w, w.blade_share)
     rate0 = wp.evaluate(base.x).rate
     i0 = int(np.argmax(rate0))
@@ -117,6 +139,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
     figures = plot_wear(out, histories, tip_before=tip_before, tip_after=tip_after,
                         track_label=f"pair {i0} t1")
     summary = {"frequency_hz": omega / 2 / np.pi, "pairs": hb.p, "csv": "wear.csv", "figures": figures,
+               "unworn_point": unworn,
                "tracked_pair": i0, "methods": {m: h.summary() for m, h in histories.items()}}
     ref = next((m for m in ("implicit", "explicit") if m in histories), None)
     if ref is not None and "pseudo-time" in histories:
