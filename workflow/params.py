@@ -158,6 +158,9 @@ class Wear:
                                        "0: fixed blocks of cycles_per_block)", min=0.0)
     steady_tol: float = param(1e-4, "", "steady state: max wear rate × cycles_per_block below this fraction of "
                                         "the max wear", min=0.0, min_exclusive=True)
+    reference_check: bool = param(False, "", "also march the reference with 4 × block_tol: its own convergence "
+                                             "and, by Richardson extrapolation (first order in the block), the "
+                                             "error of every method against its CPU time")
     frequency_hz: float = param(0.0, "Hz", "excitation frequency of the wear study (0: first tied resonance)",
                                 min=0.0)
 

@@ -418,7 +418,7 @@ def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
 
 def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_block: float = 1e5,
                      steady_tol: float = 1e-3, tol: float = 1e-9, max_steps: int = 400,
-                     rtol: float = 1e-3, track: int = 1, x_tol: float = 1e-5, x_corrections: int = 3,
+                     rtol: float = 1e-3, track: int = 1, x_tol: float = 1e-3, x_corrections: int = 3,
                      dt_max_blocks: float = 0.0, order: int = 2, **_ignored) -> WearHistory:
     """Integrate the augmented system (eq. 22a–b) along the wear trajectory to zero wear rates.
 
@@ -434,7 +434,10 @@ def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_blo
     i.e. a Newton step on the vibration and a linearly implicit Euler step
     on the wear, with one Jacobian per step — the HB problem is *not*
     converged at each slow step (only corrected by up to ``x_corrections``
-    Newton steps at fixed W when ``‖R‖ > x_tol·‖F‖``, a relaxed tolerance).
+    Newton steps at fixed W when ``‖R‖ > x_tol·‖F‖``, a relaxed tolerance:
+    measured on the 48-pair paper-wear case, x_tol = 1e-5 made 63 corrections
+    in 39 steps (4.3 s) and x_tol = 1e-3 10 in 37 (2.6 s), both within 1 %
+    of the converged reference profile).
     Step control on the wear variables only (the vibration error is
     excluded): local error ``½h‖rate(z⁺) − rate(z)‖∞ ≤ rtol·max(max W,
     pen)`` (pen: :func:`penetration_scale`), rejected steps retried with a

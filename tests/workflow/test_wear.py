@@ -165,6 +165,7 @@ def test_wear_stage_on_a_reduced_model(tmp_path):
     w = scene["wear"]
     w.frequency_hz, w.k_w, w.cycles_per_block, w.steady_tol = 20.0, 1e-14, 1e6, 1e-4
     w.methods = ["explicit", "pseudo-time"]
+    w.reference_check = True
     model = _reduced_block_model()
     model.save(tmp_path / "reduced.npz")
 
@@ -184,6 +185,33 @@ def test_wear_stage_on_a_reduced_model(tmp_path):
     assert float(rows[0]["W_blade_pseudo-time_m"]) == pytest.approx(0.5 * float(rows[0]["W_pseudo-time_m"]))
     for f in ("wear_profile.png", "max_wear.png", "harmonic1.png", "tip_cycle.png"):
         assert (out / f).stat().st_size > 1000
+    # the unworn point by both solvers: same root
+    u = s["unworn_point"]
+    assert u["newton"]["converged"] and u["pseudo-time"]["converged"] and u["max_rel_diff"] < 1e-6
+    # the reference with 4× the blocks is farther from the extrapolated profile (first order)
+    chk = s["reference_check"]
+    errs = {r["method"].split()[0] + (" coarse" if "0.04" in r["method"] else ""): r["error"]
+            for r in chk["error_vs_time"]}
+    assert errs["explicit coarse"] > errs["explicit"]
+    assert chk["self_diff"] == pytest.approx(3 * errs["explicit"], rel=0.05)   # normalised by different maxima
+    assert len(list(csv.DictReader(open(out / "error_vs_time.csv")))) == 3
+
+
+def test_reference_check_recovers_a_first_order_limit():
+    from types import SimpleNamespace as NS
+
+    from workflow.stages.wear import reference_check
+
+    rng = np.random.default_rng(3)
+    Wstar, c = rng.random(6) + 1.0, rng.normal(size=6)
+    h = 0.01
+    fine = NS(W=Wstar + c * h, seconds=4.0, steady=True)
+    coarse = NS(W=Wstar + c * 4 * h, seconds=1.0, steady=True)
+    pt = NS(W=Wstar.copy(), seconds=0.5, steady=True)
+    r = reference_check({"explicit": fine, "pseudo-time": pt}, "explicit", coarse, h)
+    rows = {row["method"]: row for row in r["error_vs_time"]}
+    assert rows["pseudo-time"]["error"] < 1e-12        # exactly the first-order limit
+    assert rows["explicit block_tol=0.04"]["error"] == pytest.approx(4 * rows["explicit block_tol=0.01"]["error"])
 
 
 def test_paper_wear_scene_resolves():

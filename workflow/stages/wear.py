@@ -146,7 +146,53 @@ def run_wear(model, scene, out: Path, log) -> dict:
         summary["profile_max_rel_diff"] = profile_rel_diff(histories[ref].W, histories["pseudo-time"].W)
         summary["cpu_ratio_pseudo_over_reference"] = histories["pseudo-time"].seconds / max(
             histories[ref].seconds, 1e-12)
+    if ref is not None and w.reference_check and w.block_tol > 0:
+        wp.set_wear(np.zeros(hb.p))
+        coarse = march_reference(wp, base.x, scheme=ref, max_blocks=w.max_blocks, block_tol=4 * w.block_tol,
+                                 **common)
+        summary["reference_check"] = reference_check(histories, ref, coarse, w.block_tol)
+        write_csv_rows(out / "error_vs_time.csv", summary["reference_check"]["error_vs_time"])
+        log.info(f"reference check: block_tol ×4 differs by {summary['reference_check']['self_diff']:.3%} of max W; "
+                 + ", ".join(f"{r['method']} {r['seconds']:.2f} s error {r['error']:.3%}"
+                             for r in summary["reference_check"]["error_vs_time"]))
     return summary
+
+
+def reference_check(histories: dict, ref: str, coarse, block_tol: float) -> dict:
+    """Convergence of the reference in its block size and every method's error.
+
+    The block marching is first order in the block (explicit or implicit
+    Euler on W), so with profiles W_f (``block_tol``) and W_c (4×) the
+    Richardson estimate of the converged profile is ``W* = W_f + (W_f − W_c)/3``.
+    Errors are :func:`workflow.wear.profile_rel_diff` against W* (fraction of
+    max W), next to each method's CPU seconds.
+    """
+    from workflow.wear import profile_rel_diff
+
+    Wf, Wc = histories[ref].W, coarse.W
+    Wstar = Wf + (Wf - Wc) / 3.0
+    rows = [{"method": f"{ref} block_tol={4 * block_tol:g}", "seconds": coarse.seconds,
+             "error": profile_rel_diff(Wstar, Wc), "steady": bool(coarse.steady)}]
+    for m, h in histories.items():
+        label = f"{m} block_tol={block_tol:g}" if m == ref else m
+        rows.append({"method": label, "seconds": h.seconds, "error": profile_rel_diff(Wstar, h.W),
+                     "steady": bool(h.steady)})
+    return {"self_diff": profile_rel_diff(Wf, Wc), "coarse_seconds": coarse.seconds,
+            "coarse_steady": bool(coarse.steady), "error_vs_time": rows}
+
+
+def write_csv_rows(path: Path, rows: list) -> Path:
+    """Rows (dicts with the same keys) as CSV, written atomically."""
+    import csv
+    import io
+
+    from workflow.io import write_text
+
+    buf = io.StringIO()
+    wr = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    wr.writeheader()
+    wr.writerows(rows)
+    return write_text(path, buf.getvalue())
 
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
