@@ -163,26 +163,30 @@ def assemble_operators(mesh, cell_tags, facet_tags, material, omega: float = 0.0
     if stress_stiffening and has_load:
         if mesh.comm.bcast(fixed is None, root=dc.ROOT):  # collective: decided on rank 0 for all
             fixed = clamped_dofs(V, facet_tags)
+        T = None
+        no_clamp = bool(root and (fixed is None or len(fixed) == 0))
+        if mesh.comm.bcast(no_clamp, root=dc.ROOT):
+            raise GeometryError(f"the prestress needs a clamp: no facets tagged {CLAMP} (disk_clamp)")
         if root:
-            if fixed is None or len(fixed) == 0:
-                raise GeometryError(f"the prestress needs a clamp: no facets tagged {CLAMP} (disk_clamp)")
             n = K0.shape[0]
             bd = np.zeros((0, 3), np.int64) if blade_dofs is None else blade_dofs
             dd = np.zeros((0, 3), np.int64) if disk_dofs is None else disk_dofs
             T = tie_map(n, fixed, bd, dd, tied=True)
-            # Spin softening belongs in the static operator too: equilibrium in the rotating frame.
-            ops.u0 = static_displacement(Kstat, f, T)
+        # Spin softening belongs in the static operator too: equilibrium in the rotating frame.
+        # Collective: the factorisation runs on every rank (parallel MUMPS).
+        ops.u0 = static_displacement(Kstat, f, T, comm=mesh.comm)
         u0 = dc.function(V, "u0")
         a_sigma = dc.form(el.geometric_stiffness(V, el.stress(u0, E, nu), dx))
         for it in range(int(prestress_iterations) + 1):
             dc.set_function_from_global(u0, ops.u0)
             ops.K_sigma = dc.assemble_matrix_scipy(a_sigma)
-            if it < prestress_iterations and root:
+            if it < prestress_iterations:
                 # Picard step on (K₀ − Ω²M_⊥ + K_σ(u₀)) u₀ = f: the tension straightens a blade that
                 # the linear prestress bends too far (a lateral centrifugal component on a lean).
-                u_new = static_displacement(Kstat + ops.K_sigma, f, T)
-                ops.prestress_change.append(float(np.linalg.norm(u_new - ops.u0) / np.linalg.norm(u_new)))
-                ops.u0 = u_new
+                u_new = static_displacement(Kstat + ops.K_sigma if root else None, f, T, comm=mesh.comm)
+                if root:
+                    ops.prestress_change.append(float(np.linalg.norm(u_new - ops.u0) / np.linalg.norm(u_new)))
+                    ops.u0 = u_new
     t["prestress_s"] = time.perf_counter() - t0
     if root:
         K = Kstat.copy()
@@ -238,25 +242,33 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
         blade_dofs=pairs["blade_dofs"] if root else None, disk_dofs=pairs["disk_dofs"] if root else None, V=V)
     t.update(ops.timings)
     coords = dc.gather_block_coordinates(V)
-    if not root:
-        return None, {}
-    n = ops.M.shape[0]
-    tip = nearest_block(coords, geometry_info["tip_point"])
-    harmonic = point_load(n, tip, float(_get(excitation, "amplitude", 0.1)), geometry_info["excitation_direction"], bs)
-    loads = Loads(fixed=fixed, static=ops.f_static, harmonic=harmonic, observe=bs * tip + np.arange(bs))
-    contact = Contact(**pairs)
-    bundle = Bundle(M=ops.M, K=ops.K, C=sp.csr_matrix(ops.M.shape), contact=contact, loads=loads, coords=coords)
+    bundle = None
+    if root:
+        n = ops.M.shape[0]
+        tip = nearest_block(coords, geometry_info["tip_point"])
+        harmonic = point_load(n, tip, float(_get(excitation, "amplitude", 0.1)),
+                              geometry_info["excitation_direction"], bs)
+        loads = Loads(fixed=fixed, static=ops.f_static, harmonic=harmonic, observe=bs * tip + np.arange(bs))
+        contact = Contact(**pairs)
+        bundle = Bundle(M=ops.M, K=ops.K, C=sp.csr_matrix(ops.M.shape), contact=contact, loads=loads, coords=coords)
     # Damping: Rayleigh plus β for a modal ratio on the first tied mode.
     t0 = time.perf_counter()
     alpha, beta = float(_get(damping, "alpha", 0.0)), float(_get(damping, "beta", 0.0))
     ratio = float(_get(damping, "modal_ratio", 0.0))
     f1 = None
     if ratio > 0:
-        from reduction.modes import frequencies
+        if comm.Get_size() > 1:
+            from reduction.parallel import frequencies_mpi    # collective: SLEPc + MUMPS on every rank
 
-        f1 = float(frequencies(bundle, 1, tied=True)[0])
+            f1 = float(frequencies_mpi(bundle, 1, tied=True, comm=comm)[0])
+        else:
+            from reduction.modes import frequencies
+
+            f1 = float(frequencies(bundle, 1, tied=True)[0])
         if f1 <= 0:
             raise BundleError("damping.modal_ratio needs a positive first tied frequency (is the disk clamped?)")
+    if not root:
+        return None, {}
     b_modal = modal_beta(ratio, 2 * math.pi * f1) if f1 else 0.0
     bundle.C = rayleigh(ops.M, ops.K, alpha, beta + b_modal)
     t["damping_s"] = time.perf_counter() - t0
