@@ -1,7 +1,7 @@
 """Scaling of assembly and reduction with the mesh, on 1 and on N MPI processes.
 
 ``python -m workflow.bench.scaling [--factors 1.6,1.3,1,0.8,0.65] [--procs 1,2]
-[--modes 30] [--out results/bench]``
+[--modes 30] [--max-gb 20] [--out results/bench]``
 
 For each mesh-size factor ``s`` (the three sizes h_blade, h_disk, h_airfoil
 of the default sector scaled by ``s``; DOFs grow like s⁻³) the study
@@ -162,8 +162,31 @@ def _launch(step: str, procs: int, json_path: Path, **kw) -> dict:
     return json.loads(json_path.read_text())
 
 
-def study(factors, procs=(1, 2), modes: int = MODES, work: Path | None = None, log=print) -> list[dict]:
-    """Rows of the scaling table (one per mesh factor × process count)."""
+def predicted_gb(rows, n_dofs: int) -> float | None:
+    """Peak memory [GB] at ``n_dofs`` extrapolated from the largest of assembly and
+    reduction over the rows so far (power law through the last two meshes; None if < 2)."""
+    import numpy as np
+
+    sizes = sorted({r["n_dofs"] for r in rows})
+    if len(sizes) < 2:
+        return None
+    n = np.array(sizes[-2:], dtype=float)
+    y = np.array([max(max(r["assembly_gb"], r["reduction_gb"]) for r in rows if r["n_dofs"] == k)
+                  for k in sizes[-2:]])
+    b = np.log(y[1] / y[0]) / np.log(n[1] / n[0])
+    return float(y[1] * (n_dofs / n[1]) ** b)
+
+
+def study(factors, procs=(1, 2), modes: int = MODES, work: Path | None = None, log=print,
+          max_gb: float | None = None, on_row=None) -> list[dict]:
+    """Rows of the scaling table (one per mesh factor × process count).
+
+    ``max_gb``: before a finer mesh, its peak memory is extrapolated from the
+    two previous meshes (:func:`predicted_gb`, DOFs ∝ factor⁻³ from the last
+    one); the study stops there if that exceeds ``max_gb``. ``on_row(rows)``
+    is called after every row (the caller writes the table as it grows, so a
+    long study that is killed keeps what it measured).
+    """
     import tempfile
 
     import numpy as np
@@ -171,6 +194,13 @@ def study(factors, procs=(1, 2), modes: int = MODES, work: Path | None = None, l
     rows = []
     with tempfile.TemporaryDirectory(dir=work) as tmp:
         for s in factors:
+            if max_gb and rows:
+                last = rows[-1]
+                n_next = int(last["n_dofs"] * (last["factor"] / s) ** 3)
+                gb = predicted_gb(rows, n_next)
+                if gb is not None and gb > max_gb:
+                    log(f"factor {s:g}: ~{n_next} DOFs would need ~{gb:.1f} GB > {max_gb:g} GB: stop")
+                    break
             d = Path(tmp) / f"f{s:g}"
             d.mkdir()
             mesh = _launch("mesh", 1, d / "mesh.json", dir=d, factor=s)
@@ -189,6 +219,8 @@ def study(factors, procs=(1, 2), modes: int = MODES, work: Path | None = None, l
                            **{f"asm_{k}": v for k, v in asm["assembly_detail"].items()},
                            **{f"red_{k}": v for k, v in red["reduction_detail"].items()})
                 rows.append(row)
+                if on_row is not None:
+                    on_row(rows)
                 log(f"factor {s:g}, {P} proc: {row['n_dofs']} DOFs; assembly {row['assembly_s']:.2f} s "
                     f"{row['assembly_gb']:.2f} GB; reduction {row['reduction_s']:.2f} s {row['reduction_gb']:.2f} GB; "
                     f"tied f rel. err {err:.1e}")
@@ -269,12 +301,23 @@ def main(argv=None) -> int:
     ap.add_argument("--modes", type=int, default=MODES)
     ap.add_argument("--fit-min-dofs", type=int, default=20000, help="fit the power laws on meshes this large")
     ap.add_argument("--out", type=Path, default=Path("results/bench"))
+    ap.add_argument("--max-gb", type=float, default=20.0,
+                    help="stop before a mesh whose extrapolated peak memory exceeds this")
+    ap.add_argument("--work", type=Path, default=None, help="scratch folder for meshes and bundles")
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
-    rows = study([float(v) for v in a.factors.split(",")], tuple(int(v) for v in a.procs.split(",")), a.modes)
-    fit = fits(rows, a.fit_min_dofs)
-    fit["_study"] = dict(seconds=time.perf_counter() - t0, largest_dofs=max(r["n_dofs"] for r in rows),
-                         factors=a.factors, procs=a.procs, modes=a.modes, fit_min_dofs=a.fit_min_dofs)
+
+    def summary(rows):
+        fit = fits(rows, a.fit_min_dofs)
+        fit["_study"] = dict(seconds=time.perf_counter() - t0, largest_dofs=max(r["n_dofs"] for r in rows),
+                             peak_gb=max(max(r["assembly_gb"], r["reduction_gb"]) for r in rows),
+                             factors=a.factors, procs=a.procs, modes=a.modes, fit_min_dofs=a.fit_min_dofs,
+                             max_gb=a.max_gb)
+        return fit
+
+    rows = study([float(v) for v in a.factors.split(",")], tuple(int(v) for v in a.procs.split(",")), a.modes,
+                 work=a.work, max_gb=a.max_gb, on_row=lambda rows: write(rows, summary(rows), a.out))
+    fit = summary(rows)
     for p in write(rows, fit, a.out):
         print(p)
     for k, f in fit.items():
