@@ -297,8 +297,10 @@ class HBProblem:
             return lam[self.kc]
         return lam
 
-    def _G(self, dlam):
-        """Per-pair blocks (p, 3nc, 3nc) of Q·dλ/da, rows (m, c), columns (j, c')."""
+    def contact_blocks(self, dlam):
+        """Per-pair blocks G (p, 3nc, 3nc) of Q·dλ/da, rows (m, c), columns (j, c'): the
+        contact part of the Jacobian, ``J = Rlin + G (diag ε − A)`` (dimensionless).
+        ``dlam`` is :attr:`DLFTResult.dlam` of an evaluation with the Jacobian."""
         if self.method == "hbm":
             G = np.einsum("ok,kicn->iocn", self.Q, dlam, optimize=True)
         elif self.method == "tcm":
@@ -307,8 +309,10 @@ class HBProblem:
             G = dlam.transpose(1, 0, 2, 3)
         return np.ascontiguousarray(G).reshape(self.p, 3 * self.nc, 3 * self.nc)
 
-    def _apply_G(self, G, V):
-        """Block-diagonal G times V whose rows are ordered (j, pair, c'); V (n, ...) → (n, ...)."""
+    def apply_contact_blocks(self, G, V):
+        """Block-diagonal G (:meth:`contact_blocks`) times V whose rows are ordered
+        (j, pair, c'); V (n, ...) → (n, ...), e.g. ``∂R/∂p = G ∂a/∂p`` for a
+        parameter p entering the DLFT predictor a."""
         nc, p = self.nc, self.p
         tail = V.shape[1:]
         Vp = V.reshape((nc, p, 3) + tail)
@@ -319,7 +323,7 @@ class HBProblem:
     def _GM(self, G):
         """G · (diag ε − A) (n × n): batched per pair, harmonic by harmonic for HBM/TCM."""
         if self._Mblocks is None:
-            return self._apply_G(G, self._M)
+            return self.apply_contact_blocks(G, self._M)
         nc, p, nr = self.nc, self.p, self.nr
         G4 = G.reshape(p, 3 * nc, nc, 3)
         out = np.empty((nc, p, 3, nc, nr))
@@ -341,7 +345,7 @@ class HBProblem:
         self.stats["evaluations"] += 1
         if not jacobian:
             return R, None, None
-        G = self._G(res.dlam)
+        G = self.contact_blocks(res.dlam)
         J = self.Rlin + self._GM(G)
         self.stats["jacobians"] += 1
         return R, J, G
@@ -367,7 +371,7 @@ class HBProblem:
         dZb = fourier.real_block_diag(np.asarray(dZr)[: self.nh + 1])
         q = (dZb @ self.coefficients(x).ravel()).reshape(self.nc, self.nr) \
             - fourier.complex_to_real(np.asarray(dFr)[: self.nh + 1])
-        Rw = self._apply_L(self._Lr, q).ravel() - self._apply_G(G, self._apply_L(self._Lp, q).ravel()[:, None])[:, 0]
+        Rw = self._apply_L(self._Lr, q).ravel() - self.apply_contact_blocks(G, self._apply_L(self._Lp, q).ravel()[:, None])[:, 0]
         return R, J, Rw
 
     # ------------------------------------------------------------ initial guess

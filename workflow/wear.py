@@ -113,10 +113,9 @@ class WearProblem:
 
     Adapter note: the wear rate's derivatives need the DLFT sensitivities of
     the evaluation (``hb.last_dlft`` with ``dlam``, :class:`DLFTResult`), the
-    predictor map ``a = a_F − A y + ε(y + shift)`` (public ``hb.A``,
-    ``hb.basis``, the law's ε) and the per-pair contact rows of the residual
-    (``hb._apply_G`` / ``hb._G``, private in hb.py — the one place this module
-    reaches inside; ∂R/∂W is otherwise not in the HB API).
+    predictor map ``a = a_F − A y + ε(y + shift)`` (``hb.A``, ``hb.basis``,
+    the law's ε) and the per-pair contact blocks of the residual
+    (:meth:`HBProblem.contact_blocks`, :meth:`HBProblem.apply_contact_blocks`).
     """
 
     def __init__(self, hb, area, k_w: float, share: float = 0.5):
@@ -197,8 +196,8 @@ class WearProblem:
         daW = np.zeros((self.n, p))
         for i in range(p):
             daW[self._rows[i, 0::3], i] = law.eps_n[i] * self._const
-        G = hb._G(dlam)
-        R_W = hb._apply_G(G, daW)
+        G = hb.contact_blocks(dlam)
+        R_W = hb.apply_contact_blocks(G, daW)
         return G_x, G_W, R_W
 
     # solves --------------------------------------------------------------

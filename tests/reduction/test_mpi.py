@@ -32,7 +32,7 @@ BIN = Path(sys.executable).parent
 SCENE = """
 [run]
 title = "MPI equality check"
-outputs = ["reduced", "modes"]
+outputs = ["reduced", "modes", "frf"]
 [geometry]
 h_blade = 0.006
 h_disk = 0.010
@@ -43,6 +43,16 @@ speed_rpm = 3000.0
 modes = 10
 [modes]
 count = 6
+[contact]
+mu = 0.5
+[hb]
+methods = ["hbm", "hdhb"]
+harmonics = [1, 3]
+time_samples = [32, 0]
+reference_harmonics = 5
+reference_time_samples = 32
+[sweep]
+points = 7
 """
 REL = 1e-8
 
@@ -110,7 +120,7 @@ def test_pipeline_two_ranks_equals_serial(runs):
     assert p.info["mpi_ranks"] == 2 and "mpi_ranks" not in s.info
     summary = json.loads((parallel / "summary.json").read_text())
     assert summary["stages"] == {"geometry": "computed", "assembly": "computed", "reduction": "computed",
-                                 "modes": "computed"}
+                                 "modes": "computed", "hb": "computed"}
     # contact pairs: same order (by flank, then position), same data
     np.testing.assert_array_equal(p.flank, s.flank)
     np.testing.assert_allclose(p.position, s.position, rtol=0, atol=1e-12)
@@ -126,6 +136,25 @@ def test_pipeline_two_ranks_equals_serial(runs):
     band = np.linspace(0.9, 1.1, 9) * fs[0]
     hs, hp = _tied_frf(s, band), _tied_frf(p, band)
     assert np.max(np.abs(hp - hs)) / np.max(np.abs(hs)) < 1e-6
+
+
+def test_sweeps_spread_over_two_ranks_equal_serial(runs):
+    """HB variants shared over the ranks and the reference band cut in two: the same FRFs."""
+    import csv
+
+    rows = []
+    for d in runs:
+        with open(d / "hb" / "frf.csv") as fh:
+            rows.append({(r["role"], r["method"], r["Nh"], r["nit"], round(float(r["frequency_hz"]), 6)): r
+                         for r in csv.DictReader(fh)})
+    s, p = rows
+    assert set(s) == set(p) and len(s) == 7 * 7     # 6 variants (hbm: 2 Nh × 2 nit, hdhb: 2 Nh) + reference
+    assert sum(k[0] == "reference" for k in s) == 7
+    top = max(float(r["amplitude_m"]) for r in s.values())
+    for k, r in s.items():
+        assert r["converged"] == p[k]["converged"], k
+        if r["converged"] == "1":
+            assert abs(float(p[k]["amplitude_m"]) - float(r["amplitude_m"])) < 1e-6 * top, k
 
 
 def test_serial_bundle_reduced_on_two_ranks(runs, tmp_path):

@@ -234,3 +234,41 @@ def test_newton_powell_cascade_finds_the_same_frf_as_powell(tmp_path):
     assert ok2.all()
     ok = ok1 & ok2
     assert np.max(np.abs(a1[ok] - a2[ok])) < 1e-6 * a1[ok].max()
+
+
+def test_share_gives_every_variant_to_one_rank_and_balances_the_cost():
+    from types import SimpleNamespace as NS
+
+    from workflow.stages.hb import share, variants
+
+    todo = variants(NS(methods=["hbm", "tcm", "hdhb"], harmonics=[1, 3, 7, 17], time_samples=[105, 0]))
+    cost = lambda i: (2 * todo[i].nh + 1) ** 2 * (1.0 + todo[i].nit / 400.0)  # noqa: E731
+    for size in (1, 2, 3, 7):
+        parts = share(todo, size)
+        assert len(parts) == size
+        assert sorted(i for p in parts for i in p) == list(range(len(todo)))
+        assert parts == share(todo, size)                 # every rank computes the same split
+        loads = [sum(cost(i) for i in p) for p in parts]
+        assert max(loads) - min(loads) <= max(cost(i) for i in range(len(todo)))   # greedy (LPT) bound
+    assert share(todo, 1) == [list(range(len(todo)))]
+
+
+def test_join_sweeps_puts_chunks_back_in_order():
+    from workflow.stages.hb import SweepResult, Variant, join_sweeps
+
+    v = Variant("hbm", 3, 32)
+
+    def chunk(f, t):
+        n = len(f)
+        r = SweepResult(variant=v, solver="newton", freqs_hz=np.array(f), amplitude=np.array(f) * 1e-6,
+                        amplitude_max=np.array(f) * 2e-6, iterations=np.arange(n), seconds=np.ones(n),
+                        converged=np.ones(n, bool), Ur=[np.full((4, 3), x) for x in f], reasons=["ok"] * n,
+                        how=["newton"] * n)
+        r.total_seconds, r.cpu_seconds, r.dlft_max_passes = t, t, n
+        return r
+
+    j = join_sweeps([chunk([1.0, 2.0], 3.0), chunk([3.0, 4.0, 5.0], 5.0)])
+    np.testing.assert_array_equal(j.freqs_hz, [1, 2, 3, 4, 5])
+    np.testing.assert_array_equal(j.amplitude, np.arange(1, 6) * 1e-6)
+    assert [u[0, 0] for u in j.Ur] == [1, 2, 3, 4, 5] and len(j.how) == 5
+    assert j.total_seconds == 5.0 and j.cpu_seconds == 8.0 and j.dlft_max_passes == 3

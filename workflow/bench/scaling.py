@@ -178,14 +178,16 @@ def predicted_gb(rows, n_dofs: int) -> float | None:
 
 
 def study(factors, procs=(1, 2), modes: int = MODES, work: Path | None = None, log=print,
-          max_gb: float | None = None, on_row=None) -> list[dict]:
+          max_gb: float | None = None, on_row=None, prior=()) -> list[dict]:
     """Rows of the scaling table (one per mesh factor × process count).
 
     ``max_gb``: before a finer mesh, its peak memory is extrapolated from the
     two previous meshes (:func:`predicted_gb`, DOFs ∝ factor⁻³ from the last
     one); the study stops there if that exceeds ``max_gb``. ``on_row(rows)``
     is called after every row (the caller writes the table as it grows, so a
-    long study that is killed keeps what it measured).
+    long study that is killed keeps what it measured). ``prior``: rows of an
+    earlier study (``--append``), used for the memory extrapolation. A mesh
+    that gmsh cannot make at a factor is reported and skipped.
     """
     import tempfile
 
@@ -194,16 +196,21 @@ def study(factors, procs=(1, 2), modes: int = MODES, work: Path | None = None, l
     rows = []
     with tempfile.TemporaryDirectory(dir=work) as tmp:
         for s in factors:
-            if max_gb and rows:
-                last = rows[-1]
+            known = sorted(list(prior) + rows, key=lambda r: r["n_dofs"])
+            if max_gb and known:
+                last = known[-1]
                 n_next = int(last["n_dofs"] * (last["factor"] / s) ** 3)
-                gb = predicted_gb(rows, n_next)
+                gb = predicted_gb(known, n_next)
                 if gb is not None and gb > max_gb:
                     log(f"factor {s:g}: ~{n_next} DOFs would need ~{gb:.1f} GB > {max_gb:g} GB: stop")
                     break
             d = Path(tmp) / f"f{s:g}"
             d.mkdir()
-            mesh = _launch("mesh", 1, d / "mesh.json", dir=d, factor=s)
+            try:
+                mesh = _launch("mesh", 1, d / "mesh.json", dir=d, factor=s)
+            except RuntimeError as exc:     # e.g. gmsh's quality check at this size: try the next one
+                log(f"factor {s:g}: meshing failed, skipped ({str(exc).strip().splitlines()[-1]})")
+                continue
             ref = None
             for P in procs:
                 asm = _launch("assembly", P, d / f"asm{P}.json", dir=d, bundle=d / f"bundle{P}")
@@ -287,6 +294,25 @@ def write(rows, fit: dict, out: Path) -> list[Path]:
     return paths
 
 
+def read_rows(path: Path) -> list[dict]:
+    """Rows of an earlier ``scaling.csv`` (numbers parsed), [] if there is none."""
+    import csv
+
+    if not Path(path).is_file():
+        return []
+
+    def num(v):
+        for t in (int, float):
+            try:
+                return t(v)
+            except ValueError:
+                pass
+        return v
+
+    with open(path, newline="") as fh:
+        return [{k: num(v) for k, v in r.items() if v != ""} for r in csv.DictReader(fh)]
+
+
 def _fmt(v) -> str:
     return f"{v:.6g}" if isinstance(v, float) else str(v)
 
@@ -304,6 +330,7 @@ def main(argv=None) -> int:
     ap.add_argument("--max-gb", type=float, default=20.0,
                     help="stop before a mesh whose extrapolated peak memory exceeds this")
     ap.add_argument("--work", type=Path, default=None, help="scratch folder for meshes and bundles")
+    ap.add_argument("--append", action="store_true", help="add to the rows already in OUT/scaling.csv")
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
 
@@ -315,8 +342,11 @@ def main(argv=None) -> int:
                              max_gb=a.max_gb)
         return fit
 
-    rows = study([float(v) for v in a.factors.split(",")], tuple(int(v) for v in a.procs.split(",")), a.modes,
-                 work=a.work, max_gb=a.max_gb, on_row=lambda rows: write(rows, summary(rows), a.out))
+    old = read_rows(a.out / "scaling.csv") if a.append else []
+    rows = old + study([float(v) for v in a.factors.split(",")], tuple(int(v) for v in a.procs.split(",")),
+                       a.modes, work=a.work, max_gb=a.max_gb, prior=old,
+                       on_row=lambda rows: write(old + rows, summary(old + rows), a.out))
+    rows.sort(key=lambda r: (r["n_dofs"], r["procs"]))
     fit = summary(rows)
     for p in write(rows, fit, a.out):
         print(p)
