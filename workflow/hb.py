@@ -206,7 +206,8 @@ class HBProblem:
     def set_wear(self, W) -> None:
         """Set the wear depth vector W (p,) in metres (opens the normal gap)."""
         self.law = self.law.with_wear(W)
-        self._refresh_penalty()
+        # W only shifts the normal gap: ε, hence diag ε − A and its blocks, are unchanged
+        self._shift = np.outer(self._const, self.law.offset().reshape(self.nr))
 
     def set_contact(self, law: ContactLaw) -> None:
         """Replace the contact law (same number of pairs)."""

@@ -185,11 +185,13 @@ class WearProblem:
         pm = 0.5 * (pN + np.roll(pN, 1, axis=0))
         dpm = 0.5 * (dp + np.roll(dp, 1, axis=0))
         g = self.k_w * (np.einsum("kin,ki->in", dpm, s) + np.einsum("ki,kin->in", pm, ds))   # (p, ncol)
-        # chain to x: a = a_F − A y + ε (y + shift)  ⇒  da/dy = diag(ε) − A (rows j·3p + 3i + c)
+        # chain to x: a = a_F − A y + ε (y + shift)  ⇒  da/dy = diag(ε) − A (rows j·3p + 3i + c);
+        # every row of a belongs to one pair, so ∂rate/∂x = S (diag ε − A) with S (p, n) holding
+        # g on pair i's rows — one (p × n)(n × n) product, A never copied
         eps = np.tile(law.eps().reshape(self.nr), nc)
-        Mpred = -hb.A.copy()
-        Mpred[np.diag_indices_from(Mpred)] += eps
-        G_x = np.einsum("in,inm->im", g, Mpred[self._rows])
+        S = np.zeros((p, self.n))
+        np.put_along_axis(S, self._rows, g, axis=1)
+        G_x = S * eps[None, :] - S @ hb.A
         # W_i enters a only through pair i's normal shift: da_{j,i,N}/dW_i = ε_N,i const_j
         G_W = law.eps_n * (g[:, 0::3] @ self._const)
         # ∂R/∂W: the residual's contact rows of pair i times da_i/dW_i

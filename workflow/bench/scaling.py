@@ -330,20 +330,26 @@ def main(argv=None) -> int:
     ap.add_argument("--max-gb", type=float, default=20.0,
                     help="stop before a mesh whose extrapolated peak memory exceeds this")
     ap.add_argument("--work", type=Path, default=None, help="scratch folder for meshes and bundles")
-    ap.add_argument("--append", action="store_true", help="add to the rows already in OUT/scaling.csv")
+    ap.add_argument("--append", action="store_true",
+                    help="add to the rows already in OUT/scaling.csv (with --factors '' only refit and redraw)")
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
 
     def summary(rows):
         fit = fits(rows, a.fit_min_dofs)
-        fit["_study"] = dict(seconds=time.perf_counter() - t0, largest_dofs=max(r["n_dofs"] for r in rows),
+        fit["_study"] = dict(seconds=time.perf_counter() - t0,
+                             measured_seconds=sum(r["assembly_s"] + r["reduction_s"] for r in rows)
+                             + sum({r["factor"]: r["mesh_s"] for r in rows}.values()),
+                             largest_dofs=max(r["n_dofs"] for r in rows),
                              peak_gb=max(max(r["assembly_gb"], r["reduction_gb"]) for r in rows),
-                             factors=a.factors, procs=a.procs, modes=a.modes, fit_min_dofs=a.fit_min_dofs,
+                             factors=",".join(f"{f:g}" for f in sorted({r["factor"] for r in rows}, reverse=True)),
+                             procs=a.procs, modes=a.modes, fit_min_dofs=a.fit_min_dofs,
                              max_gb=a.max_gb)
         return fit
 
     old = read_rows(a.out / "scaling.csv") if a.append else []
-    rows = old + study([float(v) for v in a.factors.split(",")], tuple(int(v) for v in a.procs.split(",")),
+    rows = old + study([float(v) for v in a.factors.split(",") if v.strip()],
+                       tuple(int(v) for v in a.procs.split(",")),
                        a.modes, work=a.work, max_gb=a.max_gb, prior=old,
                        on_row=lambda rows: write(old + rows, summary(old + rows), a.out))
     rows.sort(key=lambda r: (r["n_dofs"], r["procs"]))
