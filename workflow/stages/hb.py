@@ -257,11 +257,13 @@ def _observed(rc, omega, Ur) -> tuple[float, float]:
 
 
 #: Newton keeps its LU factor (chord steps) while ‖R‖ falls by ≥ 20 % a step,
-#: from this many unknowns up, where forming and factoring the dense J
-#: dominates. Measured on the sector (16 pairs, HBM nit = 105, 5 points at
-#: resonance): Nh = 17 (n = 1680) 10.8 → 2.8 s CPU, same roots to 1e-8;
-#: Nh = 7 (n = 720) no gain and a point lost, so smaller problems keep Newton.
-CHORD_MIN_UNKNOWNS = 1200
+#: from this many unknowns up. Measured on the sector (16 pairs, 50 points, after
+#: the shakedown-Jacobian fix, one core): HBM-17 nit=105 (n = 1680) 30.8 → 10.3 s,
+#: nit=35 17.1 → 9.9 s; HBM-7 (n = 720) nit=105 2.4 → 2.1 s, nit=15 1.7 → 1.2 s;
+#: HBM-3 (n = 336) 0.55 → 0.46 s; every point converged either way.
+CHORD_MIN_UNKNOWNS = 300
+#: MINPACK's Powell is costly from this many unknowns up (see :func:`_newton_steps`).
+POWELL_COSTLY_UNKNOWNS = 1200
 CHORD_RATIO = 0.8
 
 
@@ -273,7 +275,7 @@ def _newton_steps(prob, maxiter: int) -> int:
     were 21 of the variant's 25 s), while a chord step there costs ~0.02 s.
     Large problems therefore get three times the Newton budget first.
     """
-    return min(maxiter, NEWTON_STEPS * (3 if prob.n >= CHORD_MIN_UNKNOWNS else 1))
+    return min(maxiter, NEWTON_STEPS * (3 if prob.n >= POWELL_COSTLY_UNKNOWNS else 1))
 
 
 def _run_solver(prob, x0, s: str, tol: float, maxiter: int):
@@ -589,6 +591,12 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     mine = share(todo, size)[rank]
     done: dict[int, SweepResult] = {}
     with blas_threads(1):   # small dense systems: threads only add spinning CPU time
+        # warm-up outside the timings: the first DLFT call loads numba's compiled
+        # pass and BLAS its kernels (measured: the first variant of a run took
+        # 0.45 s where the same sweep takes 0.25–0.34 s later), which would skew
+        # the CPU table normalised by that variant
+        HBProblem(mid.Zr, mid.Fr, law, 1, 8, "hbm", stick_anchor=static.anchor).residual_jacobian(
+            np.zeros(3 * 3 * model.n_pairs))
         for i in log.progress(mine, total=len(mine), label="hb variants"):
             v = todo[i]
             r = done[i] = sweep_variant(rc, cond, law, static.anchor, v, **kw)
