@@ -64,6 +64,7 @@ bench: install
 	$(VENV)/bin/bladewear run workflow/scenes/paper-frf.toml --out results/bench/paper-frf
 	$(VENV)/bin/bladewear run workflow/scenes/paper-wear.toml --out results/bench/paper-wear
 	$(VENV)/bin/bladewear run workflow/scenes/stiff-extreme.toml --out results/bench/stiff-extreme
+	$(VENV)/bin/python -m workflow.bench.unworn_point --out results/bench
 
 clean-venv:
 	rm -rf $(VENV)

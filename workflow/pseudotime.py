@@ -331,13 +331,25 @@ def _explicit(tr: _Tracker, x0, *, cfl, max_steps, growth, window):
 
 # ---------------------------------------------------------------- implicit (own)
 
-def _lu_solve(A, b):
+def _lu_solve(A, b, overwrite: bool = False):
     try:
-        lu = scipy.linalg.lu_factor(A, check_finite=False)
+        lu = scipy.linalg.lu_factor(A, check_finite=False, overwrite_a=overwrite)
         out = scipy.linalg.lu_solve(lu, b, check_finite=False)
     except (np.linalg.LinAlgError, scipy.linalg.LinAlgError, ValueError):
         return None
     return out if _finite(out) else None
+
+
+def _shifted(J, mass, D, dt):
+    """``mass/Δt* + J`` (or ``diag(D)/Δt* + J``) in one new array, factored in place:
+    a SER step then costs what a Newton step does (one Jacobian, one LU)."""
+    if mass is not None:
+        A = np.multiply(mass, 1.0 / dt)
+        A += J
+    else:
+        A = np.array(J, dtype=float, copy=True)
+        A[np.diag_indices_from(A)] += D / dt
+    return A
 
 
 def _initial_dt(J, dt0, cfl):
@@ -382,7 +394,7 @@ def _ser(tr: _Tracker, x0, *, dt0, dt_max, cfl, max_steps, reject, growth, windo
     k = 0
     while k < max_steps:
         if groups is None:
-            dx = _lu_solve((mass / dt if mass is not None else np.diag(D / dt)) + J, -R)
+            dx = _lu_solve(_shifted(J, mass, D, dt), -R, overwrite=True)
         else:
             dx = np.zeros(n)
             for _ in range(max(1, sweeps)):
