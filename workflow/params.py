@@ -12,7 +12,8 @@ from dataclasses import dataclass
 from workflow.errors import SceneError
 from workflow.schema import param
 
-PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report")
+PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report",
+            "scaling")
 
 
 @dataclass
@@ -201,8 +202,22 @@ class Extreme:
                              f"{2 * self.harmonics + 1}")
 
 
+@dataclass
+class Scaling:
+    factors: list = param([1.6, 1.3, 1.0, 0.8, 0.65], "", "mesh-size factors of the default sector, coarse to fine "
+                                                         "(the three mesh sizes scaled; DOFs grow like factor⁻³)",
+                          min=0.0, min_exclusive=True)
+    procs: list = param([1, 2], "", "MPI process counts for assembly and reduction (the first is the reference)",
+                        min=1)
+    modes: int = param(30, "", "fixed-interface modes of the reduction", min=1)
+    max_gb: float = param(20.0, "GB", "stop before a mesh whose extrapolated peak memory (all ranks) exceeds this",
+                          min=0.0, min_exclusive=True)
+    fit_min_dofs: int = param(20000, "", "power-law fits use the meshes with at least this many DOFs", min=0)
+
+
 SECTIONS = {
     "run": Run, "model": Model, "material": Material, "rotation": Rotation, "damping": Damping,
     "excitation": Excitation, "modes": Modes, "reduction": Reduction, "contact": Contact, "hb": HB,
     "sweep": Sweep, "pseudotime": PseudoTime, "wear": Wear, "remap": Remap, "extreme": Extreme,
+    "scaling": Scaling,
 }

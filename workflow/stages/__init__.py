@@ -37,6 +37,7 @@ PRODUCERS: dict[str, str] = {
     "wear_map": "remap",
     "extreme": "extreme",
     "report": "report",
+    "scaling": "scaling",
 }
 
 #: stage name → module path. Tests and plug-ins may register others here.
