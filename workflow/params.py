@@ -113,7 +113,13 @@ class HB:
 class Sweep:
     f_start_hz: float = param(0.0, "Hz", "first frequency (0: 0.9 × the first tied bending frequency)", min=0.0)
     f_stop_hz: float = param(0.0, "Hz", "last frequency (0: 1.1 × the first tied bending frequency)", min=0.0)
-    points: int = param(50, "", "frequencies in the sweep (paper: 50)", min=1)
+    points: int = param(50, "", "frequencies in the sweep (paper: 50); with method = arclength, of the linear "
+                                "reference curves only", min=1)
+    method: str = param("grid", "", "grid: the fixed frequencies, secant predictor (the error table compares "
+                                    "points); arclength: pseudo-arclength continuation from f_start to f_stop, "
+                                    "step control, follows turning points",
+                        choices=("grid", "arclength"))
+    max_steps: int = param(300, "", "arclength: continuation steps at most per variant", min=1)
 
     def check(self):
         if self.f_start_hz and self.f_stop_hz and self.f_stop_hz <= self.f_start_hz:

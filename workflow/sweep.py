@@ -125,9 +125,11 @@ def continuation(fun_jac_omega, x0, omega0: float, omega_end: float, *, ds: floa
     """Pseudo-arclength continuation of ``R(x, ω) = 0`` from ω0 towards ω_end.
 
     ``fun_jac_omega(x, omega) -> (R, J, dR/dω)``. Works on scaled unknowns
-    ``z = (x/x_s, ω/ω0)`` (``x_s`` = ‖x0‖∞ unless given) so that the arclength
-    mixes dimensionless quantities. Each step: tangent ``t`` from
-    ``[J  R_ω; t_prevᵀ] t = [0; 1]`` (normalised, orientation kept), predictor
+    ``z = (x/x_s, ω/ω0)`` (``x_s`` = ‖x_start‖∞ unless given) so that the arclength
+    mixes dimensionless quantities (``x_s`` from the converged start point;
+    give ``x_scale`` where that can be zero, e.g. an interface stuck at the start). Each step: tangent ``t`` from
+    ``[J  R_ω; t_prevᵀ] t = [0; 1]`` (normalised), oriented along the secant
+    of the last step, predictor
     ``z + ds·t``, corrector on ``R = 0`` plus the hyperplane
     ``tᵀ(z − z_pred) = 0`` with the chosen solver (Newton with line search, or
     Powell). ``ds`` (dimensionless arclength) halves on failure, grows ×1.5
@@ -141,7 +143,6 @@ def continuation(fun_jac_omega, x0, omega0: float, omega_end: float, *, ds: floa
     n = x.size
     w0 = float(omega0)
     direction = np.sign(omega_end - omega0) or 1.0
-    xs = float(x_scale) if x_scale else max(float(np.abs(x).max()), 1e-30)
     ws = abs(w0) if w0 != 0 else 1.0
 
     def fx(x_, w_):
@@ -155,6 +156,8 @@ def continuation(fun_jac_omega, x0, omega0: float, omega_end: float, *, ds: floa
     if not start.converged:
         return out
     x, w = start.x, w0
+    # from the converged start, not the guess: a stuck interface starts at u_r = 0
+    xs = float(x_scale) if x_scale else max(float(np.abs(x).max()), 1e-30)
     _, J, Rw = fx(x, w)
     # initial tangent: J dx + R_ω dω = 0 with dω along the sweep direction
     dx = -np.linalg.solve(J, Rw)
@@ -197,10 +200,20 @@ def continuation(fun_jac_omega, x0, omega0: float, omega_end: float, *, ds: floa
         A[n] = t
         rhs = np.zeros(n + 1)
         rhs[n] = 1.0
+        sec = znew - z
         try:
             tn = np.linalg.solve(A, rhs)
         except np.linalg.LinAlgError:
-            tn = znew - z
+            tn = sec
+        if not np.all(np.isfinite(tn)):
+            tn = sec
+        # Orientation from the path actually travelled: at the stick/slip kinks
+        # of the friction residual the bordered tangent can come out reversed
+        # (measured on the sector: HBM-1 turned back at the resonance peak and
+        # walked to −192 Hz). A secant predictor alone does not do either: at
+        # the top of a sharp peak its hyperplane cuts the curve on both sides.
+        if tn @ sec < 0:
+            tn = -tn
         t = tn / np.linalg.norm(tn)
         rec = dict(x=x, omega=w, iterations=res.iterations, seconds=time.perf_counter() - ts,
                    converged=True, reason=res.reason)

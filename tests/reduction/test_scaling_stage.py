@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from workflow.errors import SceneError
-from workflow.mpi import mpirun_command
+from workflow.mpi import mpirun_command, single_thread_env
 
 BIN = Path(sys.executable).parent
 
@@ -20,7 +20,9 @@ def _run(tmp_path, *sets):
            str(tmp_path / "cache"), "--quiet"]
     for s in sets:
         cmd += ["--set", s]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    # the environment of this Python process, not the C environment that an MPI
+    # initialised by earlier tests (dolfinx) may have extended
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=single_thread_env())
 
 
 @pytest.mark.skipif(mpirun_command(2) is None, reason="mpirun/mpiexec not found: the 2-process rows need it")

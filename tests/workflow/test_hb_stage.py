@@ -272,3 +272,27 @@ def test_join_sweeps_puts_chunks_back_in_order():
     np.testing.assert_array_equal(j.amplitude, np.arange(1, 6) * 1e-6)
     assert [u[0, 0] for u in j.Ur] == [1, 2, 3, 4, 5] and len(j.how) == 5
     assert j.total_seconds == 5.0 and j.cpu_seconds == 8.0 and j.dlft_max_passes == 3
+
+
+def test_arclength_sweep_traces_the_same_frf_as_the_grid(tmp_path):
+    """sweep.method = arclength: continuation through the friction-damped resonance; its
+    points lie on the grid sweep's curve and its error is measured by interpolation."""
+    model = blade_chain(force=0.2, preload=np.array([2.0, 8.0, 30.0]))
+    kw = dict(methods=["hbm"], harmonics=[3], time_samples=[32], reference_harmonics=5, reference_time_samples=32)
+    band = dict(f_start_hz=94.0, f_stop_hz=104.0)
+    s_grid, out_grid = run_stage(tmp_path / "grid", model, sweep=dict(points=41, **band), **kw)
+    s_arc, out_arc = run_stage(tmp_path / "arc", model, sweep=dict(method="arclength", **band), **kw)
+    fg, ag, okg = curve(read_frf(out_grid), "hbm", 3, 32)
+    fa, aa, oka = curve(read_frf(out_arc), "hbm", 3, 32)
+    assert oka.all() and fa[0] == pytest.approx(94.0) and fa[-1] >= 104.0 - 1e-9
+    assert np.all(np.diff(fa) > 0)                        # no fold here: frequency increases along the path
+    inside = (fa >= fg[0]) & (fa <= fg[-1])
+    top = ag.max()
+    # arc-length points on the grid curve (linear interpolation between 0.25 Hz grid points)
+    assert np.max(np.abs(np.interp(fa[inside], fg[okg], ag[okg]) - aa[inside])) < 0.02 * top
+    assert abs(aa.max() - top) < 0.02 * top               # the same resonance peak
+    run = s_arc["runs"][0]
+    # against the (also traced) reference: measured by interpolation between the two
+    # curves' own points, so it carries the interpolation error near the sharp peak
+    assert run["solver"] == "arclength-newton" and run["error"] is not None
+    assert s_grid["runs"][0]["error"] <= run["error"] < 0.15

@@ -153,13 +153,26 @@ def _launch(step: str, procs: int, json_path: Path, **kw) -> dict:
         if launcher is None:
             raise RuntimeError("mpirun not found: cannot run the multi-process cases")
         cmd = launcher + cmd
-    env = single_thread_env()
+    env = launch_env(single_thread_env())
     env.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
     env.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
     r = subprocess.run(cmd, capture_output=True, text=True, env=env)
     if r.returncode:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
     return json.loads(json_path.read_text())
+
+
+#: Open MPI settings a user may rely on; every other OMPI_/PMIX_/PMI_ variable
+#: belongs to the launch of *this* process and breaks a fresh mpirun started from it
+_KEEP = ("OMPI_ALLOW_RUN_AS_ROOT", "OMPI_MCA_btl", "OMPI_MCA_pml", "OMPI_MCA_mtl", "OMPI_MCA_rmaps_base")
+
+
+def launch_env(env: dict) -> dict:
+    """``env`` without the variables an MPI launch (or an MPI singleton) left in this
+    process: a worker started from a rank of ``mpirun`` — or from a process in which
+    dolfinx initialised MPI — would otherwise try to join that job."""
+    return {k: v for k, v in env.items()
+            if not (k.startswith(("OMPI_", "PMIX_", "PMI_")) and not k.startswith(_KEEP))}
 
 
 def predicted_gb(rows, n_dofs: int) -> float | None:

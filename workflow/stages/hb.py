@@ -31,9 +31,11 @@ Choices made here (and why):
 * **Sweep.** Sequential in frequency with a secant predictor from the two
   previous converged points; fall-backs, in order: the previous point, the
   problem's own initial guess (static + tied linear response), then Powell.
-  (Arc-length continuation through turning points is
-  :func:`workflow.sweep.arclength_sweep`; this stage sweeps a fixed grid,
-  which the error-against-run-time table needs.)
+  With ``sweep.method = "arclength"`` each variant is traced instead by
+  pseudo-arclength continuation (:func:`trace_variant`), which follows
+  turning points; the error table then interpolates between the curves'
+  own points (measured on the sector: fine for nit = 105; the aliased
+  variants fold at the DLFT kinks and exhaust ``sweep.max_steps``).
 * **Observed amplitude.** ``amplitude_m`` is the Euclidean norm over the
   observed DOFs of the first-harmonic complex amplitude (= |U₁| for a single
   observed DOF); ``amplitude_max_m`` the largest norm over the period of the
@@ -522,12 +524,91 @@ def _seeds(runs: list, n: int) -> list:
 
 
 def frf_error(v: SweepResult, ref: SweepResult) -> float | None:
-    """max |A − A_ref| / max A_ref over the points where both converged (None if none)."""
-    ok = v.converged & ref.converged
-    if not ok.any():
+    """max |A − A_ref| / max A_ref over the points where both converged (None if none).
+
+    On different frequencies (arc-length continuation) the variant is
+    interpolated linearly at the reference's frequencies inside its own range;
+    a curve that turns back in frequency (a fold) has no single-valued
+    amplitude to compare, so the error is None there.
+    """
+    if v.freqs_hz.shape == ref.freqs_hz.shape and np.allclose(v.freqs_hz, ref.freqs_hz, rtol=1e-12, atol=0):
+        ok = v.converged & ref.converged
+        a, b = v.amplitude[ok], ref.amplitude[ok]
+    else:
+        fv, av = v.freqs_hz[v.converged], v.amplitude[v.converged]
+        fr, ar = ref.freqs_hz[ref.converged], ref.amplitude[ref.converged]
+        if len(fv) < 2 or np.any(np.diff(fv) <= 0) or np.any(np.diff(fr) <= 0):
+            return None
+        inside = (fr >= fv[0]) & (fr <= fv[-1])
+        a, b = np.interp(fr[inside], fv, av), ar[inside]
+    if not len(b):
         return None
     top = float(np.max(ref.amplitude[ref.converged]))
-    return float(np.max(np.abs(v.amplitude[ok] - ref.amplitude[ok])) / top) if top > 0 else None
+    return float(np.max(np.abs(a - b)) / top) if top > 0 else None
+
+
+def arclength_scale(cond: list) -> float:
+    """Displacement scale (m) for the arc-length: the largest first-harmonic relative
+    displacement over the band with the interface free (``Z_r,1 U = F_r,1``), an
+    upper bound of the friction-damped response. The start point's own scale
+    is useless where the interface is stuck (u_r = 0 there), and a scale far
+    below the resonant amplitude makes the arclength all displacement and the
+    frequency crawl (measured: 300 steps for 2 of 10 Hz)."""
+    return max(max(float(np.abs(np.linalg.solve(c.Zr[1], c.Fr[1])).max()) for c in cond), 1e-30)
+
+
+def trace_variant(rc, f0: float, f1: float, law, anchor, v: Variant, *, solver: str, tol: float, maxiter: int,
+                  max_passes: int = 20, max_steps: int = 300, x_scale: float | None = None,
+                  log=None) -> SweepResult:
+    """``v`` traced from ``f0`` to ``f1`` (Hz) by pseudo-arclength continuation
+    (:func:`workflow.sweep.arclength_sweep`): the step follows the curve, so a
+    fold (turning point) is passed instead of jumped; the points are where the
+    step control put them. The condensation (with its ω-derivatives, for
+    ∂R/∂ω) is recomputed at every ω the corrector visits. ``solver``
+    newton-powell and pseudo-time correct with Newton (the corrector is a
+    bordered system). ``x_scale`` (m): the displacement scale of the
+    arclength (:func:`arclength_scale`). The stick anchor stays the static
+    state's at every point, as in the grid sweep: carrying it from point to
+    point makes the static offset of stuck pairs a free direction, and the
+    continuation walks along that family at constant ω (measured: 36 steps
+    for 0.1 Hz on the synthetic blade)."""
+    from reduction.condense import condense
+    from workflow.hb import HBProblem
+    from workflow.sweep import arclength_sweep
+
+    def linear(w):
+        c = condense(rc, w, v.nh, derivative=True)
+        return c.Zr, c.Fr, c.dZr, c.dFr
+
+    seen: dict[float, tuple] = {}
+
+    def observe(pr, x):
+        Ur = pr.harmonics(x)
+        a1, amax = _observed(rc, pr.omega, Ur)
+        seen[pr.omega] = (amax, Ur)
+        return a1
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    # steps in the scaled (x/x_scale, ω/ω0) arclength: at most half the band
+    # in frequency, so the continuation cannot stride over the whole resonance
+    band = abs(f1 - f0) / f0
+    pts = arclength_sweep(f0, f1, linear, lambda Zr, Fr: HBProblem(Zr, Fr, law, v.nh, v.nit, v.method,
+                                                                   max_passes=max_passes, stick_anchor=anchor),
+                          observe, solver="powell" if solver == "powell" else "newton", tol=tol,
+                          maxiter=min(maxiter, 30), max_steps=max_steps, ds=band / 40, ds_max=band / 2,
+                          ds_min=band * 1e-6, x_scale=x_scale, carry_stick=False)
+    out = SweepResult(variant=v, solver=f"arclength-{'powell' if solver == 'powell' else 'newton'}",
+                      freqs_hz=np.array([p.frequency_hz for p in pts]),
+                      amplitude=np.array([p.amplitude for p in pts]),
+                      amplitude_max=np.array([seen[p.omega][0] for p in pts]),
+                      iterations=np.array([p.iterations for p in pts], dtype=int),
+                      seconds=np.array([p.seconds for p in pts]),
+                      converged=np.array([p.converged for p in pts], dtype=bool),
+                      Ur=[seen[p.omega][1] for p in pts], reasons=[p.reason for p in pts],
+                      how=["arclength"] * len(pts))
+    out.total_seconds = time.perf_counter() - t0
+    out.cpu_seconds = time.process_time() - c0
+    return out
 
 
 # ------------------------------------------------------------------ stage
@@ -599,15 +680,28 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
             np.zeros(3 * 3 * model.n_pairs))
         for i in log.progress(mine, total=len(mine), label="hb variants"):
             v = todo[i]
-            r = done[i] = sweep_variant(rc, cond, law, static.anchor, v, **kw)
-            log.info(f"{v.label}: {r.total_seconds:.2f} s, {r.converged_points}/{len(freqs)} converged, "
+            if sw.method == "arclength":
+                r = done[i] = trace_variant(rc, f0, f1, law, static.anchor, v, max_steps=sw.max_steps,
+                                            x_scale=arclength_scale(cond), **kw)
+            else:
+                r = done[i] = sweep_variant(rc, cond, law, static.anchor, v, **kw)
+            log.info(f"{v.label}: {r.total_seconds:.2f} s, {r.converged_points}/{len(r.freqs_hz)} converged, "
                      f"{int(r.iterations.sum())} iterations, peak {r.peak_hz():.2f} Hz")
     if comm is not None:
         parts = comm.allgather(done)           # every rank needs them: they seed the reference
         done = {i: r for part in parts for i, r in part.items()}
     runs: list[SweepResult] = [done[i] for i in range(len(todo))]
     ref = None
-    if ref_v is not None:
+    if ref_v is not None and sw.method == "arclength":
+        if rank != 0:
+            return None
+        with blas_threads(1):
+            ref = trace_variant(rc, f0, f1, law, static.anchor, ref_v, max_steps=sw.max_steps,
+                                x_scale=arclength_scale(cond), **{**kw, "solver": "newton"})
+        log.info(f"reference {ref_v.label}: {ref.total_seconds:.2f} s, {len(ref.freqs_hz)} continuation points")
+        for r in runs:
+            r.error = frf_error(r, ref)
+    elif ref_v is not None:
         # seeded at each frequency by the converged variant of highest Nh: from
         # there Newton needs 1–2 Jacobians, where the reference's own sweep met
         # local minima near resonance and fell back on MINPACK's dense QR
@@ -821,21 +915,26 @@ def _figures(out: Path, runs, ref, freqs, tied, slide) -> dict:
         U = base.Ur[i_res]
         amp_t = np.linalg.norm(np.abs(U[1:]).reshape(U.shape[0] - 1, -1, 3)[:, :, 1:], axis=(0, 2))
         pair = int(np.argmax(amp_t))
+        f_res = base.freqs_hz[i_res]
+        # each run's point nearest to that frequency (the same index on a grid;
+        # arc-length runs have points of their own)
+        at = {id(r): int(np.argmin(np.abs(r.freqs_hz - f_res))) for r in runs + [base]}
         wanted = [("hbm", 7), ("hdhb", 7), ("hdhb", 17)]
-        sel = [r for r in runs if (r.variant.method, r.variant.nh) in wanted and r.converged[i_res]]
+        sel = [r for r in runs if (r.variant.method, r.variant.nh) in wanted and r.converged[at[id(r)]]]
         if not sel:
-            sel = [r for r in runs if r.converged[i_res]][:4]
+            sel = [r for r in runs if r.converged[at[id(r)]]][:4]
         tau = fourier.sample_times(256)
         fig, ax = plt.subplots(figsize=(7, 4.5))
         for r in ([base] if ref is not None else []) + sel:
-            ut = fourier.to_time(r.Ur[i_res], 256).reshape(256, -1, 3)[:, pair, 1]
+            k = at[id(r)]
+            ut = fourier.to_time(r.Ur[k], 256).reshape(256, -1, 3)[:, pair, 1]
             lab = f"reference {r.variant.label}" if r is ref else r.variant.label
             ax.plot(tau, ut * 1e6, ls=_STYLE.get(r.variant.method, "-") if r is not ref else "-",
                     lw=2.5 if r is ref else 1.2, alpha=0.4 if r is ref else 1.0, color="k" if r is ref else None,
                     label=lab)
             if r.variant.method == "hdhb":  # its unknowns: the samples themselves
                 ts = fourier.sample_times(r.variant.nit)
-                us = fourier.to_time(r.Ur[i_res], r.variant.nit).reshape(r.variant.nit, -1, 3)[:, pair, 1]
+                us = fourier.to_time(r.Ur[k], r.variant.nit).reshape(r.variant.nit, -1, 3)[:, pair, 1]
                 ax.plot(ts, us * 1e6, "o", ms=3, color=ax.lines[-1].get_color())
         ax.set_xlabel("τ = ωt (rad)")
         ax.set_ylabel(f"u_t1 of pair {pair} (µm)")
