@@ -62,6 +62,15 @@ def write_text(path: str | os.PathLike, text: str) -> Path:
     return Path(path)
 
 
+def write_rows(path: str | os.PathLike, rows: list) -> Path:
+    """Rows (dicts with the same keys, the first row's order) as CSV, atomically;
+    floats with 9 significant digits."""
+    keys = list(rows[0])
+    cell = lambda v: f"{v:.9g}" if isinstance(v, float) else str(v)  # noqa: E731
+    lines = [",".join(keys)] + [",".join(cell(r[k]) for k in keys) for r in rows]
+    return write_text(path, "\n".join(lines) + "\n")
+
+
 def write_json(path: str | os.PathLike, data) -> Path:
     """Write ``data`` as indented JSON atomically (NumPy scalars and arrays allowed)."""
     return write_text(path, json.dumps(data, indent=2, default=_json_default) + "\n")

@@ -53,12 +53,9 @@ def study(factors, rpm: float = 0.0, n_modes: int = N_MODES, base=None):
 
 
 def write_csv(rows, path) -> Path:
-    from workflow.io import write_text
+    from workflow.io import write_rows
 
-    keys = list(rows[0])
-    lines = [",".join(keys)] + [",".join(f"{r[k]:.9g}" if isinstance(r[k], float) else str(r[k]) for k in keys)
-                                for r in rows]
-    return write_text(path, "\n".join(lines) + "\n")
+    return write_rows(path, rows)
 
 
 def main(argv=None) -> int:

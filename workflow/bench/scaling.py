@@ -307,6 +307,20 @@ def write(rows, fit: dict, out: Path) -> list[Path]:
     return paths
 
 
+def summarise(rows, fit_min_dofs: int, seconds: float, **meta) -> dict:
+    """:func:`fits` plus ``_study``: this run's seconds, the seconds measured over
+    all rows, the largest model, the peak memory, the factors, and ``meta``."""
+    fit = fits(rows, fit_min_dofs)
+    fit["_study"] = dict(seconds=seconds,
+                         measured_seconds=sum(r["assembly_s"] + r["reduction_s"] for r in rows)
+                         + sum({r["factor"]: r["mesh_s"] for r in rows}.values()),
+                         largest_dofs=max(r["n_dofs"] for r in rows),
+                         peak_gb=max(max(r["assembly_gb"], r["reduction_gb"]) for r in rows),
+                         factors=",".join(f"{f:g}" for f in sorted({r["factor"] for r in rows}, reverse=True)),
+                         fit_min_dofs=fit_min_dofs, **meta)
+    return fit
+
+
 def read_rows(path: Path) -> list[dict]:
     """Rows of an earlier ``scaling.csv`` (numbers parsed), [] if there is none."""
     import csv
@@ -349,16 +363,8 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
 
     def summary(rows):
-        fit = fits(rows, a.fit_min_dofs)
-        fit["_study"] = dict(seconds=time.perf_counter() - t0,
-                             measured_seconds=sum(r["assembly_s"] + r["reduction_s"] for r in rows)
-                             + sum({r["factor"]: r["mesh_s"] for r in rows}.values()),
-                             largest_dofs=max(r["n_dofs"] for r in rows),
-                             peak_gb=max(max(r["assembly_gb"], r["reduction_gb"]) for r in rows),
-                             factors=",".join(f"{f:g}" for f in sorted({r["factor"] for r in rows}, reverse=True)),
-                             procs=a.procs, modes=a.modes, fit_min_dofs=a.fit_min_dofs,
-                             max_gb=a.max_gb)
-        return fit
+        return summarise(rows, a.fit_min_dofs, time.perf_counter() - t0, procs=a.procs, modes=a.modes,
+                         max_gb=a.max_gb)
 
     old = read_rows(a.out / "scaling.csv") if a.append else []
     rows = old + study([float(v) for v in a.factors.split(",") if v.strip()],

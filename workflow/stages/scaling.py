@@ -32,11 +32,8 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     t0 = time.perf_counter()
 
     def summary(rows):
-        fit = bench.fits(rows, sc.fit_min_dofs)
-        fit["_study"] = dict(seconds=time.perf_counter() - t0, largest_dofs=max(r["n_dofs"] for r in rows),
-                             peak_gb=max(max(r["assembly_gb"], r["reduction_gb"]) for r in rows),
-                             factors=list(sc.factors), procs=list(sc.procs), modes=sc.modes, max_gb=sc.max_gb)
-        return fit
+        return bench.summarise(rows, sc.fit_min_dofs, time.perf_counter() - t0, procs=list(sc.procs),
+                               modes=sc.modes, max_gb=sc.max_gb)
 
     (out / "work").mkdir(parents=True, exist_ok=True)
     try:

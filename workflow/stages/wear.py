@@ -95,7 +95,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
     from reduction.condense import recover
     from workflow.wear import (WearProblem, march_reference, plot_wear, profile_rel_diff, pseudo_time_wear,
                                tip_cycle, write_wear_csv)
-    from workflow.io import write_npz
+    from workflow.io import write_npz, write_rows
 
     out = Path(out)
     w, pt, hbs = scene["wear"], scene["pseudotime"], scene["hb"]
@@ -151,7 +151,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
         coarse = march_reference(wp, base.x, scheme=ref, max_blocks=w.max_blocks, block_tol=4 * w.block_tol,
                                  **common)
         summary["reference_check"] = reference_check(histories, ref, coarse, w.block_tol)
-        write_csv_rows(out / "error_vs_time.csv", summary["reference_check"]["error_vs_time"])
+        write_rows(out / "error_vs_time.csv", summary["reference_check"]["error_vs_time"])
         log.info(f"reference check: block_tol ×4 differs by {summary['reference_check']['self_diff']:.3%} of max W; "
                  + ", ".join(f"{r['method']} {r['seconds']:.2f} s error {r['error']:.3%}"
                              for r in summary["reference_check"]["error_vs_time"]))
@@ -179,20 +179,6 @@ def reference_check(histories: dict, ref: str, coarse, block_tol: float) -> dict
                      "steady": bool(h.steady)})
     return {"self_diff": profile_rel_diff(Wf, Wc), "coarse_seconds": coarse.seconds,
             "coarse_steady": bool(coarse.steady), "error_vs_time": rows}
-
-
-def write_csv_rows(path: Path, rows: list) -> Path:
-    """Rows (dicts with the same keys) as CSV, written atomically."""
-    import csv
-    import io
-
-    from workflow.io import write_text
-
-    buf = io.StringIO()
-    wr = csv.DictWriter(buf, fieldnames=list(rows[0]))
-    wr.writeheader()
-    wr.writerows(rows)
-    return write_text(path, buf.getvalue())
 
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
