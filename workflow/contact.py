@@ -83,8 +83,11 @@ class ContactLaw:
     gap    initial normal opening, (p,) (m; > 0 open, < 0 interference)
     wear   wear depth W, (p,) ≥ 0 (m); default zeros
 
-    ``p`` is taken from ``gap``. The converged HB solution does not depend on
-    ε (DLFT's promise); ε only scales the iteration. Invalid values raise
+    ``p`` is taken from ``gap``. In stick and separation the converged HB
+    solution does not depend on ε; in slip with nit > 2Nh+1 it does (the
+    harmonics of X above Nh are −λ/ε and the stick/slip decisions see them),
+    and the ε → ∞ limit is the right answer — the penalties are chosen once,
+    large, in :mod:`workflow.engine.penalty`. Invalid values raise
     :class:`~workflow.errors.SceneError` naming ``contact.<field>``.
     """
 

@@ -46,6 +46,7 @@ import scipy.linalg
 from reduction.condense import condense, relative_coordinates
 from reduction.reduced import ReducedModel
 from workflow.contact import SEPARATION, SLIP, STICK, ContactLaw
+from workflow.engine import penalty
 from workflow.errors import BladewearError
 from workflow.hb import HBProblem
 from workflow.lumped import pairs_on_block
@@ -152,7 +153,7 @@ class Setup:
     omega_tied: float            # rad/s, first tied resonance (pole of Zr)
     omega_free: float            # rad/s, free-interface resonance nearest above it (zero of Zr)
     omega: float                 # rad/s, base frequency
-    eps_ref: tuple               # (ε_N, ε_T) reference stiffness (N/m)
+    eps_ref: np.ndarray          # (p, 2) [ε_N, ε_T] per pair: the reference stiffness (N/m)
 
     @property
     def p(self) -> int:
@@ -174,8 +175,11 @@ def setup(model: ReducedModel, settings: Settings | None = None) -> Setup:
       above 1.05 ω_tied (Zr is singular there up to damping; the response
       of the separated/slipping structure resonates) — "anti-resonance" of
       the tied response seen from the interface;
-    * ε_ref: mean |diag Re Zr(ω)| over normal and tangential DOFs at the base
-      frequency, harmonic 1 — the interface's own stiffness scale.
+    * ε_ref: each pair's static condensed stiffness
+      (:func:`workflow.engine.penalty.reference_stiffness`, the one the
+      application's penalty is a multiple of), so the penalty cases span
+      ε/k = 10⁻³…10³ around the interface's own stiffness; the application's
+      default (``contact.penalty_factor`` = 10³) is the top of that range.
     """
     s = settings or Settings()
     model.validate()
@@ -187,9 +191,7 @@ def setup(model: ReducedModel, settings: Settings | None = None) -> Setup:
     above = ff[ff > 1.05 * omega_tied]
     omega_free = float(above[0]) if above.size else 2.0 * omega_tied
     omega = s.frequency_ratio * omega_tied
-    cond = condense(rc, omega, 1)
-    d = np.abs(np.real(np.diag(cond.Zr[1]))).reshape(-1, 3)
-    eps_ref = (float(np.mean(d[:, 0])), float(np.mean(d[:, 1:])))
+    eps_ref = penalty.reference_stiffness(condense(rc, 0.0, 0).Zr[0])
     return Setup(model=model, rc=rc, settings=s, omega_tied=omega_tied, omega_free=omega_free,
                  omega=omega, eps_ref=eps_ref)
 
@@ -343,12 +345,13 @@ def _model_for(su: Setup, case: Case):
     return case.model, relative_coordinates(case.model)
 
 
-def _law(su: Setup, case: Case, model: ReducedModel, Zr1) -> ContactLaw:
+def _law(su: Setup, case: Case, model: ReducedModel) -> ContactLaw:
     s = su.settings
     p = model.n_pairs
-    d = np.abs(np.real(np.diag(Zr1))).reshape(p, 3)
-    eN = s.eps_n if s.eps_n > 0 else float(np.mean(d[:, 0]))
-    eT = s.eps_t if s.eps_t > 0 else float(np.mean(d[:, 1:]))
+    ref = su.eps_ref if model is su.model else penalty.reference_stiffness(
+        condense(relative_coordinates(model), 0.0, 0).Zr[0])
+    eN = s.eps_n if s.eps_n > 0 else ref[:, 0]
+    eT = s.eps_t if s.eps_t > 0 else ref[:, 1]
     gap = np.asarray(model.gap, dtype=float) + s.gap + np.broadcast_to(case.gap, (p,))
     return ContactLaw(mu=np.full(p, case.mu), eps_n=eN * case.eps_scale, eps_t=eT * case.eps_scale, gap=gap)
 
@@ -372,7 +375,7 @@ def problem(su: Setup, case: Case, method: str) -> HBProblem:
     nit = max(nit, 2 * nh + 1)
     if method == "hdhb":
         nit = 2 * nh + 1
-    law = _law(su, case, model, Zr[min(1, nh)])
+    law = _law(su, case, model)
     return HBProblem(Zr, Fr, law, nh, nit, method, max_passes=s.max_passes)
 
 
@@ -760,7 +763,8 @@ def to_markdown(results: list[CaseResult], su: Setup | None = None) -> str:
         lines += [f"Model: {su.p} contact pairs, {su.model.size} reduced DOFs. Base: Nh = {s.nh}, nit = {s.nit}, "
                   f"f = {su.omega / 2 / np.pi:.2f} Hz ({s.frequency_ratio:g} × tied resonance "
                   f"{su.omega_tied / 2 / np.pi:.2f} Hz; free-interface resonance {su.omega_free / 2 / np.pi:.2f} Hz), "
-                  f"μ = {s.mu:g}, ε_ref = ({su.eps_ref[0]:.3g}, {su.eps_ref[1]:.3g}) N/m, tol = {s.tol:g}.", ""]
+                  f"μ = {s.mu:g}, ε_ref = ({su.eps_ref[:, 0].mean():.3g}, {su.eps_ref[:, 1].mean():.3g}) N/m (mean "
+                  f"static stiffness per pair), tol = {s.tol:g}.", ""]
     n_ok = sum(r.converged for r in results)
     lines += [f"{n_ok} of {len(results)} solves converged (each verified independently: finite, "
               f"‖R‖/‖F‖ ≤ 10·tol, DLFT periodic, Coulomb and λ_N ≤ 0).", "",

@@ -88,10 +88,13 @@ class HBProblem:
     max_passes, pass_tol : DLFT periodic passes limit and tolerance.
     stick_anchor : (p, 2) initial tangential stick anchor (m); if None it is
         set by :meth:`static_state` (called by :meth:`x0`), zeros before.
+    static : a :class:`StaticState` already solved (e.g. by
+        :func:`workflow.engine.static_state`, with its ε-continuation): used
+        by :meth:`x0` and, if ``stick_anchor`` is None, for the anchor.
     """
 
     def __init__(self, Zr, Fr, contact: ContactLaw, nh: int, nit: int, method: str = "hbm", *,
-                 max_passes: int = 30, pass_tol: float = 1e-10, stick_anchor=None):
+                 max_passes: int = 30, pass_tol: float = 1e-10, stick_anchor=None, static=None):
         if method not in METHODS:
             raise SceneError(f"hb.method: {method!r} is not one of {', '.join(METHODS)}")
         if not isinstance(contact, ContactLaw):
@@ -122,8 +125,10 @@ class HBProblem:
         self.max_passes, self.pass_tol = int(max_passes), float(pass_tol)
         self.stick_anchor = np.zeros((p, 2)) if stick_anchor is None else \
             np.array(stick_anchor, dtype=float).reshape(p, 2)
-        self._anchor_set = stick_anchor is not None
-        self._static: StaticState | None = None
+        if stick_anchor is None and static is not None:
+            self.stick_anchor = np.array(static.anchor, dtype=float).reshape(p, 2)
+        self._anchor_set = stick_anchor is not None or static is not None
+        self._static: StaticState | None = static
         self.last_dlft: DLFTResult | None = None
         self.stats = {"evaluations": 0, "jacobians": 0, "max_passes": 0, "unconverged_passes": 0}
         self._set_linear(Zr[: nh + 1], Fr[: nh + 1])
@@ -199,9 +204,14 @@ class HBProblem:
     def with_linear(self, Zr, Fr) -> "HBProblem":
         """A new problem at another frequency: same law, method, Nh, nit, anchor."""
         new = HBProblem(Zr, Fr, self.law, self.nh, self.nit, self.method, max_passes=self.max_passes,
-                        pass_tol=self.pass_tol, stick_anchor=self.stick_anchor)
+                        pass_tol=self.pass_tol, stick_anchor=self.stick_anchor, static=self._static)
         new._anchor_set = True
         return new
+
+    @property
+    def static(self) -> StaticState | None:
+        """The static state in use (given, or solved by :meth:`x0`), or None."""
+        return self._static
 
     def set_wear(self, W) -> None:
         """Set the wear depth vector W (p,) in metres (opens the normal gap)."""
@@ -376,7 +386,8 @@ class HBProblem:
         return R, J, Rw
 
     # ------------------------------------------------------------ initial guess
-    def static_state(self, *, tol: float = 1e-10, maxiter: int = 60, apply: bool = True) -> StaticState:
+    def static_state(self, *, tol: float = 1e-10, maxiter: int = 60, apply: bool = True,
+                     u0=None) -> StaticState:
         """Solve the harmonic-0 (static preload) problem alone and set the stick anchor.
 
         ``Zr[0] u + λ(u) = Fr[0]`` with a single DLFT step (nit = 1,
@@ -411,7 +422,8 @@ class HBProblem:
             return R, J, r
 
         scale = max(float(np.linalg.norm(F0)), 1e-300)
-        res = newton(lambda u: ev(u, True)[:2], np.zeros(nr), fun=lambda u: ev(u, False)[0],
+        start = np.zeros(nr) if u0 is None else np.asarray(u0, dtype=float).reshape(nr)
+        res = newton(lambda u: ev(u, True)[:2], start, fun=lambda u: ev(u, False)[0],
                      tol=tol, scale=scale if np.linalg.norm(F0) > 0 else 1.0, maxiter=maxiter)
         _, r = ev(res.x, False)
         anchor = r.lam_x_T[0] / self.law.eps_t[:, None]

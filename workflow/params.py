@@ -81,6 +81,12 @@ class Contact:
     mu: float = param(0.5, "", "Coulomb friction coefficient (paper: 0.5, titanium on titanium)", min=0.0)
     eps_n: float = param(0.0, "N/m", "DLFT normal penalty ε_N (0: automatic, from the reduced stiffness)", min=0.0)
     eps_t: float = param(0.0, "N/m", "DLFT tangential penalty ε_T (0: automatic)", min=0.0)
+    penalty_factor: float = param(1.0e3, "", "automatic penalties: this many times each pair's static condensed "
+                                            "stiffness (workflow/engine/penalty.py: the slip answer converges "
+                                            "as ε grows; 1e3 measured converged on Den Hartog)",
+                                  min=0.0, min_exclusive=True)
+    eps_check: float = param(10.0, "", "re-solve each result's peak with ε multiplied by this and report the "
+                                       "change (0: off)", min=0.0)
     gap: float = param(0.0, "m", "initial normal gap added to every pair (<0: interference)")
     max_passes: int = param(20, "", "DLFT periodic passes at most (stick reference convergence)", min=1)
 
@@ -98,6 +104,8 @@ class HB:
     max_iterations: int = param(100, "", "solver iterations at most", min=1)
     reference_harmonics: int = param(0, "", "Nh of the converged reference for the error table (0: off)", min=0)
     reference_time_samples: int = param(256, "", "nit of the reference", min=3)
+    reference_check: bool = param(True, "", "re-solve the reference's peak with 2×nit, 1.5×Nh and a larger ε and "
+                                            "report how much it moves (its own uncertainty)")
 
     def check(self):
         for nh in self.harmonics:
@@ -128,18 +136,20 @@ class Sweep:
 
 @dataclass
 class PseudoTime:
-    scheme: str = param("ser", "", "pseudo-time integrator (workflow/pseudotime.py); the wear system needs an "
-                                   "implicit one (ser, bdf, radau, lsoda, rosenbrock; others fall back to ser)",
+    scheme: str = param("ser", "", "pseudo-time integrator of the pseudo-time HB solver (hb.solver = "
+                                   "\"pseudo-time\", workflow/pseudotime.py); the wear system has one integrator, "
+                                   "ser (linearly implicit), and refuses the others",
                         choices=("rk4", "local", "ser", "bdf", "radau", "lsoda", "rosenbrock", "block-jacobi"))
     precond: str = param("jacobian", "", "pseudo-time mass M of M ∂x/∂t* = −R: none (paper eq. 18), jacobi "
-                                         "(local steps), jacobian (J(x0) frozen: attracting near resonance)",
+                                         "(local steps), jacobian (J(x0) frozen: pseudo-transient continuation, "
+                                         "a damped Newton; attracting near resonance)",
                          choices=("none", "jacobi", "jacobian"))
-    cfl: float = param(0.8, "", "fraction of the explicit stability limit (explicit schemes)", min=0.0,
-                       min_exclusive=True)
-    tol: float = param(1e-8, "", "steady-state tolerance on ‖R‖/‖F_r‖", min=0.0, min_exclusive=True)
-    max_steps: int = param(2000, "", "pseudo-time steps at most", min=1)
-    dt_growth: float = param(1.2, "", "SER: smallest growth factor of the pseudo-time step per step (1: pure "
-                                      "SER)", min=1.0)
+    cfl: float = param(0.8, "", "explicit schemes (rk4, local): fraction of the measured stability limit (eq. 19)",
+                       min=0.0, min_exclusive=True)
+    max_steps: int = param(2000, "", "wear system: pseudo-time steps at most (the HB solver's pseudo-time "
+                                     "attempts take max(200, hb.max_iterations) each)", min=1)
+    dt_growth: float = param(1.0, "", "ser/block-jacobi: smallest growth factor of the pseudo-time step per "
+                                      "accepted step (1: pure SER)", min=1.0)
     wear_dt_max: float = param(0.0, "blocks", "wear system: largest pseudo-time step in blocks of "
                                               "wear.cycles_per_block; 0: uncapped (the step control follows the "
                                               "wear trajectory)", min=0.0)

@@ -37,8 +37,6 @@ Two ways to the worn steady state (where every rate is 0):
 """
 from __future__ import annotations
 
-import csv
-import io
 import math
 import time
 from dataclasses import dataclass, field
@@ -49,14 +47,13 @@ import scipy.linalg
 
 from workflow import fourier
 from workflow.errors import SolverError
-from workflow.io import atomic_path, write_text
 from workflow.solvers import newton, powell
 
 #: times the reference march halves a block whose HB solve fails before it stops
 MAX_BLOCK_HALVINGS = 4
 
 __all__ = ["slip_increments", "wear_per_cycle", "pressure", "WearProblem", "WearState", "WearHistory",
-           "march_reference", "pseudo_time_wear", "write_wear_csv", "plot_wear"]
+           "march_reference", "pseudo_time_wear", "profile_rel_diff", "tip_cycle"]
 
 
 # ------------------------------------------------------------------ kernel
@@ -118,8 +115,11 @@ class WearProblem:
     (:meth:`HBProblem.contact_blocks`, :meth:`HBProblem.apply_contact_blocks`).
     """
 
-    def __init__(self, hb, area, k_w: float, share: float = 0.5):
+    def __init__(self, hb, area, k_w: float, share: float = 0.5, eps_path=()):
         self.hb = hb
+        #: :func:`workflow.engine.cascade.newton_path` factors for vibration solves
+        #: that plain Newton does not finish (large ε shrinks its basin)
+        self.eps_path = tuple(eps_path)
         self.area = np.broadcast_to(np.asarray(area, dtype=float), (hb.p,)).copy()
         if np.any(self.area <= 0):
             raise SolverError("wear: pair areas must be > 0")
@@ -209,6 +209,12 @@ class WearProblem:
         hb = self.hb
         res = newton(hb.residual_jacobian, x0, fun=hb.residual, tol=tol, scale=hb.residual_scale(),
                      maxiter=maxiter)
+        if not res.converged and self.eps_path:
+            from workflow.engine.cascade import newton_path
+
+            alt = newton_path(hb, x0, self.eps_path, tol, maxiter)
+            if alt.converged:
+                res = alt
         if not res.converged:
             # The DLFT residual is non-smooth where pairs sit on the Coulomb cone
             # (shakedown): Newton can cycle there, MINPACK's Powell gets through.
@@ -417,10 +423,10 @@ def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
 
 # ------------------------------------------------------------------ pseudo-time
 
-def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_block: float = 1e5,
+def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
                      steady_tol: float = 1e-3, tol: float = 1e-9, max_steps: int = 400,
                      rtol: float = 1e-3, track: int = 1, x_tol: float = 1e-3, x_corrections: int = 3,
-                     dt_max_blocks: float = 0.0, order: int = 2, **_ignored) -> WearHistory:
+                     dt_max_blocks: float = 0.0, order: int = 2) -> WearHistory:
     """Integrate the augmented system (eq. 22a–b) along the wear trajectory to zero wear rates.
 
     Unknowns ``z = [x; W]``. The vibration is the fast part of the dual
@@ -446,8 +452,8 @@ def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_blo
     worn steady state is a manifold — any W where every pair sticks or
     separates — and the profile reached is the end of the path). Stops at
     the steady state of :func:`march_reference` after a final HB solve to
-    ``tol`` at the reached W. ``scheme`` is kept for the scene key (every
-    implicit choice maps to this integrator); ``dt_max_blocks`` > 0 caps h
+    ``tol`` at the reached W. This is the one integrator of the wear system
+    (``pseudotime.scheme = "ser"``); ``dt_max_blocks`` > 0 caps h
     at that many ``cycles_per_block``.
     """
     t0 = time.perf_counter()
@@ -460,7 +466,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_blo
     nje = res0.jacobian_evaluations + 1
     x = res0.x
     pen = penetration_scale(wp, st)
-    hist = WearHistory(method=f"pseudo-time-{scheme}", W=W, x=x, steady=False, seconds=0.0, iterations=0,
+    hist = WearHistory(method="pseudo-time-ser", W=W, x=x, steady=False, seconds=0.0, iterations=0,
                        hb_solves=1, jacobian_evaluations=nje)
     t = 0.0
     hist.cycles, hist.max_wear, hist.harmonic1, hist.W_history = [0.0], [float(W.max())], [_h1(wp, x, track)], \
@@ -503,6 +509,12 @@ def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_blo
             stn = wp.evaluate(xn, Wn, jacobian=True)
             nje += 1
             corrections += 1
+        if wp.eps_path and not np.linalg.norm(stn.R) <= x_tol * scale:
+            # large ε: Newton's basin at fixed W is small; the root from the moderate-ε one
+            res, stn = wp.solve_hb(x + dz[:n], Wn, tol=x_tol)
+            xn = res.x
+            nje += res.jacobian_evaluations
+            corrections += int(res.iterations)
         err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))
         ws = _wscale(Wn, pen)
         ok = np.all(np.isfinite(stn.R)) and np.linalg.norm(stn.R) <= max(10 * x_tol, 1e-3) * scale
@@ -547,86 +559,6 @@ def pseudo_time_wear(wp: WearProblem, x0, *, scheme: str = "ser", cycles_per_blo
     return hist
 
 
-# ------------------------------------------------------------------ outputs
-
-def write_wear_csv(path, position, flank, histories: dict, share: float) -> Path:
-    """``wear.csv``: pair, flank, x, y, z [m], then per method W, W_blade, W_disk [m]."""
-    buf = io.StringIO()
-    w = csv.writer(buf)
-    names = list(histories)
-    head = ["pair", "flank", "x_m", "y_m", "z_m"]
-    for m in names:
-        head += [f"W_{m}_m", f"W_blade_{m}_m", f"W_disk_{m}_m"]
-    w.writerow(head)
-    flank_name = {0: "intrados", 1: "extrados"}
-    for i in range(len(flank)):
-        row = [i, flank_name.get(int(flank[i]), str(int(flank[i])))] + [f"{v:.9e}" for v in position[i]]
-        for m in names:
-            Wi = float(histories[m].W[i])
-            row += [f"{Wi:.9e}", f"{share * Wi:.9e}", f"{(1 - share) * Wi:.9e}"]
-        w.writerow(row)
-    return write_text(path, buf.getvalue())
-
-
-def plot_wear(out: Path, histories: dict, *, tip_before=None, tip_after=None, track_label="") -> list[str]:
-    """Figures 9–12 of the paper; returns the file names written under ``out``.
-
-    ``wear_profile.png`` (W per pair and method, Fig. 9), ``max_wear.png``
-    (max W against cycles, Fig. 11), ``harmonic1.png`` (first harmonic of the
-    tracked tangential displacement, Fig. 12), ``tip_cycle.png`` (tip
-    displacement over one cycle before/after wear per method, Fig. 10).
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out = Path(out)
-    files = []
-
-    def save(fig, name):
-        with atomic_path(out / name, suffix=".png") as tmp:
-            fig.savefig(tmp, dpi=110)
-        plt.close(fig)
-        files.append(name)
-
-    fig, ax = plt.subplots(figsize=(7, 3.5))
-    width = 0.8 / max(len(histories), 1)
-    for j, (m, h) in enumerate(histories.items()):
-        ax.bar(np.arange(len(h.W)) + j * width, np.asarray(h.W) * 1e6, width, label=m)
-    ax.set_xlabel("pair")
-    ax.set_ylabel("wear depth W [µm]")
-    ax.legend()
-    fig.tight_layout()
-    save(fig, "wear_profile.png")
-    for key, ylabel, name in (("max_wear", "max wear depth [µm]", "max_wear.png"),
-                              ("harmonic1", f"|U₁| {track_label} [µm]", "harmonic1.png")):
-        fig, ax = plt.subplots(figsize=(6, 3.5))
-        for m, h in histories.items():
-            y = np.asarray(getattr(h, key)) * 1e6
-            cyc = np.asarray(h.cycles[: len(y)])
-            ax.plot(cyc, y[: len(cyc)], "o-", ms=3, label=m)
-        ax.set_xlabel("cycles (physical / pseudo-time)")
-        ax.set_ylabel(ylabel)
-        ax.set_xscale("symlog", linthresh=max(1.0, min((h.cycles[1] for h in histories.values()
-                                                        if len(h.cycles) > 1), default=1.0)))
-        ax.legend()
-        fig.tight_layout()
-        save(fig, name)
-    if tip_before is not None:
-        fig, ax = plt.subplots(figsize=(6, 3.5))
-        tau = np.linspace(0, 1, len(tip_before), endpoint=False)
-        ax.plot(tau, np.asarray(tip_before) * 1e6, "k-", label="before wear")
-        for m, tip in (tip_after or {}).items():
-            ax.plot(tau, np.asarray(tip) * 1e6, "--", label=f"worn ({m})")
-        ax.set_xlabel("t / period")
-        ax.set_ylabel("tip displacement [µm]")
-        ax.legend()
-        fig.tight_layout()
-        save(fig, "tip_cycle.png")
-    return files
-
-
 def profile_rel_diff(W_a, W_b) -> float:
     """max |W_a − W_b| / max(max W_a, max W_b) — the 2 % agreement measure."""
     W_a, W_b = np.asarray(W_a), np.asarray(W_b)
@@ -638,5 +570,3 @@ def tip_cycle(observed_harmonics: np.ndarray, nit: int = 128, dof: int = 0) -> n
     """Time history over one period (nit,) of observed DOF ``dof`` from complex harmonics (Nh+1, n_obs)."""
     return fourier.to_time(np.asarray(observed_harmonics)[:, dof], nit)
 
-
-_ = math  # (kept for users computing closed forms with math)

@@ -19,7 +19,7 @@ def upstream(tmp_path_factory):
     from reduction.assemble import build_bundle
     from reduction.bundle import write_bundle
     from workflow import params
-    from workflow.wear import write_wear_csv
+    from workflow.report.wear import write_wear_csv
 
     root = tmp_path_factory.mktemp("remap_stage")
     p = TwoBlockParams(h=0.004, nodes_along=5, nodes_across=3)
@@ -114,7 +114,7 @@ def test_remap_stage_refuses_excessive_wear(upstream, tmp_path):
     from workflow.errors import GeometryError
     from workflow.params import Remap
     from workflow.stages import remap as stage
-    from workflow.wear import write_wear_csv
+    from workflow.report.wear import write_wear_csv
     from reduction.bundle import read_bundle
 
     root, scene, W = upstream
@@ -131,7 +131,7 @@ def test_zero_wear_reassembly_has_no_frequency_shift(upstream, tmp_path):
     """The shift is caused by the wear alone: zero wear re-assembles the same model."""
     from reduction.bundle import read_bundle
     from workflow.stages import remap as stage
-    from workflow.wear import write_wear_csv
+    from workflow.report.wear import write_wear_csv
 
     root, scene, _ = upstream
     b = read_bundle(root / "assembly" / "model")
@@ -153,7 +153,7 @@ def test_worn_reduced_model_keeps_the_full_worn_tied_frequencies(upstream, worn_
     full worn model (the freq shift computation) to reduction accuracy."""
     from reduction.condense import relative_coordinates
     from reduction.reduced import ReducedModel
-    from workflow.stages.hb import tied_modes
+    from workflow.engine.linear import tied_modes
 
     root, scene, _ = upstream
     s, out, _ = worn_run
@@ -181,8 +181,8 @@ def test_worn_static_state_is_the_new_one_with_wear_as_gap(upstream, worn_run):
     from reduction.condense import condense, relative_coordinates
     from reduction.reduced import ReducedModel
     from workflow.contact import ContactLaw
-    from workflow.stages import remap as stage
-    from workflow.stages.hb import contact_law, first_excited_mode
+    from workflow.engine import contact_law, static_state
+    from workflow.engine.linear import first_excited_mode
 
     root, scene, W = upstream
     s, out, _ = worn_run
@@ -195,9 +195,10 @@ def test_worn_static_state_is_the_new_one_with_wear_as_gap(upstream, worn_run):
     def state(model, gap, wear):
         rc = relative_coordinates(model)
         c = condense(rc, 2 * np.pi * first_excited_mode(rc)[0], 0)
-        base = contact_law(scene["contact"], new, c.Zr[0])
+        ct = scene["contact"]
+        base = contact_law(new, mu=ct.mu, factor=ct.penalty_factor)
         law = ContactLaw(mu=base.mu, eps_n=base.eps_n, eps_t=base.eps_t, gap=gap, wear=wear)
-        return stage.static_state(c, law)
+        return static_state(c.Zr, c.Fr, law)
 
     worn_st = state(worn, worn.gap, np.zeros_like(W_pairs))
     new_st = state(new, new.gap, W_pairs)

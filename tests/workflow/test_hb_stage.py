@@ -18,7 +18,8 @@ import pytest
 
 from reduction.reduced import ReducedModel
 from workflow.errors import SceneError, SolverError
-from workflow.params import HB, Contact, Excitation, Sweep
+from workflow.engine import variants
+from workflow.params import HB, Contact, Excitation, PseudoTime, Sweep
 from workflow.pipeline import RunLog
 from workflow.stages import hb as stage
 from workflow.lumped import pairs_on_block
@@ -64,7 +65,8 @@ def run_stage(tmp: Path, model: ReducedModel, *, mu=0.3, **hb) -> tuple[dict, Pa
     src.mkdir(parents=True, exist_ok=True)
     model.save(src / "reduced.npz")
     sweep = hb.pop("sweep", {})
-    scene = {"contact": Contact(mu=mu), "hb": HB(**hb), "sweep": Sweep(**sweep), "excitation": Excitation()}
+    scene = {"contact": Contact(mu=mu), "hb": HB(**hb), "sweep": Sweep(**sweep), "excitation": Excitation(),
+             "pseudotime": PseudoTime()}
     out = tmp / "out"
     out.mkdir(exist_ok=True)
     return stage.run(scene, {"reduced": src}, out, RunLog(quiet=True)), out
@@ -105,12 +107,12 @@ def collocated(tmp_path_factory):
 
 
 def test_variants_resolve_nit_and_skip_hdhb_off_grid():
-    v = stage.variants(HB(methods=["hbm", "hdhb"], harmonics=[1, 3], time_samples=[105, 0, 7]))
+    v = variants(HB(methods=["hbm", "hdhb"], harmonics=[1, 3], time_samples=[105, 0, 7]))
     assert [(x.method, x.nh, x.nit) for x in v] == [
         ("hbm", 1, 105), ("hbm", 1, 3), ("hbm", 1, 7), ("hbm", 3, 105), ("hbm", 3, 7), ("hdhb", 1, 3),
         ("hdhb", 3, 7)]
     with pytest.raises(SceneError, match="time_samples"):
-        stage.variants(HB(methods=["hbm"], harmonics=[3], time_samples=[5]))
+        variants(HB(methods=["hbm"], harmonics=[3], time_samples=[5]))
 
 
 def test_files_columns_and_summary(study):
@@ -138,7 +140,7 @@ def test_files_columns_and_summary(study):
     assert float(cpu[0]["normalised"]) == 1.0 and len(cpu) == 3
     with open(out / "error_vs_time.csv") as fh:
         assert next(csv.reader(fh)) == ["method", "Nh", "nit", "solver", "seconds", "error", "converged_points",
-                                        "points"]
+                                        "points", "reference_uncertainty"]
     assert set(summary["files"].values()) <= {p.name for p in out.iterdir()}
     import json
 
@@ -217,7 +219,7 @@ def test_stage_contract():
 
     mod = stages.load("hb")
     assert mod.PRODUCES == ("frf",) and mod.NEEDS == ("reduced",)
-    assert set(mod.SECTIONS) == {"contact", "hb", "sweep", "excitation"}
+    assert set(mod.SECTIONS) == {"contact", "hb", "sweep", "excitation", "pseudotime"}
 
 
 def test_newton_powell_cascade_finds_the_same_frf_as_powell(tmp_path):
@@ -239,7 +241,7 @@ def test_newton_powell_cascade_finds_the_same_frf_as_powell(tmp_path):
 def test_share_gives_every_variant_to_one_rank_and_balances_the_cost():
     from types import SimpleNamespace as NS
 
-    from workflow.stages.hb import share, variants
+    from workflow.engine.variants import share, variants
 
     todo = variants(NS(methods=["hbm", "tcm", "hdhb"], harmonics=[1, 3, 7, 17], time_samples=[105, 0]))
     cost = lambda i: (2 * todo[i].nh + 1) ** 2 * (1.0 + todo[i].nit / 400.0)  # noqa: E731
@@ -254,7 +256,7 @@ def test_share_gives_every_variant_to_one_rank_and_balances_the_cost():
 
 
 def test_join_sweeps_puts_chunks_back_in_order():
-    from workflow.stages.hb import SweepResult, Variant, join_sweeps
+    from workflow.engine.frf import SweepResult, Variant, join_sweeps
 
     v = Variant("hbm", 3, 32)
 

@@ -101,7 +101,7 @@ def worn():
         if name == "reference":
             h = march_reference(wp, x0, scheme="explicit", max_blocks=1000, **kw)
         else:
-            h = pseudo_time_wear(wp, x0, scheme="ser", **kw)
+            h = pseudo_time_wear(wp, x0, **kw)
         out[name] = (h, time.process_time() - t0, wp)
     return out
 
@@ -200,7 +200,7 @@ def test_wear_stage_on_a_reduced_model(tmp_path):
 def test_reference_check_recovers_a_first_order_limit():
     from types import SimpleNamespace as NS
 
-    from workflow.stages.wear import reference_check
+    from workflow.engine.wearstudy import reference_check
 
     rng = np.random.default_rng(3)
     Wstar, c = rng.random(6) + 1.0, rng.normal(size=6)

@@ -42,7 +42,7 @@ import numpy as np
 from workflow.errors import BundleError, GeometryError, SolverError
 
 NAME = "remap"
-SECTIONS = ("remap", "wear")
+SECTIONS = ("remap", "wear", "contact", "hb", "sweep", "pseudotime")  # the worn-vs-new FRF reads the last four
 # "reduced": the new model's reduction (same settings as the worn one) for the
 # new-vs-worn FRF; the wear stage needs it anyway, so it costs nothing.
 NEEDS = ("bundle", "wear", "reduced")
@@ -262,17 +262,20 @@ def worn_vs_new_frf(scene, new, worn, points: int | None = None) -> dict:
     """Nonlinear FRF (HBM with the scene's first Nh and nit, its contact,
     excitation and solver) of the reduced models ``new`` and ``worn`` on one
     frequency grid around the new model's first excited tied mode
-    (``sweep.f_start_hz``/``f_stop_hz``, else ±10 %).
+    (``sweep.f_start_hz``/``f_stop_hz``, else ±10 %), through
+    :func:`workflow.engine.frf`.
 
-    Both use the new model's DLFT penalties (ε does not change the converged
-    solution; sharing them keeps the comparison free of it). Each model's
-    ``gap`` is its own: the worn bundle's already holds W, so both run at
-    contact-law W = 0. Returns ``{"freqs_hz", "new": SweepResult, "worn": ...,
-    "tied_hz": {"new", "worn"}, "variant"}``.
+    Both use the new model's DLFT penalties (sharing them keeps the
+    comparison free of ε). Each model's ``gap`` is its own: the worn
+    bundle's already holds W, so both run at contact-law W = 0. Returns
+    ``{"freqs_hz", "new": SweepResult, "worn": ..., "tied_hz": {"new",
+    "worn"}, "variant"}``; each SweepResult carries its ``static`` state.
     """
-    from reduction.condense import condense, relative_coordinates
+    from reduction.condense import relative_coordinates
     from workflow.contact import ContactLaw
-    from workflow.stages.hb import Variant, band, contact_law, first_excited_mode, sweep_variant
+    from workflow.engine import Variant, frf
+    from workflow.engine.linear import band, first_excited_mode
+    from workflow.stages.hb import law_of, options
 
     hb, sw, ct = scene["hb"], scene["sweep"], scene["contact"]
     nh = int(hb.harmonics[0])
@@ -280,41 +283,21 @@ def worn_vs_new_frf(scene, new, worn, points: int | None = None) -> dict:
     v = Variant("hbm", nh, max(nit, 2 * nh + 1))
     lo, hi = FRF_POINTS
     n = int(points or min(max(int(sw.points), lo), hi))
-    rcs = {"new": relative_coordinates(new), "worn": relative_coordinates(worn)}
-    f_new, _ = first_excited_mode(rcs["new"])
-    f_worn, _ = first_excited_mode(rcs["worn"])
-    f0, f1 = band(sw, f_new)
-    freqs = np.linspace(f0, f1, n)
-    out = {"freqs_hz": freqs, "tied_hz": {"new": f_new, "worn": f_worn}, "variant": v}
-    law0 = None
+    rc_new = relative_coordinates(new)
+    f_new, _ = first_excited_mode(rc_new)
+    f0, f1 = band(sw.f_start_hz, sw.f_stop_hz, f_new)
+    law0 = law_of(scene, new, rc=rc_new)
+    opt, _ = options(scene)
+    opt.reference, opt.eps_check_factor = None, 0.0
+    out = {"freqs_hz": np.linspace(f0, f1, n), "tied_hz": {}, "variant": v}
     for key, model in (("new", new), ("worn", worn)):
-        rc = rcs[key]
-        cond = [condense(rc, 2 * np.pi * f, v.nh) for f in freqs]
-        mid = cond[len(cond) // 2]
-        if law0 is None:
-            law0 = contact_law(ct, model, mid.Zr[1])
         law = ContactLaw(mu=law0.mu, eps_n=law0.eps_n, eps_t=law0.eps_t,
                          gap=np.asarray(model.gap, dtype=float) + float(ct.gap))
-        static = static_state(mid, law, ct.max_passes, key)
-        out[key] = sweep_variant(rc, cond, law, static.anchor, v, solver=hb.solver, tol=hb.tol,
-                                 maxiter=hb.max_iterations, max_passes=ct.max_passes)
-        out[key].static = static
+        study = frf(model, law, [v], band_hz=(f0, f1), points=n, options=opt)
+        out[key] = study.runs[0]
+        out[key].static = study.static
+        out["tied_hz"][key] = study.tied_hz
     return out
-
-
-def static_state(cond, law, max_passes: int = 20, which: str = ""):
-    """The harmonic-0 contact state of one condensation ``cond`` under ``law``
-    (:meth:`workflow.hb.HBProblem.static_state`); :class:`SolverError` if it
-    has no equilibrium or no pair in contact."""
-    from workflow.errors import SolverError
-    from workflow.hb import HBProblem
-
-    st = HBProblem(cond.Zr[:1], cond.Fr[:1], law, 0, 1, "hbm", max_passes=max_passes).static_state()
-    if not st.result.converged or not np.any(st.state != 0):
-        raise SolverError(f"remap: static contact state of the {which} model has "
-                          f"{'no equilibrium' if not st.result.converged else 'every pair separated'} "
-                          f"({st.result.reason})")
-    return st
 
 
 def _peak(r) -> tuple[float | None, float | None]:

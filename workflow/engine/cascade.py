@@ -1,0 +1,252 @@
+"""The solver cascade for one frequency: every stage solves a HB point through here.
+
+:func:`solve_point` tries, in order, until one converges (the cheap and
+usual first; each later attempt exists because a measured case needed it):
+
+1. a guess that already satisfies R = 0 (one residual, no Jacobian);
+2. ``newton-powell`` only: Newton from each guess, the smallest residual
+   first, *along the ε-path* (``eps_path``: the root at a moderate ε, then
+   ε up by decades, each from the last root — :func:`newton_path`), then
+   MINPACK's Powell from Newton's best iterate;
+3. the solver from each guess in turn (``short`` iterations each);
+4. ``smooth`` (aliased variants): a guess from the same Nh with many time
+   samples, whose residual is far smoother;
+5. **continuation in ε** from ε·10⁻³ by decades, starting at the stuck
+   guess: a large penalty is right (:mod:`workflow.engine.penalty`) but
+   makes Newton's basin small; at a small ε the stick/slip pattern is found
+   easily and each decade moves the root a little (Den Hartog, Nh = 7:
+   158 direct iterations → 16; Nh = 15, ε = 10⁴k: no convergence → 34);
+6. **continuation in Nh**: the same point at Nh//2 (recursively, through
+   this cascade) seeds the full problem;
+7. a homotopy in the excitation from the stuck state (forcing ×0.2…1);
+8. Powell from the best iterate.
+
+The result carries ``how`` (which attempt converged) and, when none did,
+the reason of the best iterate.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from workflow.engine import penalty
+from workflow.errors import SceneError
+
+#: Newton keeps its LU factor (chord steps) while ‖R‖ falls by ≥ 20 % a step,
+#: from this many unknowns up. Measured on the sector (16 pairs, 50 points, after
+#: the shakedown-Jacobian fix, one core): HBM-17 nit=105 (n = 1680) 30.8 → 10.3 s,
+#: nit=35 17.1 → 9.9 s; HBM-7 (n = 720) nit=105 2.4 → 2.1 s, nit=15 1.7 → 1.2 s;
+#: HBM-3 (n = 336) 0.55 → 0.46 s; every point converged either way.
+CHORD_MIN_UNKNOWNS = 300
+CHORD_RATIO = 0.8
+#: MINPACK's Powell is costly from this many unknowns up (see :func:`newton_steps`).
+POWELL_COSTLY_UNKNOWNS = 1200
+#: Newton steps of ``newton-powell`` before Powell takes over. Newton converges
+#: only linearly (ratio 0.3–0.7) near resonance — the DLFT residual is not
+#: differentiable where a pair touches the Coulomb cone — but a step (one LU)
+#: is still cheaper than MINPACK's unblocked QR: 30 instead of 10 measured 28 %
+#: less CPU on HBM-7/nit=105 at the 16 points around resonance (12.5 s vs 17.5 s).
+NEWTON_STEPS = 30
+#: forcing fractions of the homotopy attempt (harmonics ≥ 1 of F_r scaled).
+HOMOTOPY = (0.2, 0.4, 0.6, 0.8, 1.0)
+#: decades of the ε-continuation (from ε·10^-EPS_DECADES up to ε).
+EPS_DECADES = 3
+#: The ε-path of :func:`newton_path` comes from :func:`workflow.engine.penalty.path`.
+#: Measured on the quick sector (HBM-3 nit=64, 15 points, ε = 10³× stiffness):
+#: Newton straight at ε from the secant predictor 4.1 s with 15 points lost
+#: after the first failure; from the root at ε·10⁻³ by decades 0.53 s, 3
+#: failures before the rest of the cascade; by one jump 0.85 s, 2 failures;
+#: by half decades 0.47 s, none.
+#: (Measured and dropped: 5 Newton steps straight at the target ε before the
+#: path — 0.61 s instead of 0.47 s on the same sweep, the direct try mostly failing.)
+SOLVERS = ("newton", "powell", "newton-powell", "pseudo-time")
+
+
+@dataclass
+class PointResult:
+    """One frequency solved: ``result`` (the best :class:`SolveResult`), total
+    ``iterations`` over every attempt, and ``how`` — "guess0", "guess1", …,
+    "newton", "powell", "smooth", "eps-continuation", "nh-continuation",
+    "homotopy" or "failed"."""
+
+    result: object
+    iterations: int
+    how: str
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.result.converged)
+
+
+def newton_steps(prob, maxiter: int) -> int:
+    """Newton steps before Powell takes over in ``newton-powell``.
+
+    MINPACK's hybrid Powell factors its n×n Jacobian with an unblocked QR:
+    ~10 s a call at n = 1680 (Nh = 17, 16 pairs; profiled: two such calls
+    were 21 of the variant's 25 s), while a chord step there costs ~0.02 s.
+    Large problems therefore get three times the Newton budget first.
+    """
+    return min(maxiter, NEWTON_STEPS * (3 if prob.n >= POWELL_COSTLY_UNKNOWNS else 1))
+
+
+def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | None = None):
+    """One solver from ``x0``: a :class:`~workflow.solvers.SolveResult`.
+
+    ``pseudo``: keyword arguments of :func:`workflow.pseudotime.integrate`
+    for ``solver = "pseudo-time"`` (the scene's ``[pseudotime]``); default
+    SER with the Jacobian mass — pseudo-transient continuation, a damped
+    Newton — while ``precond = "none"`` is eq. 18 as printed."""
+    if solver == "newton":
+        return prob.solve(x0, solver="newton", tol=tol, maxiter=maxiter, max_backtracks=10,
+                          reuse_ratio=CHORD_RATIO if prob.n >= CHORD_MIN_UNKNOWNS else 0.0)
+    if solver == "powell":
+        return prob.solve(x0, solver="powell", tol=tol, maxiter=maxiter, maxfev=4 * maxiter)
+    if solver == "pseudo-time":
+        from workflow.pseudotime import integrate
+
+        kw = {"scheme": "ser", "precond": "jacobian", "max_steps": max(maxiter, 200), **(pseudo or {})}
+        if kw["scheme"] == "block-jacobi":
+            kw.setdefault("blocks", prob.nc)        # one block per harmonic (HDHB: per instant)
+        return integrate(prob.residual, prob.residual_jacobian, x0, tol=tol, scale=prob.residual_scale(), **kw)
+    raise SceneError(f"hb.solver: {solver!r} is not one of {', '.join(SOLVERS)}")
+
+
+def newton_path(prob, x0, eps_path, tol: float, maxiter: int):
+    """Newton from ``x0`` along ``eps_path`` (factors < 1 of the law's ε, rising),
+    then at the law's own ε: the large penalty's root from a moderate one's.
+    A step that fails is skipped (the next starts from the last root); the
+    result is the final solve's, at the law's ε."""
+    x, its = x0, 0
+    for f in eps_path:
+        q = prob.with_linear(prob.Zr, prob.Fr)
+        q.set_contact(penalty.scaled(prob.law, f))
+        res = run_solver(q, x, "newton", tol, maxiter)
+        its += int(res.iterations)
+        if res.converged:
+            x = res.x
+    res = run_solver(prob, x, "newton", tol, maxiter)
+    return replace(res, iterations=its + int(res.iterations))
+
+
+class _Best:
+    """The best iterate over the attempts, and the iterations they cost."""
+
+    def __init__(self):
+        self.res, self.total = None, 0
+
+    def keep(self, res, count: bool = True):
+        if count:
+            self.total += int(res.iterations)
+        if self.res is None or res.converged or not (res.residual_norm >= self.res.residual_norm):
+            self.res = res
+        return bool(res.converged)
+
+
+def _satisfied(prob, guesses, tol):
+    """(a converged result for a guess with R = 0 already or None, {index: ‖R‖})."""
+    from workflow.solvers import SolveResult
+
+    norms = {}
+    for k, x0 in enumerate(guesses):
+        if x0 is None:
+            continue
+        norms[k] = float(np.linalg.norm(prob.residual(x0)))
+        if norms[k] <= tol * prob.residual_scale():
+            return SolveResult(x=np.asarray(x0, float), converged=True, iterations=0, residual_norm=norms[k],
+                               reason="converged", function_evaluations=1), k, norms
+    return None, None, norms
+
+
+def eps_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Best, x=None) -> bool:
+    """Attempt 5: from ``x`` (default: the stuck guess) at ε·10⁻³, up by decades to ε."""
+    for d in range(EPS_DECADES, -1, -1):
+        q = prob.with_linear(prob.Zr, prob.Fr)
+        if d:
+            q.set_contact(penalty.scaled(prob.law, 10.0 ** -d))
+        res = run(q, q.x0() if x is None else x, solver, maxiter)
+        best.total += int(res.iterations)
+        if not res.converged:
+            return False
+        x = res.x
+    return best.keep(res, count=False)
+
+
+def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Best) -> bool:
+    """Attempt 6: the point at Nh//2 (HBM, through this cascade) seeds Nh."""
+    from workflow.hb import HBProblem
+
+    nh_low = prob.nh // 2
+    if nh_low < 1:
+        return False
+    low = HBProblem(prob.Zr, prob.Fr, prob.law, nh_low, prob.nit, "hbm", max_passes=prob.max_passes,
+                    stick_anchor=prob.stick_anchor, static=prob.static)
+    pr = solve_point(low, [low.x0()], solver=solver, tol=tol, maxiter=maxiter, pseudo=run.pseudo)
+    best.total += pr.iterations
+    if not pr.converged:
+        return False
+    U = np.zeros((prob.nh + 1, prob.nr), dtype=complex)
+    U[: nh_low + 1] = low.harmonics(pr.result.x)
+    x = prob.unknowns_from_harmonics(U)
+    return best.keep(run(prob, x, solver, maxiter)) or eps_continuation(prob, run, solver, tol, maxiter,
+                                                                              best, x=x)
+
+
+def homotopy(prob, run, solver: str, tol: float, maxiter: int, best: _Best) -> bool:
+    """Attempt 7: the dynamic forcing scaled by :data:`HOMOTOPY` from the stuck state."""
+    x = None
+    for frac in HOMOTOPY:
+        F = prob.Fr.copy()
+        F[1:] *= frac
+        q = prob.with_linear(prob.Zr, F) if frac < 1.0 else prob
+        res = run(q, q.x0() if x is None else x, solver, maxiter)
+        best.total += int(res.iterations)
+        if not res.converged:
+            return False
+        x = res.x
+    return best.keep(res, count=False)
+
+
+def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=None,
+                eps_path=(), pseudo: dict | None = None) -> PointResult:
+    """Solve one frequency of ``prob`` (:class:`~workflow.hb.HBProblem`) from
+    ``guesses`` (unknown vectors; None entries skipped) through the cascade
+    of the module docstring. ``tol`` is relative to ‖F‖. ``smooth``
+    (optional) is a callable returning ``(x or None, iterations)``.
+    ``eps_path``: see :func:`newton_path` (empty: Newton at the law's ε);
+    ``pseudo``: see :func:`run_solver`."""
+    if solver not in SOLVERS:
+        raise SceneError(f"hb.solver: {solver!r} is not one of {', '.join(SOLVERS)}")
+    done, k, norms = _satisfied(prob, guesses, tol)
+    if done is not None:
+        return PointResult(done, 0, f"guess{k}")
+    def run(q, x, how: str, iterations: int):
+        return run_solver(q, x, how, tol, iterations, pseudo)
+
+    run.pseudo = pseudo
+    best = _Best()
+    short = min(maxiter, max(15, maxiter // 4))
+    inner = "newton" if solver == "newton-powell" else solver
+    if solver == "newton-powell":
+        for k in sorted(norms, key=norms.get):
+            if best.keep(newton_path(prob, guesses[k], eps_path, tol, newton_steps(prob, maxiter))):
+                return PointResult(best.res, best.total, "newton")
+        if best.res is not None and best.keep(run(prob, best.res.x, "powell", maxiter)):
+            return PointResult(best.res, best.total, "powell")
+        solver = "powell"
+    for k, x0 in enumerate(guesses):
+        if x0 is not None and best.keep(run(prob, x0, solver, short)):
+            return PointResult(best.res, best.total, f"guess{k}")
+    if smooth is not None:
+        xs, its = smooth()
+        best.total += its
+        if xs is not None and best.keep(run(prob, xs, solver, short)):
+            return PointResult(best.res, best.total, "smooth")
+    attempts = (("eps-continuation", eps_continuation), ("nh-continuation", nh_continuation),
+                ("homotopy", homotopy))
+    for how, attempt in attempts:
+        if attempt(prob, run, inner, tol, short, best):
+            return PointResult(best.res, best.total, how)
+    if inner == "newton" and best.keep(run(prob, best.res.x, "powell", maxiter)):
+        return PointResult(best.res, best.total, "powell")
+    return PointResult(best.res, best.total, "failed")

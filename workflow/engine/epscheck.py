@@ -1,0 +1,90 @@
+"""How converged a result is: re-solves at a larger ε, more time samples, more harmonics.
+
+The DLFT answer in slip depends on ε (:mod:`workflow.engine.penalty`); the
+HB answer on Nh and nit. Each check re-solves *one* point — the peak, where
+the friction damping matters most and slip is largest — from the converged
+state (so it costs a Newton step or two) and reports the relative change of
+the observed first-harmonic amplitude.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from workflow.engine import penalty
+from workflow.engine.cascade import solve_point
+from workflow.engine.frf import observed
+
+
+def _peak_index(r) -> int | None:
+    a = np.where(r.converged, r.amplitude, -np.inf)
+    return int(np.argmax(a)) if np.isfinite(a).any() else None
+
+
+def resolve(rc, f_hz: float, Ur: np.ndarray, law, static, *, method: str, nh: int, nit: int, opt,
+            eps_path=()) -> tuple:
+    """Observed amplitude (m) at ``f_hz`` solved from the harmonics ``Ur`` with
+    ``law``, ``method``, ``nh``, ``nit``; (amplitude or None, converged)."""
+    from reduction.condense import condense
+    from workflow.hb import HBProblem
+
+    c = condense(rc, 2 * np.pi * f_hz, nh)
+    prob = HBProblem(c.Zr, c.Fr, law, nh, nit, method, max_passes=opt.max_passes, static=static)
+    U = np.zeros((nh + 1, prob.nr), dtype=complex)
+    m = min(nh + 1, Ur.shape[0])
+    U[:m] = Ur[:m]
+    # from the converged state at the smaller ε: half a decade, then the full step
+    pr = solve_point(prob, [prob.unknowns_from_harmonics(U)], solver="newton-powell", tol=opt.tol,
+                     maxiter=opt.max_iterations, eps_path=eps_path)
+    if not pr.converged:
+        return None, False
+    return observed(rc, c.omega, prob.harmonics(pr.result.x))[0], True
+
+
+def _rel(a, b) -> float | None:
+    return None if a is None or b is None or b == 0 else abs(a - b) / abs(b)
+
+
+def frf_runs(rc, cond, law, static, runs: list, opt) -> dict:
+    """ε-check of each run at its peak: ε × ``opt.eps_check_factor``.
+
+    Returns {"factor", "max_rel_change", "frequency_hz", "runs": [{"label",
+    "frequency_hz", "rel_change"}]} (``max_rel_change`` None if no peak
+    could be re-solved)."""
+    fac = float(opt.eps_check_factor)
+    big = penalty.scaled(law, fac)
+    rows = []
+    for r in runs:
+        i = _peak_index(r)
+        if i is None:
+            continue
+        v = r.variant
+        a, ok = resolve(rc, float(r.freqs_hz[i]), r.Ur[i], big, static, method=v.method, nh=v.nh, nit=v.nit,
+                        opt=opt, eps_path=(1.0 / fac, fac ** -0.5))
+        rows.append({"label": v.label, "frequency_hz": float(r.freqs_hz[i]),
+                     "rel_change": _rel(a, float(r.amplitude[i])), "converged": ok})
+    vals = [(row["rel_change"], row["frequency_hz"]) for row in rows if row["rel_change"] is not None]
+    worst = max(vals) if vals else (None, None)
+    return {"factor": fac, "max_rel_change": worst[0], "frequency_hz": worst[1], "runs": rows}
+
+
+def reference(rc, cond, law, static, ref, opt) -> dict:
+    """The reference's own convergence at its peak: relative change of the
+    amplitude with nit × 2, Nh × 1.5 (nit scaled alike) and ε × the ε-check
+    factor; ``max_rel_change`` is the largest (the reference's uncertainty)."""
+    i = _peak_index(ref)
+    if i is None:
+        return {"max_rel_change": None}
+    v, f, a0 = ref.variant, float(ref.freqs_hz[i]), float(ref.amplitude[i])
+    nh2 = int(np.ceil(1.5 * v.nh))
+    trials = {"nit_x2": (law, v.nh, 2 * v.nit),
+              f"nh_{nh2}": (law, nh2, max(2 * nh2 + 1, int(np.ceil(v.nit * nh2 / v.nh)))),
+              "eps_x%g" % opt.eps_check_factor: (penalty.scaled(law, opt.eps_check_factor), v.nh, v.nit)}
+    out = {"frequency_hz": f, "variant": v.label}
+    fac = opt.eps_check_factor
+    for key, (lw, nh, nit) in trials.items():
+        path = (1.0 / fac, fac ** -0.5) if key.startswith("eps") else ()
+        a, _ = resolve(rc, f, ref.Ur[i], lw, static, method="hbm", nh=nh, nit=nit, opt=opt, eps_path=path)
+        out[key] = _rel(a, a0)
+    vals = [out[k] for k in trials if out[k] is not None]
+    out["max_rel_change"] = max(vals) if len(vals) == len(trials) else None
+    return out

@@ -1,0 +1,271 @@
+"""Frequency sweeps of one HB variant: on a grid (secant predictor, seeds) or by
+pseudo-arclength continuation; their results, and the error between two FRFs.
+
+Every point goes through :func:`workflow.engine.cascade.solve_point`.
+``amplitude`` is the Euclidean norm over the observed DOFs of the
+first-harmonic complex amplitude (= |U₁| for one observed DOF);
+``amplitude_max`` the largest norm over the period of the dynamic part.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from workflow.engine.cascade import solve_point
+from workflow.engine.variants import Variant
+
+#: samples per period for the max-over-period amplitude.
+PERIOD_SAMPLES = 128
+
+
+@dataclass
+class SweepResult:
+    """One variant swept over the band (arrays over frequencies)."""
+
+    variant: Variant
+    solver: str
+    freqs_hz: np.ndarray
+    amplitude: np.ndarray
+    amplitude_max: np.ndarray
+    iterations: np.ndarray
+    seconds: np.ndarray
+    converged: np.ndarray
+    Ur: list = field(default_factory=list)       # (Nh+1, 3p) complex per frequency
+    reasons: list = field(default_factory=list)
+    how: list = field(default_factory=list)      # which attempt converged, per frequency
+    total_seconds: float = 0.0
+    cpu_seconds: float = 0.0                     # process CPU time (all threads)
+    error: float | None = None
+    dlft_max_passes: int = 0
+
+    @property
+    def converged_points(self) -> int:
+        return int(np.count_nonzero(self.converged))
+
+    def peak_hz(self) -> float:
+        a = np.where(self.converged, self.amplitude, -np.inf)
+        return float(self.freqs_hz[int(np.argmax(a))]) if np.isfinite(a).any() else float("nan")
+
+
+def observed(rc, omega, Ur) -> tuple[float, float]:
+    """(first-harmonic amplitude, max over the period) at the observed DOFs (m)."""
+    from reduction.condense import recover
+    from workflow import fourier
+
+    obs = recover(rc, omega, Ur)
+    a1 = float(np.linalg.norm(obs[1])) if obs.shape[0] > 1 else 0.0
+    dyn = obs.copy()
+    dyn[0] = 0.0
+    t = fourier.to_time(dyn, max(PERIOD_SAMPLES, 4 * (obs.shape[0] - 1) + 4))
+    return a1, float(np.max(np.linalg.norm(np.atleast_2d(t.reshape(t.shape[0], -1)), axis=1)))
+
+
+def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: float, maxiter: int,
+                  max_passes: int = 20, progress=None, log=None,
+                  smooth_nit: int = 64, seeds: list | None = None, eps_path=(),
+                  pseudo: dict | None = None) -> SweepResult:
+    """Sweep ``v`` over the precomputed condensations ``cond`` (one per frequency).
+
+    ``static``: the :class:`~workflow.hb.StaticState` (its tangential stick
+    anchor is carried into every solve; its state seeds the first guess).
+    ``progress`` wraps the frequency loop (e.g. ``log.progress``).
+    ``smooth_nit``: variants with fewer samples fall back on a guess from
+    HBM with this many (see :func:`workflow.engine.cascade.solve_point`); its cost is charged to
+    the variant.
+    ``seeds`` (optional, one per frequency): complex harmonics (≥1, 3p) of
+    U_r from another solve at that frequency (e.g. a lower Nh), tried first;
+    missing harmonics are zero. ``eps_path``, ``pseudo``: see
+    :func:`workflow.engine.cascade.solve_point`.
+    """
+    from workflow.hb import HBProblem
+
+    n = len(cond)
+    out = SweepResult(variant=v, solver=solver, freqs_hz=np.array([c.omega / (2 * np.pi) for c in cond]),
+                      amplitude=np.full(n, np.nan), amplitude_max=np.full(n, np.nan),
+                      iterations=np.zeros(n, int), seconds=np.zeros(n), converged=np.zeros(n, bool))
+    t_all = time.perf_counter()
+    c_all = time.process_time()
+    prev: list[tuple[float, np.ndarray]] = []   # (ω, x) of the last converged points
+    prob = None
+    idx = range(n)
+    for i in (progress(idx, total=n, label=v.label) if progress else idx):
+        c = cond[i]
+        t0 = time.perf_counter()
+        if prob is None:
+            prob = HBProblem(c.Zr, c.Fr, law, v.nh, v.nit, v.method, max_passes=max_passes, static=static)
+        else:
+            prob = prob.with_linear(c.Zr, c.Fr)
+        guesses = []
+        if seeds is not None and seeds[i] is not None:
+            U = np.zeros((v.nh + 1, prob.nr), dtype=complex)
+            m = min(len(seeds[i]), v.nh + 1)
+            U[:m] = seeds[i][:m]
+            guesses.append(prob.unknowns_from_harmonics(U))
+        if len(prev) >= 2:
+            (w1, x1), (w2, x2) = prev[-2], prev[-1]
+            guesses.append(x2 + (c.omega - w2) / (w2 - w1) * (x2 - x1))
+        if prev:
+            guesses.append(prev[-1][1])
+        if not guesses:
+            guesses.append(prob.x0())             # static + tied linear response
+        smooth = None
+        if v.nit < smooth_nit:
+            def smooth(c=c, guess=guesses[-1], prob=prob):
+                sp = HBProblem(c.Zr, c.Fr, law, v.nh, smooth_nit, "hbm", max_passes=max_passes, static=static)
+                pr = solve_point(sp, [sp.unknowns_from_harmonics(prob.harmonics(guess))], solver=solver,
+                                 tol=tol, maxiter=maxiter, eps_path=eps_path, pseudo=pseudo)
+                return (prob.unknowns_from_harmonics(sp.harmonics(pr.result.x)) if pr.converged else None), \
+                    pr.iterations
+        pr = solve_point(prob, guesses, solver=solver, tol=tol, maxiter=maxiter, smooth=smooth, eps_path=eps_path,
+                         pseudo=pseudo)
+        res, its, how = pr.result, pr.iterations, pr.how
+        out.how.append(how)
+        Ur = prob.harmonics(res.x)
+        a1, amax = observed(rc, c.omega, Ur)
+        out.seconds[i] = time.perf_counter() - t0
+        out.iterations[i] = its
+        out.converged[i] = bool(res.converged)
+        out.amplitude[i], out.amplitude_max[i] = a1, amax
+        out.Ur.append(Ur)
+        out.reasons.append(res.reason)
+        if res.converged:
+            prev = (prev + [(c.omega, res.x)])[-2:]
+        out.dlft_max_passes = max(out.dlft_max_passes, prob.stats["max_passes"])
+    out.total_seconds = time.perf_counter() - t_all
+    out.cpu_seconds = time.process_time() - c_all
+    return out
+
+
+def join_sweeps(parts: list) -> SweepResult:
+    """One :class:`SweepResult` from contiguous frequency chunks of the same variant
+    (in order); wall time the longest chunk's (they ran at once), CPU time summed."""
+    first = parts[0]
+    cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
+    out = SweepResult(variant=first.variant, solver=first.solver, freqs_hz=cat("freqs_hz"),
+                      amplitude=cat("amplitude"), amplitude_max=cat("amplitude_max"),
+                      iterations=cat("iterations"), seconds=cat("seconds"), converged=cat("converged"))
+    for p in parts:
+        out.Ur += p.Ur
+        out.reasons += p.reasons
+        out.how += p.how
+    out.total_seconds = max(p.total_seconds for p in parts)
+    out.cpu_seconds = sum(p.cpu_seconds for p in parts)
+    out.dlft_max_passes = max(p.dlft_max_passes for p in parts)
+    return out
+
+
+def seeds_from(runs: list, n: int) -> list:
+    """Per frequency, the harmonics U_r of the converged run with the most
+    harmonics (HBM first among equals), or None."""
+    order = sorted(runs, key=lambda r: (-r.variant.nh, r.variant.method != "hbm", -r.variant.nit))
+    out = []
+    for i in range(n):
+        out.append(next((r.Ur[i] for r in order if r.converged[i]), None))
+    return out
+
+
+def frf_error(v: SweepResult, ref: SweepResult) -> float | None:
+    """max |A − A_ref| / max A_ref over the points where both converged (None if none).
+
+    On different frequencies (arc-length continuation) the variant is
+    interpolated linearly at the reference's frequencies inside its own range;
+    a curve that turns back in frequency (a fold) has no single-valued
+    amplitude to compare, so the error is None there.
+    """
+    if v.freqs_hz.shape == ref.freqs_hz.shape and np.allclose(v.freqs_hz, ref.freqs_hz, rtol=1e-12, atol=0):
+        ok = v.converged & ref.converged
+        a, b = v.amplitude[ok], ref.amplitude[ok]
+    else:
+        fv, av = v.freqs_hz[v.converged], v.amplitude[v.converged]
+        fr, ar = ref.freqs_hz[ref.converged], ref.amplitude[ref.converged]
+        if len(fv) < 2 or np.any(np.diff(fv) <= 0) or np.any(np.diff(fr) <= 0):
+            return None
+        inside = (fr >= fv[0]) & (fr <= fv[-1])
+        a, b = np.interp(fr[inside], fv, av), ar[inside]
+    if not len(b):
+        return None
+    top = float(np.max(ref.amplitude[ref.converged]))
+    return float(np.max(np.abs(a - b)) / top) if top > 0 else None
+
+
+def arclength_scale(cond: list) -> float:
+    """Displacement scale (m) for the arc-length: the largest first-harmonic relative
+    displacement over the band with the interface free (``Z_r,1 U = F_r,1``), an
+    upper bound of the friction-damped response. The start point's own scale
+    is useless where the interface is stuck (u_r = 0 there), and a scale far
+    below the resonant amplitude makes the arclength all displacement and the
+    frequency crawl (measured: 300 steps for 2 of 10 Hz)."""
+    return max(max(float(np.abs(np.linalg.solve(c.Zr[1], c.Fr[1])).max()) for c in cond), 1e-30)
+
+
+def trace_variant(rc, f0: float, f1: float, law, static, v: Variant, *, solver: str, tol: float, maxiter: int,
+                  max_passes: int = 20, max_steps: int = 300, x_scale: float | None = None,
+                  log=None, eps_path=()) -> SweepResult:
+    """``v`` traced from ``f0`` to ``f1`` (Hz) by pseudo-arclength continuation
+    (:func:`workflow.sweep.arclength_sweep`): the step follows the curve, so a
+    fold (turning point) is passed instead of jumped; the points are where the
+    step control put them. The condensation (with its ω-derivatives, for
+    ∂R/∂ω) is recomputed at every ω the corrector visits. ``solver``
+    newton-powell and pseudo-time correct with Newton (the corrector is a
+    bordered system). ``x_scale`` (m): the displacement scale of the
+    arclength (:func:`arclength_scale`). The stick anchor stays the static
+    state's at every point, as in the grid sweep: carrying it from point to
+    point makes the static offset of stuck pairs a free direction, and the
+    continuation walks along that family at constant ω (measured: 36 steps
+    for 0.1 Hz on the synthetic blade).
+
+    With an ``eps_path`` the curve is traced at the path's first (moderate)
+    penalty and every point is then carried up the path to the law's ε at
+    its own ω (:func:`workflow.engine.cascade.newton_path`): the corrector's
+    basin shrinks with ε like Newton's (measured on the synthetic blade at
+    10³× the stiffness: the trace stalled at a stick/slip kink at 98.1 Hz of
+    94–104; at 1× it crosses the band in 114 steps)."""
+    from workflow.engine import penalty
+    from workflow.hb import HBProblem
+    from workflow.sweep import arclength_sweep
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    lw = penalty.scaled(law, eps_path[0]) if eps_path else law
+    make = lambda Zr, Fr, lw=lw: HBProblem(Zr, Fr, lw, v.nh, v.nit, v.method,  # noqa: E731
+                                           max_passes=max_passes, static=static)
+    # steps in the scaled (x/x_scale, ω/ω0) arclength: at most half the band
+    # in frequency, so the continuation cannot stride over the whole resonance
+    band = abs(f1 - f0) / f0
+    pts = arclength_sweep(f0, f1, lambda w: _linear(rc, w, v.nh), make, lambda pr, x: 0.0,
+                          solver="powell" if solver == "powell" else "newton", tol=tol,
+                          maxiter=min(maxiter, 30), max_steps=max_steps, ds=band / 40, ds_max=band / 2,
+                          ds_min=band * 1e-6, x_scale=x_scale, carry_stick=False)
+    n = len(pts)
+    out = SweepResult(variant=v, solver=f"arclength-{'powell' if solver == 'powell' else 'newton'}",
+                      freqs_hz=np.array([p.frequency_hz for p in pts]), amplitude=np.full(n, np.nan),
+                      amplitude_max=np.full(n, np.nan), iterations=np.array([p.iterations for p in pts], dtype=int),
+                      seconds=np.array([p.seconds for p in pts]), converged=np.array([p.converged for p in pts]),
+                      reasons=[p.reason for p in pts], how=["arclength"] * n)
+    last = None                    # the previous point at the law's ε: the nearest guess
+    for i, p in enumerate(pts):
+        c = _linear(rc, p.omega, v.nh)
+        prob = HBProblem(c[0], c[1], law, v.nh, v.nit, v.method, max_passes=max_passes, static=static)
+        x = p.x
+        if eps_path and p.converged:
+            pr = solve_point(prob, [last, p.x], solver="newton-powell", tol=tol, maxiter=maxiter,
+                             eps_path=eps_path[1:])
+            out.iterations[i] += pr.iterations
+            out.converged[i], out.reasons[i], x = pr.converged, pr.result.reason, pr.result.x
+            last = x if pr.converged else last
+        Ur = prob.harmonics(x)
+        out.amplitude[i], out.amplitude_max[i] = observed(rc, p.omega, Ur)
+        out.Ur.append(Ur)
+    out.total_seconds = time.perf_counter() - t0
+    out.cpu_seconds = time.process_time() - c0
+    return out
+
+
+def _linear(rc, omega: float, nh: int):
+    """(Zr, Fr, dZr/dω, dFr/dω) at ω (rad/s) for harmonics 0…nh."""
+    from reduction.condense import condense
+
+    c = condense(rc, omega, nh, derivative=True)
+    return c.Zr, c.Fr, c.dZr, c.dFr

@@ -1,0 +1,93 @@
+"""Linear limits of the friction interface: tied modes, the band, tied and sliding FRFs.
+
+The friction-damped response lies between the interface *tied* (u_r = 0,
+μ → ∞) and *sliding* (μ = 0, normal contact kept) linear responses; the
+first tied mode the tip load excites and the tip observes sets the default
+band (±10 %).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from workflow.errors import BundleError, SceneError
+
+#: a tied mode is "excited" if its modal response at the observed DOFs is at
+#: least this fraction of the largest one.
+SIGNIFICANT = 0.05
+
+
+def tied_modes(rc) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenfrequencies (Hz) of the model with the interface tied (u_r = 0), and
+    each mode's modal response at the observed DOFs to the harmonic load,
+    ``‖O φ‖ |φᵀ f| / ω²`` (m), normalised so the largest is 1."""
+    import scipy.linalg as sla
+
+    r = rc.n_rel
+    K, M = rc.K[r:, r:], rc.M[r:, r:]
+    w2, phi = sla.eigh(K, M)
+    w2 = np.maximum(w2, 0.0)
+    f = np.sqrt(w2) / (2 * np.pi)
+    obs = np.linalg.norm(rc.O[:, r:] @ phi, axis=0)
+    force = np.abs(phi.T @ rc.f_harmonic[r:])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        resp = np.where(w2 > 0, obs * force / np.where(w2 > 0, w2, 1.0), 0.0)
+    top = resp.max() if resp.size and resp.max() > 0 else 1.0
+    return f, resp / top
+
+
+def first_excited_mode(rc) -> tuple[float, int]:
+    """(frequency in Hz, index) of the first tied mode significantly excited and observed."""
+    f, s = tied_modes(rc)
+    idx = np.flatnonzero((s >= SIGNIFICANT) & (f > 0))
+    if not idx.size:
+        raise BundleError("reduced model: no tied mode responds at the observed DOFs to the harmonic load "
+                          "(f_harmonic or O is zero?)")
+    return float(f[idx[0]]), int(idx[0])
+
+
+def band(f_start_hz: float, f_stop_hz: float, f_mode: float) -> tuple[float, float]:
+    """(f_start, f_stop) in Hz; a bound of 0 means ∓10 % of ``f_mode``."""
+    f0 = f_start_hz or 0.9 * f_mode
+    f1 = f_stop_hz or 1.1 * f_mode
+    if f1 <= f0:
+        raise SceneError(f"sweep: band [{f0:g}, {f1:g}] Hz is empty (sweep.f_start_hz / sweep.f_stop_hz; "
+                         f"first tied bending frequency {f_mode:g} Hz)")
+    return float(f0), float(f1)
+
+
+def _solve_or_inf(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``A⁻¹ b``, or inf where ``A`` is singular to working precision (an
+    undamped resonance exactly on a frequency point: no bounded response)."""
+    if b.size == 0:
+        return b.astype(complex)
+    if np.linalg.cond(A) > 1e14:
+        return np.full(b.shape, np.inf, dtype=complex)
+    return np.linalg.solve(A, b)
+
+
+def linear_frfs(rc, cond: list, static) -> tuple[np.ndarray, np.ndarray]:
+    """First-harmonic observed amplitude (m) with the interface tied and sliding.
+
+    Tied: u_r = 0. Sliding (μ = 0): pairs in contact in the static state keep
+    u_N = 0, tangential DOFs are free (λ_T = 0); separated pairs are free.
+    The friction-damped peak lies between the two resonances. ``inf`` where
+    the linear system is singular (an undamped resonance on a grid point).
+    """
+    from reduction.condense import recover
+
+    r = rc.n_rel
+    free_n = np.repeat(static.state == 0, 3)
+    fixed = np.zeros(r, bool)
+    fixed[0::3] = ~free_n[0::3]
+    free = ~fixed
+    tied, slide = [], []
+    for c in cond:
+        z = np.zeros((2, r), complex)
+        with np.errstate(all="ignore"):
+            try:
+                tied.append(np.linalg.norm(recover(rc, c.omega, z)[1]))
+            except np.linalg.LinAlgError:
+                tied.append(np.inf)
+            z[1, free] = _solve_or_inf(c.Zr[1][np.ix_(free, free)], c.Fr[1, free])
+            slide.append(np.linalg.norm(recover(rc, c.omega, z)[1]) if np.all(np.isfinite(z)) else np.inf)
+    return np.array(tied), np.array(slide)

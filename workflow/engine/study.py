@@ -1,0 +1,280 @@
+"""The engine's front door for frequency responses: :func:`frf`.
+
+A reduced model (:class:`reduction.reduced.ReducedModel`), a contact law
+(:func:`contact_law`) and options in; an :class:`FRFStudy` out, with every
+result's convergence status: points converged, the ε-check (how much the
+peak moves when ε grows, :mod:`workflow.engine.epscheck`), the reference's
+own convergence in ε, nit and Nh, and the unbounded-response diagnosis.
+
+Choices (and why):
+
+* **Condensation once.** ``Zr``, ``Fr`` are computed once per frequency for
+  the largest Nh of the study and sliced for each variant (``condense`` is
+  harmonic by harmonic, so a slice equals a fresh condensation); its time is
+  reported apart (``condense_seconds``), not charged to the variants.
+* **Static state once** (:func:`static_state`): harmonic 0 does not depend
+  on ω; its tangential stick anchor is carried into every dynamic solve,
+  which fixes the otherwise non-unique static offset of pairs that stick all
+  period (DESIGN §3). Assumption: the interface was assembled stress-free
+  and tied, and the preload is applied in one step.
+* **Reference.** Swept after the variants, each frequency seeded by the
+  converged variant of highest Nh (Newton then needs 1–2 Jacobians).
+* **MPI.** With ``comm`` of size N the variants are shared over the ranks
+  (largest first) and the reference's band is cut into N chunks; rank 0
+  gathers and gets the study, the others None.
+* **Error.** ``max_f |A − A_ref| / max_f A_ref`` where both converged.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from workflow.engine import epscheck, penalty
+from workflow.engine.frf import (SweepResult, arclength_scale, frf_error, join_sweeps, seeds_from, sweep_variant,
+                                 trace_variant)
+from workflow.engine.linear import band as band_of, first_excited_mode, linear_frfs
+from workflow.engine.variants import Variant, share
+from workflow.errors import SolverError
+
+#: reason given to a point that did not converge where the sliding interface is
+#: at an undamped resonance (Den Hartog: no bounded steady state if μN < πF/4).
+UNBOUNDED = ("unbounded response: undamped resonance of the sliding interface and too little friction "
+             "(no bounded steady state exists)")
+
+
+def contact_law(model, *, mu, eps_n: float = 0.0, eps_t: float = 0.0, gap: float = 0.0,
+                factor: float = penalty.FACTOR, rc=None):
+    """The DLFT law of ``model``: μ (scalar or (p,)), penalties chosen by
+    :func:`workflow.engine.penalty.choose` (``eps_n``/``eps_t`` > 0 are a
+    user's values in N/m), ``gap`` (m) added to the model's own gaps.
+    ``rc``: the model's relative coordinates if already computed."""
+    from reduction.condense import condense, relative_coordinates
+    from workflow.contact import ContactLaw
+
+    rc = relative_coordinates(model) if rc is None else rc
+    en, et = penalty.choose(condense(rc, 0.0, 0).Zr[0], eps_n, eps_t, factor)
+    mu = np.broadcast_to(np.asarray(mu, dtype=float), (model.n_pairs,)).copy()
+    return ContactLaw(mu=mu, eps_n=en, eps_t=et, gap=np.asarray(model.gap, dtype=float) + float(gap))
+
+
+def static_state(Zr, Fr, law, max_passes: int = 20):
+    """The harmonic-0 (preload) contact state from the condensed ``Zr[0]``,
+    ``Fr[0]`` (any ω: harmonic 0 does not depend on it); :class:`SolverError`
+    if it has no equilibrium or every pair separates.
+
+    Solved directly, and if that fails by continuation in ε from ε·10⁻³ by
+    decades (the large default penalty shrinks Newton's basin from u = 0:
+    measured on the quick sector, 60 iterations without convergence at
+    10³× the stiffness). Stick and separation do not depend on ε, so the
+    continuation lands on the same state the direct solve would.
+    """
+    from workflow.engine.cascade import EPS_DECADES
+    from workflow.hb import HBProblem
+
+    def solve(lw, u0=None):
+        return HBProblem(Zr[:1], Fr[:1], lw, 0, 1, "hbm", max_passes=max_passes).static_state(u0=u0)
+
+    st = solve(law)
+    if not st.result.converged:
+        u = None
+        for d in range(EPS_DECADES, -1, -1):
+            st = solve(penalty.scaled(law, 10.0 ** -d) if d else law, u)
+            if not st.result.converged:
+                break
+            u = st.u
+    if not st.result.converged or not np.any(st.state != 0):
+        raise SolverError(
+            f"static contact state: {'no equilibrium' if not st.result.converged else 'every pair separated'} "
+            f"({st.result.reason}; ‖F_0‖ = {np.linalg.norm(Fr[0]):.3g} N). The blade touches the disk "
+            "only at the flanks: it needs a preload pressing it into its slot — set rotation.speed_rpm "
+            "(centrifugal) or excitation.static_force, or a negative contact.gap (interference)")
+    return st
+
+
+@dataclass
+class FRFOptions:
+    """How to solve: ``solver`` (newton, powell, newton-powell, pseudo-time),
+    ``tol`` (relative to ‖F‖), ``max_iterations`` per attempt, DLFT
+    ``max_passes``; ``sweep`` "grid" or "arclength" (``max_steps``);
+    ``reference`` (a :class:`Variant` or None); ``eps_check_factor`` (0: no
+    ε-check); ``reference_check`` (the reference's own nit/Nh/ε check);
+    ``eps_path`` (:func:`workflow.engine.penalty.path`; default: that of the
+    default penalty; empty for a user's own ε);
+    ``pseudo``: :func:`workflow.pseudotime.integrate` options of the
+    ``pseudo-time`` solver."""
+
+    solver: str = "newton-powell"
+    tol: float = 1e-8
+    max_iterations: int = 50
+    max_passes: int = 20
+    sweep: str = "grid"
+    max_steps: int = 300
+    reference: Variant | None = None
+    eps_check_factor: float = penalty.CHECK_FACTOR
+    reference_check: bool = True
+    eps_path: tuple = penalty.path(penalty.FACTOR)
+    pseudo: dict = field(default_factory=dict)
+
+
+@dataclass
+class FRFStudy:
+    """What :func:`frf` found (Hz, m, s). ``runs`` one :class:`SweepResult`
+    per variant, ``reference`` or None; ``tied``/``sliding`` the linear
+    limits on ``freqs_hz``; ``eps_check`` {"factor", "max_rel_change",
+    "frequency_hz", "runs": [...]}; ``reference_convergence`` or None."""
+
+    freqs_hz: np.ndarray
+    band_hz: tuple
+    tied_hz: float
+    tied_mode: int
+    runs: list
+    reference: SweepResult | None
+    tied: np.ndarray
+    sliding: np.ndarray
+    static: object
+    law: object
+    condense_seconds: float
+    eps_check: dict = field(default_factory=dict)
+    reference_convergence: dict | None = None
+    seconds: float = 0.0
+
+    def unconverged(self) -> list[str]:
+        """One line per result whose solver gave up (points not converged)."""
+        out = []
+        for r in self.runs + ([self.reference] if self.reference is not None else []):
+            bad = np.flatnonzero(~r.converged)
+            if bad.size:
+                why = sorted({r.reasons[i] for i in bad})
+                out.append(f"{r.variant.label}: {bad.size}/{len(r.converged)} points not converged "
+                           f"({'; '.join(why)})")
+        return out
+
+    def warnings(self) -> list[str]:
+        """Converged results whose convergence checks exceed their tolerance."""
+        out = []
+        if self.eps_check.get("max_rel_change") is not None and \
+                self.eps_check["max_rel_change"] > penalty.CHECK_TOL:
+            out.append(f"ε-check: the peak moves by {self.eps_check['max_rel_change']:.2e} (> {penalty.CHECK_TOL:g}) "
+                       f"when ε is multiplied by {self.eps_check['factor']:g}; raise contact.penalty_factor")
+        rc = self.reference_convergence or {}
+        if rc.get("max_rel_change") is not None and rc["max_rel_change"] > penalty.CHECK_TOL:
+            out.append(f"reference {rc.get('variant')}: its peak moves by {rc['max_rel_change']:.2e} under "
+                       "2×nit / 1.5×Nh / larger ε — errors below that are not resolved")
+        return out
+
+
+def _condense_grid(rc, freqs, nh_max):
+    from reduction.condense import condense
+
+    t = time.perf_counter()
+    cond = [condense(rc, 2 * np.pi * f, nh_max, derivative=False) for f in freqs]
+    return cond, time.perf_counter() - t
+
+
+def _variants(rc, cond, freqs, law, static, todo, opt, comm, log):
+    """Every variant swept (shared over the ranks); all ranks get all runs."""
+    from workflow.solvers import blas_threads
+
+    size, rank = (1, 0) if comm is None else (comm.Get_size(), comm.Get_rank())
+    kw = dict(solver=opt.solver, tol=opt.tol, maxiter=opt.max_iterations, max_passes=opt.max_passes)
+    done = {}
+    mine = share(todo, size)[rank]
+    progress = log.progress if log is not None else (lambda it, **k: it)
+    for i in progress(mine, total=len(mine), label="hb variants"):
+        v = todo[i]
+        if opt.sweep == "arclength":
+            r = trace_variant(rc, freqs[0], freqs[-1], law, static, v, max_steps=opt.max_steps,
+                              x_scale=arclength_scale(cond), eps_path=opt.eps_path, **kw)
+        else:
+            r = sweep_variant(rc, cond, law, static, v, eps_path=opt.eps_path, pseudo=opt.pseudo, **kw)
+        done[i] = r
+        if log is not None:
+            log.info(f"{v.label}: {r.total_seconds:.2f} s, {r.converged_points}/{len(r.freqs_hz)} converged, "
+                     f"{int(r.iterations.sum())} iterations, peak {r.peak_hz():.2f} Hz")
+    if comm is not None:
+        done = {i: r for part in comm.allgather(done) for i, r in part.items()}
+    return [done[i] for i in range(len(todo))]
+
+
+def _reference(rc, cond, freqs, law, static, runs, opt, comm):
+    """The reference sweep (rank 0 gets it, others None)."""
+    size, rank = (1, 0) if comm is None else (comm.Get_size(), comm.Get_rank())
+    kw = dict(tol=opt.tol, maxiter=opt.max_iterations, max_passes=opt.max_passes)
+    if opt.sweep == "arclength":
+        if rank != 0:
+            return None
+        return trace_variant(rc, freqs[0], freqs[-1], law, static, opt.reference, max_steps=opt.max_steps,
+                             x_scale=arclength_scale(cond), solver="newton", eps_path=opt.eps_path, **kw)
+    # seeded points need no neighbour, so the band is cut in one chunk per rank
+    seeds = seeds_from(runs, len(freqs))
+    cuts = np.linspace(0, len(freqs), size + 1).round().astype(int)
+    lo, hi = cuts[rank], cuts[rank + 1]
+    part = sweep_variant(rc, cond[lo:hi], law, static, opt.reference, seeds=seeds[lo:hi], solver="newton-powell",
+                         eps_path=opt.eps_path, **kw) if hi > lo else None
+    parts = [part] if comm is None else comm.gather(part, root=0)
+    return join_sweeps([p for p in parts if p is not None]) if rank == 0 else None
+
+
+def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, options: FRFOptions | None = None,
+        comm=None, log=None) -> FRFStudy | None:
+    """Friction-damped FRFs of ``model`` under ``law`` for each :class:`Variant`.
+
+    ``band_hz`` (f_start, f_stop), 0 = ∓10 % of the first tied mode the tip
+    load excites; ``points`` frequencies. Returns the :class:`FRFStudy` (None
+    on MPI ranks other than 0).
+    """
+    from reduction.condense import relative_coordinates
+    from workflow.solvers import blas_threads
+
+    opt = options or FRFOptions()
+    t0 = time.perf_counter()
+    rc = relative_coordinates(model)
+    f_mode, mode_index = first_excited_mode(rc)
+    f0, f1 = band_of(band_hz[0], band_hz[1], f_mode)
+    freqs = np.linspace(f0, f1, points) if points > 1 else np.array([0.5 * (f0 + f1)])
+    nh_max = max([v.nh for v in variants] + ([opt.reference.nh] if opt.reference else []) + [1])
+    cond, t_cond = _condense_grid(rc, freqs, nh_max)
+    static = static_state(cond[0].Zr, cond[0].Fr, law, opt.max_passes)
+    if log is not None:
+        log.info(f"{model.n_pairs} contact pairs, {model.size} reduced DOFs; first excited tied mode "
+                 f"#{mode_index + 1} at {f_mode:.2f} Hz; band {f0:.2f}–{f1:.2f} Hz, {len(freqs)} points; "
+                 f"condensation to Nh = {nh_max}: {t_cond:.2f} s; {penalty.describe(law)}; static state: "
+                 f"{int(np.count_nonzero(static.state))}/{model.n_pairs} pairs in contact")
+    tied, sliding = linear_frfs(rc, cond, static)
+    with blas_threads(1):   # small dense systems: threads only add spinning CPU time
+        _warm_up(cond[len(cond) // 2], law, static)
+        runs = _variants(rc, cond, freqs, law, static, variants, opt, comm, log)
+        ref = _reference(rc, cond, freqs, law, static, runs, opt, comm) if opt.reference else None
+        if comm is not None and comm.Get_rank() != 0:
+            return None
+        for r in runs + ([ref] if ref is not None else []):
+            _mark_unbounded(r, sliding)
+            if ref is not None and r is not ref:
+                r.error = frf_error(r, ref)
+        study = FRFStudy(freqs_hz=freqs, band_hz=(f0, f1), tied_hz=f_mode, tied_mode=mode_index + 1, runs=runs,
+                         reference=ref, tied=tied, sliding=sliding, static=static, law=law,
+                         condense_seconds=t_cond)
+        if opt.eps_check_factor > 0:
+            study.eps_check = epscheck.frf_runs(rc, cond, law, static, runs + ([ref] if ref else []), opt)
+        if ref is not None and opt.reference_check and opt.sweep == "grid":
+            study.reference_convergence = epscheck.reference(rc, cond, law, static, ref, opt)
+    study.seconds = time.perf_counter() - t0
+    return study
+
+
+def _warm_up(c, law, static):
+    """The first DLFT call loads numba's compiled pass and BLAS its kernels
+    (measured: the first variant of a run took 0.45 s where the same sweep
+    takes 0.25–0.34 s later), which would skew a CPU table normalised by it."""
+    from workflow.hb import HBProblem
+
+    HBProblem(c.Zr, c.Fr, law, 1, 8, "hbm", static=static).residual_jacobian(np.zeros(9 * law.p))
+
+
+def _mark_unbounded(r: SweepResult, sliding: np.ndarray) -> None:
+    """Points that did not converge where the sliding response is unbounded."""
+    if not np.isfinite(sliding).all() and len(r.freqs_hz) == len(sliding):
+        for i in np.flatnonzero(~r.converged & ~np.isfinite(sliding)):
+            r.reasons[i] = UNBOUNDED

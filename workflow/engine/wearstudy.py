@@ -1,0 +1,239 @@
+"""The engine's front door for fretting wear: :func:`worn_steady_state` (paper §4, §5.2).
+
+A reduced model, a contact law and :class:`WearOptions` in; a
+:class:`WearStudy` out: the unworn HB point (solved by Newton and by
+pseudo-time from the same start), one :class:`~workflow.wear.WearHistory`
+per method — the physical-time reference march ("explicit" / "implicit"
+blocks of cycles, :func:`workflow.wear.march_reference`) and "pseudo-time"
+(eq. 22, :func:`workflow.wear.pseudo_time_wear`) — the worn profiles'
+agreement, the reference's own convergence in its block size, and the
+ε-check of the wear rates.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from workflow.engine import penalty
+from workflow.errors import SceneError, SolverError
+
+METHODS = ("explicit", "implicit", "pseudo-time")
+
+
+@dataclass
+class WearOptions:
+    """``methods`` ⊂ :data:`METHODS`; HB: ``method``, ``nh``, ``nit``,
+    ``tol``, ``max_iterations``, ``max_passes``; ``frequency_hz`` (0: first
+    tied resonance); Archard ``k_w`` (m²/N) and ``blade_share``; the march:
+    ``cycles_per_block``, ``max_blocks``, ``block_tol``, ``steady_tol``,
+    ``reference_check``; pseudo-time: ``max_steps``, ``rtol``,
+    ``dt_max_blocks``; ``eps_check_factor`` (0: off)."""
+
+    methods: tuple = ("pseudo-time", "implicit")
+    method: str = "hbm"
+    nh: int = 3
+    nit: int = 64
+    tol: float = 1e-8
+    max_iterations: int = 100
+    max_passes: int = 20
+    frequency_hz: float = 0.0
+    k_w: float = 1e-13
+    blade_share: float = 0.5
+    cycles_per_block: float = 1e5
+    max_blocks: int = 400
+    block_tol: float = 0.01
+    steady_tol: float = 1e-4
+    reference_check: bool = False
+    max_steps: int = 2000
+    rtol: float = 3e-3
+    dt_max_blocks: float = 0.0
+    eps_check_factor: float = penalty.CHECK_FACTOR
+
+
+@dataclass
+class WearStudy:
+    """What :func:`worn_steady_state` found. ``omega`` (rad/s), ``base`` the
+    unworn :class:`SolveResult`, ``histories`` {method: WearHistory},
+    ``tracked_pair``; ``unworn`` the Newton/pseudo-time comparison;
+    ``profile_max_rel_diff`` and ``cpu_ratio_pseudo_over_reference`` (None
+    without both); ``reference_check`` or None; ``eps_check``."""
+
+    omega: float
+    hb: object
+    rc: object
+    base: object
+    unworn: dict
+    histories: dict
+    tracked_pair: int
+    profile_max_rel_diff: float | None = None
+    cpu_ratio_pseudo_over_reference: float | None = None
+    reference_check: dict | None = None
+    eps_check: dict = field(default_factory=dict)
+
+    def unconverged(self) -> list[str]:
+        """One line per wear method that did not reach the steady state."""
+        return [f"wear {m}: not steady after {h.iterations} iterations ({h.reason})"
+                for m, h in self.histories.items() if not h.steady]
+
+    def warnings(self) -> list[str]:
+        ch = self.eps_check.get("max_rel_change")
+        if ch is not None and ch > penalty.CHECK_TOL:
+            return [f"wear ε-check: the unworn wear rates move by {ch:.2e} (> {penalty.CHECK_TOL:g}) when ε is "
+                    f"multiplied by {self.eps_check['factor']:g}; raise contact.penalty_factor"]
+        return []
+
+
+def first_tied_frequency(rc) -> float:
+    """First natural frequency (rad/s) of the structure with the interface tied (u_r = 0)."""
+    import scipy.linalg
+
+    r = rc.n_rel
+    K, M = rc.K[r:, r:], rc.M[r:, r:]
+    ev = scipy.linalg.eigh(0.5 * (K + K.T), 0.5 * (M + M.T), eigvals_only=True, subset_by_index=[0, 0])
+    return float(np.sqrt(max(ev[0], 0.0)))
+
+
+def build_problem(model, law, opt: WearOptions, rc=None):
+    """(HBProblem, RelativeCoordinates, ω) at the wear frequency, with the
+    static state solved once (:func:`workflow.engine.static_state`)."""
+    from reduction.condense import condense, relative_coordinates
+    from workflow.engine.study import static_state
+    from workflow.hb import HBProblem
+
+    rc = relative_coordinates(model) if rc is None else rc
+    omega = 2 * np.pi * opt.frequency_hz if opt.frequency_hz > 0 else first_tied_frequency(rc)
+    nit = 2 * opt.nh + 1 if opt.method == "hdhb" else (opt.nit or 2 * opt.nh + 1)
+    cond = condense(rc, omega, opt.nh)
+    st = static_state(cond.Zr, cond.Fr, law, opt.max_passes)
+    return HBProblem(cond.Zr, cond.Fr, law, opt.nh, nit, opt.method, max_passes=opt.max_passes, static=st), rc, omega
+
+
+def unworn_solvers(hb, x0, newton_result, *, tol: float, max_steps: int) -> dict:
+    """The unworn HB point by Newton (given) and by pseudo-time from the same
+    start (SER with the Jacobian mass: pseudo-transient continuation), each
+    with seconds, steps, Jacobians, and the relative difference of the two
+    solutions (max |Δx| / max |x|)."""
+    from workflow.pseudotime import integrate
+
+    pt = integrate(hb.residual, hb.residual_jacobian, x0, "ser", precond="jacobian", tol=tol,
+                   scale=hb.residual_scale(), max_steps=max_steps)
+    row = lambda r: {"seconds": r.seconds, "iterations": int(r.iterations),  # noqa: E731
+                     "jacobian_evaluations": int(r.jacobian_evaluations), "converged": bool(r.converged),
+                     "reason": r.reason}
+    top = max(float(np.abs(newton_result.x).max()), 1e-300)
+    return {"newton": row(newton_result), "pseudo-time": row(pt),
+            "max_rel_diff": float(np.abs(pt.x - newton_result.x).max() / top) if pt.converged else None,
+            "time_ratio_pseudo_over_newton": pt.seconds / max(newton_result.seconds, 1e-12)}
+
+
+def _unworn_point(hb, omega: float, opt: WearOptions, eps_path):
+    """The unworn HB solution through the cascade, from the stuck guess."""
+    from workflow.engine.cascade import solve_point
+
+    pr = solve_point(hb, [hb.x0()], solver="newton-powell", tol=opt.tol, maxiter=opt.max_iterations,
+                     eps_path=eps_path)
+    if not pr.converged:
+        raise SolverError(f"wear: HB solve of the unworn state failed at {omega / 2 / np.pi:.3f} Hz: "
+                          f"{pr.result.reason} (try hb.max_iterations or contact.penalty_factor)")
+    return pr.result
+
+
+def _march(wp, x, method: str, opt: WearOptions, track: int, block_tol: float):
+    from workflow.wear import march_reference, pseudo_time_wear
+
+    common = dict(cycles_per_block=opt.cycles_per_block, steady_tol=opt.steady_tol, tol=opt.tol, track=track)
+    wp.set_wear(np.zeros(wp.p))
+    if method == "pseudo-time":
+        return pseudo_time_wear(wp, x, max_steps=opt.max_steps, rtol=opt.rtol, dt_max_blocks=opt.dt_max_blocks,
+                                **common)
+    return march_reference(wp, x, scheme=method, max_blocks=opt.max_blocks, block_tol=block_tol, **common)
+
+
+def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=penalty.path(penalty.FACTOR),
+                      log=None) -> WearStudy:
+    """Fretting wear of ``model``'s pairs under ``law`` to the worn steady state
+    by each of ``opt.methods`` (see the module docstring); ``eps_path`` as in
+    :func:`workflow.engine.cascade.newton_path` (default: the default penalty's)."""
+    from workflow.wear import WearProblem, profile_rel_diff
+
+    opt = opt or WearOptions()
+    bad = [m for m in opt.methods if m not in METHODS]
+    if bad:
+        raise SceneError(f"wear.methods: {bad} not among {', '.join(METHODS)}")
+    hb, rc, omega = build_problem(model, law, opt)
+    if log is not None:
+        log.info(f"wear at {omega / 2 / np.pi:.3f} Hz, {hb.p} pairs, Nh = {hb.nh}, nit = {hb.nit}, {hb.method}; "
+                 f"{penalty.describe(law)}")
+    base = _unworn_point(hb, omega, opt, eps_path)
+    # the paper's comparison at the unworn point: plain Newton and pseudo-time from the same start
+    x0 = hb.x0()
+    unworn = unworn_solvers(hb, x0, hb.solve(x0, tol=opt.tol, maxiter=opt.max_iterations), tol=opt.tol,
+                            max_steps=opt.max_steps)
+    wp = WearProblem(hb, model.area, opt.k_w, opt.blade_share, eps_path=eps_path)
+    i0 = int(np.argmax(wp.evaluate(base.x).rate))
+    histories = {}
+    for m in opt.methods:
+        histories[m] = h = _march(wp, base.x, m, opt, 3 * i0 + 1, opt.block_tol)
+        if log is not None:
+            log.info(f"{m}: {'steady' if h.steady else 'NOT steady'} after {h.iterations} iterations, "
+                     f"{h.seconds:.2f} s, max W = {np.max(h.W):.3e} m ({h.reason})")
+    study = WearStudy(omega=omega, hb=hb, rc=rc, base=base, unworn=unworn, histories=histories, tracked_pair=i0)
+    ref = next((m for m in ("implicit", "explicit") if m in histories), None)
+    if ref is not None and "pseudo-time" in histories:
+        study.profile_max_rel_diff = profile_rel_diff(histories[ref].W, histories["pseudo-time"].W)
+        study.cpu_ratio_pseudo_over_reference = histories["pseudo-time"].seconds / max(histories[ref].seconds, 1e-12)
+    if ref is not None and opt.reference_check and opt.block_tol > 0:
+        coarse = _march(wp, base.x, ref, opt, 3 * i0 + 1, 4 * opt.block_tol)
+        study.reference_check = reference_check(histories, ref, coarse, opt.block_tol)
+    if opt.eps_check_factor > 0:
+        study.eps_check = eps_check(wp, base.x, opt)
+        study.eps_check["frequency_hz"] = omega / 2 / np.pi
+    return study
+
+
+def eps_check(wp, x, opt: WearOptions) -> dict:
+    """The unworn point re-solved with ε × ``opt.eps_check_factor`` from ``x``:
+    relative change of the wear-rate profile (what W integrates),
+    ``max|Δrate| / max rate``."""
+    from workflow.engine.cascade import solve_point
+
+    fac = float(opt.eps_check_factor)
+    hb = wp.hb
+    rate0 = wp.evaluate(x).rate
+    big = hb.with_linear(hb.Zr, hb.Fr)
+    big.set_contact(penalty.scaled(hb.law, fac))
+    pr = solve_point(big, [x], solver="newton-powell", tol=opt.tol, maxiter=opt.max_iterations,
+                     eps_path=(1.0 / fac, fac ** -0.5))
+    out = {"factor": fac, "max_rel_change": None}
+    if pr.converged:
+        from workflow.wear import WearProblem
+
+        wbig = WearProblem(big, wp.area, wp.k_w, wp.share)
+        rate1 = wbig.evaluate(pr.result.x).rate
+        top = float(np.max(np.abs(rate0)))
+        out["max_rel_change"] = float(np.max(np.abs(rate1 - rate0)) / top) if top > 0 else 0.0
+    return out
+
+
+def reference_check(histories: dict, ref: str, coarse, block_tol: float) -> dict:
+    """Convergence of the reference in its block size and every method's error.
+
+    The block marching is first order in the block (explicit or implicit
+    Euler on W), so with profiles W_f (``block_tol``) and W_c (4×) the
+    Richardson estimate of the converged profile is ``W* = W_f + (W_f − W_c)/3``.
+    Errors are :func:`workflow.wear.profile_rel_diff` against W* (fraction of
+    max W), next to each method's CPU seconds.
+    """
+    from workflow.wear import profile_rel_diff
+
+    Wf, Wc = histories[ref].W, coarse.W
+    Wstar = Wf + (Wf - Wc) / 3.0
+    rows = [{"method": f"{ref} block_tol={4 * block_tol:g}", "seconds": coarse.seconds,
+             "error": profile_rel_diff(Wstar, Wc), "steady": bool(coarse.steady)}]
+    for m, h in histories.items():
+        label = f"{m} block_tol={block_tol:g}" if m == ref else m
+        rows.append({"method": label, "seconds": h.seconds, "error": profile_rel_diff(Wstar, h.W),
+                     "steady": bool(h.steady)})
+    return {"self_diff": profile_rel_diff(Wf, Wc), "coarse_seconds": coarse.seconds,
+            "coarse_steady": bool(coarse.steady), "error_vs_time": rows}

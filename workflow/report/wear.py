@@ -1,0 +1,101 @@
+"""Wear tables and figures (paper Figs. 9–12): ``wear.csv`` and PNGs."""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from workflow.io import atomic_path, write_text
+
+
+def write_wear_csv(path, position, flank, histories: dict, share: float) -> Path:
+    """``wear.csv``: pair, flank, x, y, z [m], then per method W, W_blade, W_disk [m]."""
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    names = list(histories)
+    head = ["pair", "flank", "x_m", "y_m", "z_m"]
+    for m in names:
+        head += [f"W_{m}_m", f"W_blade_{m}_m", f"W_disk_{m}_m"]
+    w.writerow(head)
+    flank_name = {0: "intrados", 1: "extrados"}
+    for i in range(len(flank)):
+        row = [i, flank_name.get(int(flank[i]), str(int(flank[i])))] + [f"{v:.9e}" for v in position[i]]
+        for m in names:
+            Wi = float(histories[m].W[i])
+            row += [f"{Wi:.9e}", f"{share * Wi:.9e}", f"{(1 - share) * Wi:.9e}"]
+        w.writerow(row)
+    return write_text(path, buf.getvalue())
+
+
+def plot_wear(out: Path, histories: dict, *, tip_before=None, tip_after=None, track_label="") -> list[str]:
+    """Figures 9–12 of the paper; returns the file names written under ``out``.
+
+    ``wear_profile.png`` (W per pair and method, Fig. 9), ``max_wear.png``
+    (max W against cycles, Fig. 11), ``harmonic1.png`` (first harmonic of the
+    tracked tangential displacement, Fig. 12), ``tip_cycle.png`` (tip
+    displacement over one cycle before/after wear per method, Fig. 10).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out)
+    files = []
+
+    def save(fig, name):
+        with atomic_path(out / name, suffix=".png") as tmp:
+            fig.savefig(tmp, dpi=110)
+        plt.close(fig)
+        files.append(name)
+
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    width = 0.8 / max(len(histories), 1)
+    for j, (m, h) in enumerate(histories.items()):
+        ax.bar(np.arange(len(h.W)) + j * width, np.asarray(h.W) * 1e6, width, label=m)
+    ax.set_xlabel("pair")
+    ax.set_ylabel("wear depth W [µm]")
+    ax.legend()
+    fig.tight_layout()
+    save(fig, "wear_profile.png")
+    for key, ylabel, name in (("max_wear", "max wear depth [µm]", "max_wear.png"),
+                              ("harmonic1", f"|U₁| {track_label} [µm]", "harmonic1.png")):
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        for m, h in histories.items():
+            y = np.asarray(getattr(h, key)) * 1e6
+            cyc = np.asarray(h.cycles[: len(y)])
+            ax.plot(cyc, y[: len(cyc)], "o-", ms=3, label=m)
+        ax.set_xlabel("cycles (physical / pseudo-time)")
+        ax.set_ylabel(ylabel)
+        ax.set_xscale("symlog", linthresh=max(1.0, min((h.cycles[1] for h in histories.values()
+                                                        if len(h.cycles) > 1), default=1.0)))
+        ax.legend()
+        fig.tight_layout()
+        save(fig, name)
+    if tip_before is not None:
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        tau = np.linspace(0, 1, len(tip_before), endpoint=False)
+        ax.plot(tau, np.asarray(tip_before) * 1e6, "k-", label="before wear")
+        for m, tip in (tip_after or {}).items():
+            ax.plot(tau, np.asarray(tip) * 1e6, "--", label=f"worn ({m})")
+        ax.set_xlabel("t / period")
+        ax.set_ylabel("tip displacement [µm]")
+        ax.legend()
+        fig.tight_layout()
+        save(fig, "tip_cycle.png")
+    return files
+
+
+def tip_cycles(study) -> tuple:
+    """Tip displacement over one cycle (m) before wear and, per method, at the
+    worn steady state — from a :class:`~workflow.engine.WearStudy` (Fig. 10)."""
+    from reduction.condense import recover
+    from workflow.wear import tip_cycle
+
+    rc, hb, w = study.rc, study.hb, study.omega
+    if not rc.O.shape[0]:
+        return None, None
+    before = tip_cycle(recover(rc, w, hb.harmonics(study.base.x)))
+    return before, {m: tip_cycle(recover(rc, w, hb.harmonics(h.x))) for m, h in study.histories.items()}
