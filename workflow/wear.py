@@ -458,17 +458,12 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     """
     t0 = time.perf_counter()
     N = float(cycles_per_block)
-    n, p = wp.n, wp.p
     W = wp.W
-    hb = wp.hb
-    scale = hb.residual_scale()
     res0, st = wp.solve_hb(x0, W, tol=tol)
-    nje = res0.jacobian_evaluations + 1
     x = res0.x
     pen = penetration_scale(wp, st)
     hist = WearHistory(method="pseudo-time-ser", W=W, x=x, steady=False, seconds=0.0, iterations=0,
-                       hb_solves=1, jacobian_evaluations=nje)
-    t = 0.0
+                       hb_solves=1, jacobian_evaluations=res0.jacobian_evaluations + 1)
     hist.cycles, hist.max_wear, hist.harmonic1, hist.W_history = [0.0], [float(W.max())], [_h1(wp, x, track)], \
         [W.copy()]
     rmax = float(st.rate.max())
@@ -478,59 +473,19 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
         return hist
     hmax = dt_max_blocks * N if dt_max_blocks else np.inf
     h = min(math.sqrt(rtol) * _wscale(W, pen) / rmax, hmax)
-    steps = rejected = corrections = 0
-    steady = False
-    reason = f"max steps ({max_steps})"
+    t, steps, rejected, count = 0.0, 0, 0, {"nje": 0, "corrections": 0}
+    steady, reason = False, f"max steps ({max_steps})"
     while steps + rejected < max_steps:
         if _steady(st.rate, W, N, steady_tol) and steps > 0:
             steady, reason = True, "steady"
             break
-        A = np.zeros((n + p, n + p))
-        A[:n, :n] = st.J
-        A[:n, n:] = st.R_W
-        A[n:, :n] = -h * st.G_x
-        A[n:, n:] = np.eye(p) - h * np.diag(st.G_W)
-        b = np.concatenate([-st.R, h * st.rate])
-        try:
-            dz = np.linalg.solve(A, b)
-        except np.linalg.LinAlgError:
-            dz = scipy.linalg.lstsq(A, b)[0]
-        xn = x + dz[:n]
-        Wn = np.maximum(W + dz[n:], W)          # wear never decreases
-        stn = wp.evaluate(xn, Wn, jacobian=True)
-        nje += 1
-        for _ in range(x_corrections):          # relaxed vibration convergence at fixed W
-            if np.linalg.norm(stn.R) <= x_tol * scale:
-                break
-            try:
-                xn = xn - np.linalg.solve(stn.J, stn.R)
-            except np.linalg.LinAlgError:
-                break
-            stn = wp.evaluate(xn, Wn, jacobian=True)
-            nje += 1
-            corrections += 1
-        if wp.eps_path and not np.linalg.norm(stn.R) <= x_tol * scale:
-            # large ε: Newton's basin at fixed W is small; the root from the moderate-ε one
-            res, stn = wp.solve_hb(x + dz[:n], Wn, tol=x_tol)
-            xn = res.x
-            nje += res.jacobian_evaluations
-            corrections += int(res.iterations)
+        xn, Wn, stn, ok = _wear_step(wp, x, W, st, h, x_tol, x_corrections, count)
         err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))
         ws = _wscale(Wn, pen)
-        ok = np.all(np.isfinite(stn.R)) and np.linalg.norm(stn.R) <= max(10 * x_tol, 1e-3) * scale
         fac = 0.9 * math.sqrt(rtol * ws / err) if err > 0 else 4.0
         if ok and err <= rtol * ws:
             if order == 2:
-                # local extrapolation to the trapezoidal rule (the estimate above is the
-                # Euler error): W⁺ = W + ½h(rate + rate⁺), x shifted along the HB manifold
-                Wc = np.maximum(W + 0.5 * h * (st.rate + stn.rate), W)
-                try:
-                    xn = xn - np.linalg.solve(stn.J, stn.R + stn.R_W @ (Wc - Wn))
-                except np.linalg.LinAlgError:
-                    pass
-                Wn = Wc
-                stn = wp.evaluate(xn, Wn, jacobian=True)
-                nje += 1
+                xn, Wn, stn = _trapezoidal(wp, W, st, xn, Wn, stn, h, count)
             x, W, st = xn, Wn, stn
             t += h
             steps += 1
@@ -544,19 +499,70 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             h *= min(0.5, max(0.1, fac)) if ok else 0.25
     # final vibration solve at the reached W (the profile is W; x to full tolerance for the outputs)
     res, stf = wp.solve_hb(x, W, tol=tol)
-    nje += res.jacobian_evaluations + 1
+    count["nje"] += res.jacobian_evaluations + 1
     if res.converged:
         x, st = res.x, stf
         if steady and not _steady(st.rate, W, N, steady_tol):
             steady, reason = False, "not steady after the final vibration solve"
     hist.W, hist.x, hist.steady = W, x, steady
     hist.final_rate = st.rate
-    hist.reason = f"{reason} ({steps} steps, {rejected} rejected, {corrections} vibration corrections)"
+    hist.reason = f"{reason} ({steps} steps, {rejected} rejected, {count['corrections']} vibration corrections)"
     hist.iterations = steps
     hist.hb_solves = 2
-    hist.jacobian_evaluations = nje
+    hist.jacobian_evaluations += count["nje"]
     hist.seconds = time.perf_counter() - t0
     return hist
+
+
+def _wear_step(wp: WearProblem, x, W, st: WearState, h: float, x_tol: float, x_corrections: int, count: dict):
+    """One linearly implicit step of the augmented system (see :func:`pseudo_time_wear`),
+    then the relaxed vibration corrections at the new W; (x⁺, W⁺, state⁺, acceptable)."""
+    n, p = wp.n, wp.p
+    scale = wp.hb.residual_scale()
+    A = np.zeros((n + p, n + p))
+    A[:n, :n] = st.J
+    A[:n, n:] = st.R_W
+    A[n:, :n] = -h * st.G_x
+    A[n:, n:] = np.eye(p) - h * np.diag(st.G_W)
+    b = np.concatenate([-st.R, h * st.rate])
+    try:
+        dz = np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        dz = scipy.linalg.lstsq(A, b)[0]
+    xn = x + dz[:n]
+    Wn = np.maximum(W + dz[n:], W)          # wear never decreases
+    stn = wp.evaluate(xn, Wn, jacobian=True)
+    count["nje"] += 1
+    for _ in range(x_corrections):          # relaxed vibration convergence at fixed W
+        if np.linalg.norm(stn.R) <= x_tol * scale:
+            break
+        try:
+            xn = xn - np.linalg.solve(stn.J, stn.R)
+        except np.linalg.LinAlgError:
+            break
+        stn = wp.evaluate(xn, Wn, jacobian=True)
+        count["nje"] += 1
+        count["corrections"] += 1
+    if wp.eps_path and not np.linalg.norm(stn.R) <= x_tol * scale:
+        # large ε: Newton's basin at fixed W is small; the root from the moderate-ε one
+        res, stn = wp.solve_hb(x + dz[:n], Wn, tol=x_tol)
+        xn = res.x
+        count["nje"] += res.jacobian_evaluations
+        count["corrections"] += int(res.iterations)
+    ok = np.all(np.isfinite(stn.R)) and np.linalg.norm(stn.R) <= max(10 * x_tol, 1e-3) * scale
+    return xn, Wn, stn, bool(ok)
+
+
+def _trapezoidal(wp: WearProblem, W, st: WearState, xn, Wn, stn: WearState, h: float, count: dict):
+    """Local extrapolation to the trapezoidal rule (the step's error estimate is
+    the Euler one): W⁺ = W + ½h(rate + rate⁺), x shifted along the HB manifold."""
+    Wc = np.maximum(W + 0.5 * h * (st.rate + stn.rate), W)
+    try:
+        xn = xn - np.linalg.solve(stn.J, stn.R + stn.R_W @ (Wc - Wn))
+    except np.linalg.LinAlgError:
+        pass
+    count["nje"] += 1
+    return xn, Wc, wp.evaluate(xn, Wc, jacobian=True)
 
 
 def profile_rel_diff(W_a, W_b) -> float:

@@ -36,7 +36,7 @@ from workflow.engine.frf import (SweepResult, arclength_scale, frf_error, join_s
                                  trace_variant)
 from workflow.engine.linear import band as band_of, first_excited_mode, linear_frfs
 from workflow.engine.variants import Variant, share
-from workflow.errors import SolverError
+from workflow.errors import BundleError, SolverError
 
 #: reason given to a point that did not converge where the sliding interface is
 #: at an undamped resonance (Den Hartog: no bounded steady state if μN < πF/4).
@@ -127,8 +127,8 @@ class FRFStudy:
 
     freqs_hz: np.ndarray
     band_hz: tuple
-    tied_hz: float
-    tied_mode: int
+    tied_hz: float | None
+    tied_mode: int | None
     runs: list
     reference: SweepResult | None
     tied: np.ndarray
@@ -231,15 +231,23 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, opt
     opt = options or FRFOptions()
     t0 = time.perf_counter()
     rc = relative_coordinates(model)
-    f_mode, mode_index = first_excited_mode(rc)
+    try:
+        f_mode, mode_index = first_excited_mode(rc)
+    except BundleError:
+        if not (band_hz[0] and band_hz[1]):
+            raise
+        # a model whose only motion is at the interface (Den Hartog's oscillator) has
+        # no tied mode: fine when the band is given
+        f_mode, mode_index = None, None
     f0, f1 = band_of(band_hz[0], band_hz[1], f_mode)
     freqs = np.linspace(f0, f1, points) if points > 1 else np.array([0.5 * (f0 + f1)])
     nh_max = max([v.nh for v in variants] + ([opt.reference.nh] if opt.reference else []) + [1])
     cond, t_cond = _condense_grid(rc, freqs, nh_max)
     static = static_state(cond[0].Zr, cond[0].Fr, law, opt.max_passes)
     if log is not None:
+        tied = f"#{mode_index + 1} at {f_mode:.2f} Hz" if f_mode is not None else "none"
         log.info(f"{model.n_pairs} contact pairs, {model.size} reduced DOFs; first excited tied mode "
-                 f"#{mode_index + 1} at {f_mode:.2f} Hz; band {f0:.2f}–{f1:.2f} Hz, {len(freqs)} points; "
+                 f"{tied}; band {f0:.2f}–{f1:.2f} Hz, {len(freqs)} points; "
                  f"condensation to Nh = {nh_max}: {t_cond:.2f} s; {penalty.describe(law)}; static state: "
                  f"{int(np.count_nonzero(static.state))}/{model.n_pairs} pairs in contact")
     tied, sliding = linear_frfs(rc, cond, static)
@@ -253,7 +261,8 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, opt
             _mark_unbounded(r, sliding)
             if ref is not None and r is not ref:
                 r.error = frf_error(r, ref)
-        study = FRFStudy(freqs_hz=freqs, band_hz=(f0, f1), tied_hz=f_mode, tied_mode=mode_index + 1, runs=runs,
+        study = FRFStudy(freqs_hz=freqs, band_hz=(f0, f1), tied_hz=f_mode,
+                         tied_mode=None if mode_index is None else mode_index + 1, runs=runs,
                          reference=ref, tied=tied, sliding=sliding, static=static, law=law,
                          condense_seconds=t_cond)
         if opt.eps_check_factor > 0:
