@@ -178,6 +178,8 @@ class _Jenkins:
         lim = P.mu * self.normal(x)
         s = np.sign(f)
         out = s * (v[P.dof] - s * P.mu * (P.cN @ v) / P.k)
+        if P.mu == 0.0:
+            return np.zeros(len(P.dof), bool), s
         return ~((np.abs(f) >= lim * (1 - 1e-9)) & (out > 0)), s
 
     def period(self, z, t_samples=None):
@@ -192,8 +194,10 @@ class _Jenkins:
                 acc = self.Minv @ (self.f * np.cos(self.w * tt) - self.C @ vv - self.K @ xx
                                    - self.E @ self.forces(xx, stick, w, s))
                 return np.concatenate([vv, acc])
-            events = []
+            events, pad_of = [], []
             for i in range(len(P.dof)):
+                if P.mu == 0.0:     # a frictionless slider never sticks: no event, zero force
+                    continue
                 if stick[i]:
                     g = lambda tt, yy, i=i, w=w: abs(P.k[i] * (yy[P.dof[i]] - w[i])) - P.mu * self.normal(yy[:n])[i]  # noqa: E731
                     g.direction = 1
@@ -202,6 +206,7 @@ class _Jenkins:
                     g.direction = -1
                 g.terminal = True
                 events.append(g)
+                pad_of.append(i)
             sep = lambda tt, yy: float(np.min(self.normal(yy[:n])))  # noqa: E731
             sep.terminal, sep.direction = True, -1
             sol = solve_ivp(rhs, (t, T), y, method="DOP853", events=events + [sep], rtol=RTOL,
@@ -214,11 +219,12 @@ class _Jenkins:
                     out.append(sol.sol(t_samples[sel]).T[:, :n])
             stuck += stick * (t_end - t)
             y = sol.sol(t_end) if hit else sol.y[:, -1]
-            if hit and len(events) in hit and sol.t_events[len(events)][0] <= t_end:
+            if len(events) in hit and sol.t_events[len(events)][0] <= t_end:
                 raise SolverError("jenkins time integration: a pad's normal load reached 0 (separation is not "
                                   "modelled by this reference; lower the excitation or raise N0)")
-            for i in hit:
-                if sol.t_events[i][0] > t_end * (1 + 1e-13) + 1e-300:
+            for e in hit:
+                i = pad_of[e]
+                if sol.t_events[e][0] > t_end * (1 + 1e-13) + 1e-300:
                     continue
                 xx = y[:n]
                 if stick[i]:
