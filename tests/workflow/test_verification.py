@@ -125,15 +125,16 @@ def test_jenkins_integrator_linear_limits():
         assert s.first[spec.observe] == pytest.approx(models.linear_limit(spec, w, tied), rel=1e-7)
 
 
-def test_friction_response_lies_between_the_linear_limits():
-    """The friction-damped steady state lies between the tied and free linear responses near
-    the tied resonance (the pad softens the structure) — for the 2-DOF damper with a normal
-    load that varies with the motion."""
+def test_friction_damps_the_tied_resonance():
+    """At the tied resonance the pad sticks part of the period and slips the rest, and the
+    friction-damped amplitude stays below the tied (μ → ∞) resonant one: slip dissipates —
+    for the 2-DOF damper whose normal load varies with the motion (N stays > 0: else the
+    integrator raises)."""
     _, spec = models.two_dof_damper(coupling=0.1)
     w = spec.omega_n
     s = timeint.jenkins_steady_state(spec.M, spec.C, spec.K, spec.f, w, spec.pads)
-    assert 0 < s.stick_fraction[0] < 1
-    assert models.linear_limit(spec, w, True) > s.first[1] or s.first[1] < models.linear_limit(spec, w, False)
+    assert 0 < s.stick_fraction[0] < 1 and s.residual < 1e-7
+    assert s.first[1] < 0.5 * models.linear_limit(spec, w, True)
 
 
 # ------------------------------------------------- the project's HB against them
@@ -177,6 +178,19 @@ def test_hb_penalty_limit_is_the_large_penalty_answer():
     assert np.array(amp[:3]) / amp[4] == pytest.approx([0.0410 / 0.0533, 0.0467 / 0.0533, 0.0517 / 0.0533], abs=0.003)
 
 
+def test_hb_two_dof_damper_against_time_integration_default_penalty():
+    """The project's default settings (penalty, Newton sweep) at Nh = 7, nit = 64, on the 2-DOF
+    damper with a motion-dependent normal load, three frequencies around the tied resonance:
+    every point converges and lies within 1 % of the event-driven integrator. Budget: the HB
+    truncation at Nh = 7 (measured: Nh = 15 agrees with the integrator to 1e-4, Nh = 7 to
+    4e-4 with today's default penalty) plus the AFT's time grid."""
+    model, spec = models.two_dof_damper()
+    ws = spec.omega_n * np.array([0.9, 1.0, 1.1])
+    rows = runner.compare(model, spec, ws / 2 / np.pi, [7])
+    assert all(r["converged"] for r in rows)
+    assert max(r["error"] for r in rows) < 0.01
+
+
 @pytest.mark.xfail(reason="issue 15: today's HB does not converge on the 2-DOF damper with ε = 1e4·k_d at Nh = 7 "
                           "(0 of 7 points); the engine's ε/Nh continuation must", strict=False)
 def test_hb_two_dof_damper_against_time_integration_large_penalty():
@@ -189,3 +203,39 @@ def test_hb_two_dof_damper_against_time_integration_large_penalty():
     rows = runner.compare(model, spec, ws / 2 / np.pi, [7], eps=1e4)
     assert all(r["converged"] for r in rows)
     assert max(r["error"] for r in rows) < 0.015
+
+
+# ------------------------------------------------------------------ the stage
+def test_verification_scene_writes_table_figure_and_summary(tmp_path):
+    """The pipeline runs the stage from a scene; summary.json carries verification.rows with
+    the table's columns and max_error_nonstop; Nh = 1 vs 3 on the Coulomb and 2-DOF cases."""
+    import json
+
+    from workflow.pipeline import run_scene
+    from workflow.scene import resolve
+
+    scene = resolve({"run": {"outputs": ["verification"]},
+                     "verification": {"cases": ["coulomb", "2dof-damper"], "harmonics": [1, 3],
+                                      "penalty_factor": 100.0}})
+    run_scene(scene, tmp_path / "run", cache=tmp_path / "cache", quiet=True)
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())["verification"]
+    assert len(s["rows"]) == (2 + 3) * 2
+    for col in ("case", "Nh", "nit", "eps", "amplitude", "exact", "error", "converged"):
+        assert col in s["rows"][0]
+    coul = [r for r in s["rows"] if r["case"] == "coulomb"]
+    assert all(r["eps"] == 100.0 and r["source"] == "den-hartog" for r in coul)
+    assert s["max_error_nonstop"] == max(r["error"] for r in coul if r["Nh"] == 3 and r["converged"])
+    folder = tmp_path / "run" / "verification"
+    assert (folder / "verification.csv").read_text().startswith("case,Nh,nit,eps,amplitude,exact,error,converged")
+    assert (folder / "verification.png").stat().st_size > 1000
+    assert (folder / "galerkin.csv").exists()
+
+
+def test_verification_bad_case_and_nit_are_scene_errors():
+    from workflow.errors import SceneError
+    from workflow.scene import resolve
+
+    with pytest.raises(SceneError, match="verification.cases"):
+        resolve({"verification": {"cases": ["nope"]}})
+    with pytest.raises(SceneError, match="verification.time_samples"):
+        resolve({"verification": {"harmonics": [7], "time_samples": 8}})
