@@ -82,19 +82,27 @@ def galerkin_rows(betas, nhs, refs: dict) -> list[dict]:
 
 def digest(rows: list, floor: list) -> dict:
     """Per Nh: converged fraction, max / median error (converged points) non-stop and with stops,
-    Galerkin floor (max over non-stop points)."""
+    Galerkin floor (max / median over non-stop points; max over the non-stop points where the
+    HB converged, and the largest HB error in excess of the floor there)."""
     out = {}
     for nh in sorted({r["Nh"] for r in rows}):
         sel = [r for r in rows if r["Nh"] == nh]
         ns = [r["error"] for r in sel if r["converged"] and not r["stops"]]
         st = [r["error"] for r in sel if r["converged"] and r["stops"]]
         fl = [g["error"] for g in floor if g["Nh"] == nh and g["converged"]]
+        # the floor on exactly the non-stop points where the HB converged: like for like
+        fmap = {(g["ratio"], g["zeta"], round(g["beta"], 12)): g["error"] for g in floor if g["Nh"] == nh}
+        both = [(r["error"], fmap[(r["ratio"], r["zeta"], round(r["beta"], 12))]) for r in sel
+                if r["converged"] and not r["stops"] and (r["ratio"], r["zeta"], round(r["beta"], 12)) in fmap]
         out[str(nh)] = {"converged": sum(r["converged"] for r in sel), "points": len(sel),
                         "max_error_nonstop": max(ns) if ns else None,
                         "median_error_nonstop": float(np.median(ns)) if ns else None,
                         "max_error_stops": max(st) if st else None,
                         "median_error_stops": float(np.median(st)) if st else None,
-                        "galerkin_floor_max": max(fl) if fl else None}
+                        "galerkin_floor_max": max(fl) if fl else None,
+                        "galerkin_floor_median": float(np.median(fl)) if fl else None,
+                        "floor_at_converged_max": max(b for _, b in both) if both else None,
+                        "hb_minus_floor_max": max(a - b for a, b in both) if both else None}
     return out
 
 
@@ -131,6 +139,9 @@ def main(argv=None) -> int:
     if refs is not None:
         floor = galerkin_rows(betas, a.harmonics, refs)
         write_rows(out / "coulomb_galerkin.csv", floor)
+        write_rows(out / "coulomb_references.csv", [{"ratio": r, "zeta": z, "beta": b, "amplitude": v.amplitude,
+                                                     "source": v.source, "stops": v.stops}
+                                                    for (r, z, b), v in refs.items()])
     for pen in a.penalty:
         factor = None if pen == "default" else float(pen)
         if refs is not None:

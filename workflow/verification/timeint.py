@@ -101,7 +101,13 @@ def _coulomb_period(p, z0, t_samples=None):
 
 
 def _steady(period_map, z0, scale, n_transient, max_periods):
-    """March ``n_transient`` periods, shoot on the period map, march on if needed."""
+    """March ``n_transient`` periods, shoot on the period map, march on until periodic.
+
+    The shooting result is kept only if it is a fixed point to :data:`PERIODIC_TOL`
+    (fsolve stops on small steps too, e.g. at a kink of the piecewise-smooth map);
+    a state that is still not periodic after ``max_periods`` is a :class:`SolverError`.
+    """
+    rel = lambda a, b: float(np.linalg.norm((a - b) / scale) / max(np.linalg.norm(b / scale), 1e-300))  # noqa: E731
     z = np.array(z0, float)
     for _ in range(n_transient):
         z = period_map(z)
@@ -109,21 +115,24 @@ def _steady(period_map, z0, scale, n_transient, max_periods):
     try:
         zs, info, ier, _ = fsolve(lambda y: (period_map(y) - y) / scale, z, full_output=True, xtol=1e-12)
         periods += info["nfev"]
-        if ier == 1:
+        if ier == 1 and rel(period_map(zs), zs) <= PERIODIC_TOL:
             z = zs
     except SolverError:
         pass
     while True:
         z1 = period_map(z)
         periods += 1
-        res = float(np.linalg.norm((z1 - z) / scale) / max(np.linalg.norm(z / scale), 1e-300))
-        if res <= PERIODIC_TOL or periods >= max_periods:
+        res = rel(z1, z)
+        if res <= PERIODIC_TOL:
             return z, res, periods
+        if periods >= max_periods:
+            raise SolverError(f"time integration: no periodic steady state after {periods} periods "
+                              f"(periodicity residual {res:.2e})")
         z = z1
 
 
 def coulomb_steady_state(m: float, k: float, c: float, friction: float, force: float, omega: float, *,
-                         n_transient: int = 8, max_periods: int = 600, z0=None) -> SteadyState:
+                         n_transient: int = 8, max_periods: int = 4000, z0=None) -> SteadyState:
     """Periodic steady state of ``m ẍ + c ẋ + k x + F_f sgn ẋ = F0 cos ωt`` (stops included).
 
     Starts from ``z0 = (x, ẋ)`` at t = 0 (default: rest at the origin).
@@ -180,7 +189,8 @@ class _Jenkins:
         out = s * (v[P.dof] - s * P.mu * (P.cN @ v) / P.k)
         if P.mu == 0.0:
             return np.zeros(len(P.dof), bool), s
-        return ~((np.abs(f) >= lim * (1 - 1e-9)) & (out > 0)), s
+        # beyond the cone (a perturbed shooting state) the pad cannot stick: slip
+        return ~(((np.abs(f) >= lim * (1 - 1e-9)) & (out > 0)) | (np.abs(f) > lim * (1 + 1e-9))), s
 
     def period(self, z, t_samples=None):
         """z = [x, v, w] at t = 0 → z(T); with t_samples also x at those instants and stuck time per pad."""
