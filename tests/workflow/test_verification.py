@@ -52,6 +52,20 @@ def test_den_hartog_validity_matches_the_integrators_stops():
     assert s.stick_fraction[0] > 0.05 and s.residual < 1e-7
 
 
+@pytest.mark.parametrize("beta", [0.7, 0.9, 1.2, 1.5])
+def test_nonstop_boundary_separates_stop_from_nonstop_motion(beta):
+    """Just below Den Hartog's boundary r_max(β) the integrator's steady state never rests and
+    matches the closed form; 5 % above it the mass sticks part of the period."""
+    r_max = exact.nonstop_boundary(beta)
+    below = exact.den_hartog(M, K, 0.95 * r_max, 1.0, beta)
+    assert below.valid, below.reason
+    s = timeint.coulomb_steady_state(M, K, 0.0, 0.95 * r_max, 1.0, beta)
+    assert s.stick_fraction[0] == 0.0 and s.first[0] == pytest.approx(below.first, rel=1e-6)
+    assert not exact.den_hartog(M, K, 1.05 * r_max, 1.0, beta).valid
+    s = timeint.coulomb_steady_state(M, K, 0.0, 1.05 * r_max, 1.0, beta)
+    assert s.stick_fraction[0] > 0.0
+
+
 def test_damped_stop_regime_is_periodic_and_between_the_limits():
     """ζ = 0.02 with stops: a periodic steady state whose amplitude lies below the free (μ = 0)
     linear response, and whose dissipation balance closes: the input work of the force equals

@@ -98,6 +98,22 @@ def den_hartog(m: float, k: float, friction: float, force: float, omega: float) 
     return DenHartog(float(X0), phase, float(first), not reason, reason)
 
 
+def nonstop_boundary(beta: float) -> float:
+    """Largest friction ratio r = F_f/F0 for non-stop motion at β = ω/ω_n (dimensionless).
+
+    The break-loose condition ``k β² X0 ≥ F_f`` with Den Hartog's X0 gives
+    ``β⁴ (1/(1−β²)² − r² U²) ≥ r²``, i.e.
+
+        r ≤ β² / ( |1 − β²| √(1 + β⁴ U(β)²) ),
+
+    the boundary of Den Hartog's (1931) Fig. of the stop/non-stop regions. It is
+    necessary; at low β (≲ 0.5) the motion can also stop inside a half period,
+    which :func:`den_hartog` checks on the waveform.
+    """
+    theta = np.pi / beta
+    return float(beta ** 2 / (abs(1.0 - beta ** 2) * np.sqrt(1.0 + beta ** 4 * _u(theta, beta) ** 2)))
+
+
 def den_hartog_waveform(m, k, friction, force, omega, X0, phase, n: int = WAVEFORM_SAMPLES):
     """(t, x, ẋ) of the non-stop solution at n equally spaced instants of one period.
 
