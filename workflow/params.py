@@ -13,7 +13,7 @@ from workflow.errors import SceneError
 from workflow.schema import param
 
 PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report",
-            "scaling")
+            "scaling", "verification")
 
 
 @dataclass
@@ -231,9 +231,28 @@ class Scaling:
     fit_min_dofs: int = param(20000, "", "power-law fits use the meshes with at least this many DOFs", min=0)
 
 
+@dataclass
+class Verification:
+    cases: list = param(["coulomb", "coulomb-damped", "coulomb-stop", "2dof-damper"], "",
+                        "friction cases with exact references (workflow/verification/suite.py); pad-chain adds a "
+                        "lumped cantilever with 8 root pads (≈ 12 s of time integration)",
+                        item_choices=("coulomb", "coulomb-damped", "coulomb-stop", "2dof-damper", "pad-chain"))
+    harmonics: list = param([1, 3, 7, 15], "", "numbers of harmonics Nh of the project's HB", min=1)
+    time_samples: int = param(0, "", "nit per period (0: the smallest power of 2 ≥ 4(2Nh+1), at least 64)",
+                              min=0)
+    penalty_factor: float = param(0.0, "", "ε_N = ε_T = this × the case's stiffness (k, or the stiffest pad); "
+                                           "0: the project's default penalty", min=0.0)
+
+    def check(self):
+        for nh in self.harmonics:
+            if self.time_samples and self.time_samples < 2 * nh + 1:
+                raise SceneError(f"verification.time_samples = {self.time_samples} < 2·Nh+1 = {2 * nh + 1} for "
+                                 f"verification.harmonics = {nh}")
+
+
 SECTIONS = {
     "run": Run, "model": Model, "material": Material, "rotation": Rotation, "damping": Damping,
     "excitation": Excitation, "modes": Modes, "reduction": Reduction, "contact": Contact, "hb": HB,
     "sweep": Sweep, "pseudotime": PseudoTime, "wear": Wear, "remap": Remap, "extreme": Extreme,
-    "scaling": Scaling,
+    "scaling": Scaling, "verification": Verification,
 }

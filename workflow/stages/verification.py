@@ -1,0 +1,48 @@
+"""Verification stage: the project's HB against exact friction solutions (issue 15, item 6).
+
+Runs :func:`workflow.verification.suite.run` on the cases of ``verification.cases``
+for every Nh of ``verification.harmonics`` and writes ``verification.csv``
+(case, Nh, nit, eps, amplitude, exact, error, converged, frequency, source of
+the reference, stops), ``galerkin.csv`` (HB's own truncation floor on the
+non-stop Coulomb points: Galerkin HB with the exact sign law) and
+``verification.png`` (error against Nh). Needs no other product: the cases are
+built in :mod:`workflow.verification.models`.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+NAME = "verification"
+SECTIONS = ("verification",)
+NEEDS = ()
+PRODUCES = ("verification",)
+
+
+def run(scene, inputs: dict, out: Path, log) -> dict:
+    import math
+    import time
+
+    from workflow.io import write_rows
+    from workflow.verification import suite
+    from workflow.verification.plot import error_figure
+
+    cfg = scene["verification"]
+    out = Path(out)
+    t0 = time.perf_counter()
+    rows, floor = suite.run(cfg.cases, list(cfg.harmonics), nit=cfg.time_samples,
+                            penalty_factor=cfg.penalty_factor,
+                            progress=lambda it: log.progress(it, total=len(it), label="verification cases"))
+    rows = [{k: r[k] for k in suite.COLUMNS} for r in rows]
+    write_rows(out / "verification.csv", rows)
+    files = {"table": "verification.csv"}
+    if floor:
+        write_rows(out / "galerkin.csv", floor)
+        files["galerkin"] = "galerkin.csv"
+    error_figure(rows, floor, out / "verification.png")
+    files["figure"] = "verification.png"
+    s = suite.summary(rows, floor)
+    log.info(f"verification: {s['converged']}/{s['total']} HB points converged; largest non-stop error at "
+             f"Nh = {s['largest_harmonics']}: {s['max_error_nonstop']}; Galerkin floor {s['galerkin_floor']}")
+    clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v  # noqa: E731
+    return {"rows": [{k: clean(v) for k, v in r.items()} for r in rows], **s, "files": files,
+            "seconds": round(time.perf_counter() - t0, 3)}
