@@ -222,20 +222,24 @@ def test_hb_penalty_limit_is_the_large_penalty_answer():
 
 
 def test_hb_two_dof_damper_against_time_integration_default_penalty():
-    """The project's default settings (penalty, Newton sweep) at Nh = 7, nit = 64, on the 2-DOF
-    damper with a motion-dependent normal load, three frequencies around the tied resonance:
-    every point converges and lies within 1 % of the event-driven integrator. Budget: the HB
-    truncation at Nh = 7 (measured: Nh = 15 agrees with the integrator to 1e-4, Nh = 7 to
-    4e-4 with today's default penalty) plus the AFT's time grid."""
+    """The project's default settings (penalty 10³ × the static condensed stiffness, the
+    cascade) on the 2-DOF damper with a motion-dependent normal load, three frequencies
+    around the tied resonance (the pad sticks part of each period): every point converges,
+    and the error against the event-driven integrator is HB truncation — it falls with Nh
+    (measured 1.2 / 0.31 / 0.16 % at Nh = 7 / 15 / 25). (With ε ≈ k_d the Nh = 7 error is
+    0.05 %: for a massless slider on a spring −λ/ε *is* the higher harmonics' compliance;
+    that is this model's luck, not DLFT's — on Den Hartog ε = k is 24 % off.)"""
     model, spec = models.two_dof_damper()
     ws = spec.omega_n * np.array([0.9, 1.0, 1.1])
-    rows = runner.compare(model, spec, ws / 2 / np.pi, [7])
-    assert all(r["converged"] for r in rows)
-    assert max(r["error"] for r in rows) < 0.01
+    refs = [runner.reference(spec, w) for w in ws]
+    err = {}
+    for nh in (7, 15):
+        rows = runner.compare(model, spec, ws / 2 / np.pi, [nh], refs=refs)
+        assert all(r["converged"] for r in rows)
+        err[nh] = max(r["error"] for r in rows)
+    assert err[7] < 0.015 and err[15] < 0.005 and err[15] < 0.5 * err[7]
 
 
-@pytest.mark.xfail(reason="issue 15: today's HB does not converge on the 2-DOF damper with ε = 1e4·k_d at Nh = 7 "
-                          "(0 of 7 points); the engine's ε/Nh continuation must", strict=False)
 def test_hb_two_dof_damper_against_time_integration_large_penalty():
     """2-DOF damper with a normal load varying with the motion, Nh = 7, ε = 1e4·k_d, three
     frequencies around the tied resonance: within 1.5 % of the event-driven integrator.

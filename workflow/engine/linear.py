@@ -37,7 +37,12 @@ def tied_modes(rc) -> tuple[np.ndarray, np.ndarray]:
 
 def first_excited_mode(rc) -> tuple[float, int]:
     """(frequency in Hz, index) of the first tied mode significantly excited and observed."""
-    f, s = tied_modes(rc)
+    try:
+        f, s = tied_modes(rc)
+    except np.linalg.LinAlgError:
+        raise BundleError("reduced model: the structure with the interface tied has a singular mass matrix "
+                          "(massless DOFs only): it has no tied mode; give the band (sweep.f_start_hz, "
+                          "sweep.f_stop_hz)") from None
     idx = np.flatnonzero((s >= SIGNIFICANT) & (f > 0))
     if not idx.size:
         raise BundleError("reduced model: no tied mode responds at the observed DOFs to the harmonic load "

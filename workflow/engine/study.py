@@ -217,13 +217,14 @@ def _reference(rc, cond, freqs, law, static, runs, opt, comm):
     return join_sweeps([p for p in parts if p is not None]) if rank == 0 else None
 
 
-def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, options: FRFOptions | None = None,
-        comm=None, log=None) -> FRFStudy | None:
+def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, freqs_hz=None,
+        options: FRFOptions | None = None, comm=None, log=None) -> FRFStudy | None:
     """Friction-damped FRFs of ``model`` under ``law`` for each :class:`Variant`.
 
     ``band_hz`` (f_start, f_stop), 0 = ∓10 % of the first tied mode the tip
-    load excites; ``points`` frequencies. Returns the :class:`FRFStudy` (None
-    on MPI ranks other than 0).
+    load excites; ``points`` frequencies — or ``freqs_hz``, the frequencies
+    themselves (swept in the order given). Returns the :class:`FRFStudy`
+    (None on MPI ranks other than 0).
     """
     from reduction.condense import relative_coordinates
     from workflow.solvers import blas_threads
@@ -231,6 +232,9 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, opt
     opt = options or FRFOptions()
     t0 = time.perf_counter()
     rc = relative_coordinates(model)
+    if freqs_hz is not None:
+        freqs_hz = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
+        band_hz = (float(freqs_hz.min()), float(freqs_hz.max()) if freqs_hz.ptp() > 0 else 2 * float(freqs_hz.max()))
     try:
         f_mode, mode_index = first_excited_mode(rc)
     except BundleError:
@@ -240,7 +244,10 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, opt
         # no tied mode: fine when the band is given
         f_mode, mode_index = None, None
     f0, f1 = band_of(band_hz[0], band_hz[1], f_mode)
-    freqs = np.linspace(f0, f1, points) if points > 1 else np.array([0.5 * (f0 + f1)])
+    if freqs_hz is not None:
+        freqs = freqs_hz
+    else:
+        freqs = np.linspace(f0, f1, points) if points > 1 else np.array([0.5 * (f0 + f1)])
     nh_max = max([v.nh for v in variants] + ([opt.reference.nh] if opt.reference else []) + [1])
     cond, t_cond = _condense_grid(rc, freqs, nh_max)
     static = static_state(cond[0].Zr, cond[0].Fr, law, opt.max_passes)

@@ -1,14 +1,11 @@
 """The project's HB on the verification cases, compared with the independent references.
 
-:func:`hb_first_harmonic` is the ONE call into the project's HB/DLFT code (written
-against ``workflow.stages.hb`` as it stands; to be repointed to the engine's
-front door). Everything else here only builds cases and references.
+:func:`hb_first_harmonic` is the ONE call into the project's HB/DLFT code (the
+engine's front door). Everything else here only builds cases and references.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from types import SimpleNamespace
-
 import numpy as np
 
 from workflow.verification import exact, timeint
@@ -16,28 +13,23 @@ from workflow.verification.models import Spec
 
 
 def hb_first_harmonic(model, freqs_hz, *, mu: float, nh: int, nit: int, method: str = "hbm",
-                      eps: float | None = None, solver: str = "newton", tol: float = 1e-8,
+                      eps: float | None = None, solver: str = "newton-powell", tol: float = 1e-8,
                       maxiter: int = 100, max_passes: int = 20):
-    """The project's HB sweep over ``freqs_hz`` (Hz, in that order) on a reduced model.
+    """The project's HB sweep over ``freqs_hz`` (Hz, in that order) on a reduced model,
+    through the engine's front door (:func:`workflow.engine.frf`) with its defaults.
 
     Returns ``(amplitude (n,) m, converged (n,) bool, eps_t N/m)``: the
     first-harmonic amplitude at the observed DOF(s) (norm), and the tangential
-    penalty used. ``eps`` (N/m) sets ε_N = ε_T; None is the project's default
-    (today: ``auto_penalty`` at the middle frequency of the sweep). The static
-    state is solved once and its anchor carried in, as the hb stage does.
+    penalty used (the first pair's). ``eps`` (N/m) sets ε_N = ε_T; None is the
+    project's default penalty (:mod:`workflow.engine.penalty`).
     """
-    from reduction.condense import condense, relative_coordinates
-    from workflow.hb import HBProblem
-    from workflow.stages.hb import Variant, contact_law, sweep_variant
+    from workflow import engine
 
-    rc = relative_coordinates(model)
-    cond = [condense(rc, 2 * np.pi * float(f), nh) for f in np.atleast_1d(freqs_hz)]
-    mid = cond[len(cond) // 2]
-    ct = SimpleNamespace(mu=mu, eps_n=eps or 0.0, eps_t=eps or 0.0, gap=0.0)
-    law = contact_law(ct, model, mid.Zr[1])
-    static = HBProblem(mid.Zr[:1], mid.Fr[:1], law, 0, 1, "hbm", max_passes=max_passes).static_state()
-    r = sweep_variant(rc, cond, law, static.anchor, Variant(method, int(nh), int(nit)), solver=solver, tol=tol,
-                      maxiter=maxiter, max_passes=max_passes)
+    law = engine.contact_law(model, mu=mu, eps_n=eps or 0.0, eps_t=eps or 0.0)
+    opt = engine.FRFOptions(solver=solver, tol=tol, max_iterations=maxiter, max_passes=max_passes,
+                            eps_check_factor=0.0, eps_path=engine.penalty.path(engine.penalty.FACTOR))
+    study = engine.frf(model, law, [engine.Variant(method, int(nh), int(nit))], freqs_hz=freqs_hz, options=opt)
+    r = study.runs[0]
     return r.amplitude, r.converged, float(law.eps_t[0])
 
 
