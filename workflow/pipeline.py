@@ -15,7 +15,19 @@ Cache
     An entry is a folder ``<cache>/<stage>/<key>/`` written whole with
     :func:`workflow.io.atomic_dir`: a run killed inside a stage leaves the
     previous entry or none, plus a ``.tmp`` folder that the next run removes.
-    Each entry holds the stage's files and ``.stage.json`` (its summary).
+    Each entry holds the stage's files and ``.stage.json`` (its summary and
+    the size and SHA-256 of every file, :func:`workflow.io.manifest`). An
+    entry is used only if every file still matches (:func:`check_entry`); a
+    damaged one (truncated, edited, deleted file) is recomputed with a
+    warning. Several runs may share a cache: each holds a shared lock, and
+    two runs computing the same entry each write it whole (the last rename
+    wins; both are the same result).
+
+Unconverged results
+    A stage's summary may hold ``"unconverged": [str, …]``, one line per
+    result that did not converge (what and why). The run still finishes;
+    ``summary.json`` gets ``"unconverged": {stage: [...]}`` (empty when all
+    converged), the lines are logged as warnings and the CLI exits 3.
 
 Run folder
     ``<out>/<stage>`` are relative symbolic links to the cache entries,
@@ -52,7 +64,7 @@ from typing import Iterable, Iterator
 from workflow import mpi
 from workflow import stages as registry
 from workflow.errors import OutputError, SceneError
-from workflow.io import atomic_dir, write_json
+from workflow.io import atomic_dir, manifest, verify_manifest, write_json
 from workflow.scene import Scene
 
 #: Entry file holding a stage's summary inside its output folder.
@@ -353,11 +365,32 @@ def clean_stale(folder: Path, depth: int = 1) -> list[Path]:
 
 
 def read_entry(entry: Path) -> dict | None:
-    """The ``.stage.json`` of a complete cache entry, or None."""
+    """The ``.stage.json`` of a complete, undamaged cache entry, or None."""
+    return check_entry(entry)[0]
+
+
+def check_entry(entry: Path) -> tuple[dict | None, str | None]:
+    """``(record, None)`` for a usable entry; ``(None, why)`` for a damaged one;
+    ``(None, None)`` when there is no entry.
+
+    Usable: ``.stage.json`` parses and every file it lists has the size and
+    SHA-256 recorded when the entry was written.
+    """
+    f = entry / STAGE_FILE
     try:
-        return json.loads((entry / STAGE_FILE).read_text())
-    except (OSError, ValueError):
-        return None
+        text = f.read_text()
+    except FileNotFoundError:
+        return None, ("its record .stage.json is missing" if entry.is_dir() else None)
+    except OSError as exc:
+        return None, f"its record .stage.json cannot be read ({exc.strerror or exc})"
+    try:
+        got = json.loads(text)
+    except ValueError:
+        return None, "its record .stage.json is not valid JSON"
+    if not isinstance(got, dict) or "files" not in got:
+        return None, "it has no file checksums (written by an older version)"
+    problem = verify_manifest(entry, got["files"])
+    return (None, problem) if problem else (got, None)
 
 
 # ---------------------------------------------------------------- run
@@ -422,7 +455,9 @@ def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: R
                 continue  # runs after the links are in place (the report)
             entry = cache_root / name / p.keys[name]
             t0 = time.monotonic()
-            got = None if fresh else grp.on_root(read_entry, entry)
+            got, damage = (None, None) if fresh else grp.on_root(check_entry, entry)
+            if damage:
+                log.warning(f"{name}: cache entry {entry} is damaged ({damage}); recomputing it")
             if got is not None:
                 status[name] = "cached"
                 log.info(f"{name}: cached ({entry})")
@@ -450,10 +485,15 @@ def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: R
 def _finish(scene, p, out, cache_root, status, timings, summaries, log, t_start) -> dict:
     summary = _summary(scene, p, cache_root, status, timings, summaries)
     summary["total_seconds"] = round(time.monotonic() - t_start, 3)
+    for name, lines in summary["unconverged"].items():
+        for line in lines:
+            log.warning(f"{name}: not converged: {line}")
     write_json(out / "scene.json", json.loads(scene.canonical()))
     write_json(out / "summary.json", summary)
+    n_bad = sum(len(v) for v in summary["unconverged"].values())
     log.info(f"done in {summary['total_seconds']:.1f} s: "
-             + ", ".join(f"{n} {s}" for n, s in status.items()) + f"; summary in {out / 'summary.json'}")
+             + ", ".join(f"{n} {s}" for n, s in status.items()) + f"; summary in {out / 'summary.json'}"
+             + (f"; {n_bad} result(s) NOT converged (exit status 3)" if n_bad else ""))
     return summary
 
 
@@ -485,6 +525,7 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
                "inputs": {k: str(v) for k, v in inputs.items()},
                "sections": json.loads(scene.canonical(module.SECTIONS)), "mpi_ranks": grp.size}
         try:
+            got["files"] = manifest(tmp)
             write_json(tmp / STAGE_FILE, got)
         except BaseException as exc:
             cm.__exit__(type(exc), exc, exc.__traceback__)
@@ -509,6 +550,7 @@ def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, k
                "inputs": {k: str(v) for k, v in inputs.items()},
                "sections": json.loads(scene.canonical(module.SECTIONS))}
         # Last file written: an entry without it is never trusted.
+        got["files"] = manifest(tmp)
         write_json(tmp / STAGE_FILE, got)
     log.info(f"{name}: computed in {seconds:.1f} s")
     return json.loads((entry / STAGE_FILE).read_text())
@@ -584,10 +626,21 @@ def _summary(scene: Scene, p: Plan, cache_root, status, timings, summaries) -> d
          "created": _now(), "code_version": code_version(),
          "cache": str(cache_root) if cache_root else None,
          "stages": dict(status), "timings": dict(timings),
-         "keys": {n: p.keys[n] for n in status if n in p.keys}}
+         "keys": {n: p.keys[n] for n in status if n in p.keys},
+         "unconverged": unconverged(summaries)}
     for name, entry in summaries.items():
         s[name] = entry
     return s
+
+
+def unconverged(summaries: dict) -> dict[str, list[str]]:
+    """``{stage: [line, …]}`` of the stages whose summary lists unconverged results."""
+    out = {}
+    for name, entry in summaries.items():
+        lines = entry.get("unconverged") if isinstance(entry, dict) else None
+        if lines:
+            out[name] = [str(x) for x in (lines if isinstance(lines, (list, tuple)) else [lines])]
+    return out
 
 
 def _now() -> str:

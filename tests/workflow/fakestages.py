@@ -59,7 +59,10 @@ def run(scene, inputs, out, log):
     (out / "data.txt").write_text(NAME + "\\n" + repr(values))
     (out / "figure.png").write_bytes(PNG)
     (out / "table.csv").write_text("i,value\\n" + "".join(f"{{i}},{{i * i}}\\n" for i in range(30)))
-    return {{"name": NAME, "contact_pairs": 8, "files": ["data.txt", "figure.png", "table.csv"]}}
+    summary = {{"name": NAME, "contact_pairs": 8, "files": ["data.txt", "figure.png", "table.csv"]}}
+    if os.environ.get("FAKE_UNCONVERGED") == NAME:
+        summary["unconverged"] = [NAME + ": 2/15 frequencies did not converge (max iterations)"]
+    return summary
 '''
 
 
@@ -109,6 +112,7 @@ def install(tmp_path: Path, monkeypatch) -> Fakes:
     monkeypatch.setattr(pipeline, "code_version", lambda: "test")
     monkeypatch.setenv("FAKE_TRACE", str(fakes.trace))
     monkeypatch.delenv("FAKE_CRASH", raising=False)
+    monkeypatch.delenv("FAKE_UNCONVERGED", raising=False)
     monkeypatch.delenv("BLADEWEAR_CACHE", raising=False)
     return fakes
 

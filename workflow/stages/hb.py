@@ -752,7 +752,19 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
         "condense_seconds": round(condense_seconds, 4),
         "seconds": round(time.perf_counter() - t0, 3),
         "files": files,
+        "unconverged": [line for r in runs + ([ref] if ref is not None else []) if (line := _unconverged(r, ref))],
     }
+
+
+def _unconverged(r, ref) -> str | None:
+    """One line naming the frequencies of sweep ``r`` that did not converge (None if all did)."""
+    bad = np.flatnonzero(~np.asarray(r.converged, bool))
+    if not len(bad):
+        return None
+    hz = ", ".join(f"{r.freqs_hz[i]:.2f}" for i in bad[:8]) + (", …" if len(bad) > 8 else "")
+    role = "reference " if r is ref else ""
+    return (f"{role}{r.variant.label} ({r.solver}): {len(bad)}/{len(r.freqs_hz)} frequencies did not converge "
+            f"({hz} Hz; raise hb.max_iterations or change hb.solver)")
 
 
 def runs_json(rows: list[dict]) -> list[dict]:

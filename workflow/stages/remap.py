@@ -138,7 +138,12 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                             f"(a user bundle needs its mesh for the remap stage)")
     table = read_wear_csv(Path(inputs["wear"]) / WEAR_CSV, getattr(wp, "methods", ()))
     pairs = pair_wear(bundle.contact, table, wp.blade_share)
-    mesh, ct, ft = dc.read_mesh_xdmf(bdir / "mesh.xdmf")
+    # Remap is a serial stage: under mpirun it runs on rank 0 while the other
+    # ranks wait outside MPI collectives, so the mesh must be read on
+    # COMM_SELF (a COMM_WORLD read would wait for them forever).
+    from mpi4py import MPI
+
+    mesh, ct, ft = dc.read_mesh_xdmf(bdir / "mesh.xdmf", comm=MPI.COMM_SELF)
     r = rm.remap_wear(mesh, ft, pairs, rp.max_fraction, rp.smoothing)
     share_max = float(max(pairs.w_blade.max(initial=0.0), pairs.w_disk.max(initial=0.0)))
     log.info(f"remap: wear column {table['method']!r}, max share {share_max:.3g} m, "

@@ -140,7 +140,10 @@ def run_wear(model, scene, out: Path, log) -> dict:
                         track_label=f"pair {i0} t1")
     summary = {"frequency_hz": omega / 2 / np.pi, "pairs": hb.p, "csv": "wear.csv", "figures": figures,
                "unworn_point": unworn,
-               "tracked_pair": i0, "methods": {m: h.summary() for m, h in histories.items()}}
+               "tracked_pair": i0, "methods": {m: h.summary() for m, h in histories.items()},
+               "unconverged": [f"wear {m}: NOT steady after {h.iterations} iterations ({h.reason}); raise "
+                               f"{'wear.max_blocks' if m in ('explicit', 'implicit') else 'pseudotime.max_steps'}"
+                               for m, h in histories.items() if not h.steady]}
     ref = next((m for m in ("implicit", "explicit") if m in histories), None)
     if ref is not None and "pseudo-time" in histories:
         summary["profile_max_rel_diff"] = profile_rel_diff(histories[ref].W, histories["pseudo-time"].W)
