@@ -182,6 +182,19 @@ def collect_garbage() -> None:
     PETSc.garbage_cleanup(PETSc.COMM_WORLD)
 
 
+def init_petsc() -> None:
+    """Initialise PETSc now (call on every rank together, before any stage).
+
+    ``PetscInitialize`` is collective over COMM_WORLD. A serial stage that is
+    the first to import dolfinx/petsc4py on rank 0 (remap, when assembly and
+    reduction came from the cache) would initialise it there alone and wait
+    forever for the idle ranks; and :func:`finish` must find PETSc on every
+    rank or on none. Measured: ``mpirun -n 2 bladewear run quick`` with hb,
+    wear and remap to compute and the rest cached hung in remap without this.
+    """
+    from petsc4py import PETSc  # noqa: F401 - the import initialises PETSc (collective)
+
+
 def finish() -> None:
     """End PETSc on every rank together, while all ranks are alive (call last, on every rank).
 

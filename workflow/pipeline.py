@@ -401,6 +401,8 @@ def run_scene(scene: Scene, out: str | os.PathLike, *, cache: str | os.PathLike 
     out = Path(out).resolve()
     cache_root = Path(cache).resolve() if cache else default_cache(out)
     grp = mpi.group()
+    if grp.parallel:
+        grp.together(mpi.init_petsc)  # collective: never first inside a rank-0-only stage
     # Plan first: a scene that cannot run must not touch the run folder.
     p = grp.together(plan, scene)
     model = grp.on_root(_check_bundle, p.external["bundle"]) if "bundle" in p.external else None
