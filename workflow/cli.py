@@ -178,8 +178,8 @@ def cmd_show(args) -> int:
     from workflow.scene import format_scene, load_scene
 
     scene = load_scene(args.scene, args.overrides)
+    p = plan(scene)  # first: it marks the sections a model bundle replaces
     print(format_scene(scene))
-    p = plan(scene)
     out = _default_out(args, scene)
     cache = args.cache.resolve() if args.cache else default_cache(out)
     print(f"\n# stages for outputs {scene['run'].outputs} (cache {cache}):")

@@ -132,8 +132,27 @@ def plan(scene: Scene) -> Plan:
     # A stage that sees every product (the report) must run after all others.
     order.sort(key=lambda n: bool(getattr(modules[n], "NEEDS_ALL", False)))
     p = Plan(order, modules, external)
+    scene.unused = unused_sections(p)
     _assign_keys(scene, p)
     return p
+
+
+#: Sections the assembly turns into the bundle; a user's bundle replaces them.
+BUNDLE_SECTIONS = ("material", "rotation", "damping", "excitation")
+
+
+def unused_sections(p: Plan) -> set[str]:
+    """Sections that no stage of the plan reads, because ``[model] bundle`` replaces them.
+
+    A stage lists a section in ``VIA_BUNDLE`` when it reads it only as part
+    of the model (hb, wear: the excitation is in the reduced load); with an
+    external bundle such a section is not read at all and leaves its key.
+    """
+    if "bundle" not in p.external:
+        return set()
+    read = {s for n in p.stages for s in p.modules[n].SECTIONS
+            if s not in getattr(p.modules[n], "VIA_BUNDLE", ())}
+    return {s for s in BUNDLE_SECTIONS if s not in read}
 
 
 def _needs_all(product: str) -> bool:
@@ -150,9 +169,10 @@ def _assign_keys(scene: Scene, p: Plan) -> None:
         if unknown:
             raise TypeError(f"stage {name} reads unknown scene section(s) {unknown}")
         needs = sorted(p.product_keys) if getattr(module, "NEEDS_ALL", False) else sorted(module.NEEDS)
+        read = [s for s in module.SECTIONS if s not in getattr(scene, "unused", ())]
         ident = {
             "stage": name,
-            "sections": json.loads(scene.canonical(module.SECTIONS)),
+            "sections": json.loads(scene.canonical(read)),
             "inputs": {need: p.product_keys[need] for need in needs},
             "code": code_version(),
             "module": _module_digest(module),
@@ -616,10 +636,13 @@ def _replace_link(link: Path, target: Path) -> None:
 
 def _check_bundle(folder: Path) -> dict:
     """Validate a user's bundle before anything is written (BundleError names the file)."""
-    from reduction.bundle import read_bundle  # lazily: scipy
+    from reduction.bundle import check_definite, read_bundle  # lazily: scipy
 
     b = read_bundle(folder)
-    return {"bundle": str(folder), "n_dofs": b.n_dofs, "contact_pairs": b.contact.n_pairs}
+    definite = check_definite(b)
+    return {"bundle": str(folder), "n_dofs": b.n_dofs, "contact_pairs": b.contact.n_pairs,
+            "clamped_dofs": int(len(b.loads.fixed)), "tied_stiffness_check": definite,
+            "mu": "per pair (contact.npz)" if b.contact.mu is not None else "scene contact.mu"}
 
 
 def _summary(scene: Scene, p: Plan, cache_root, status, timings, summaries) -> dict:

@@ -80,6 +80,7 @@ class Scene(dict):
         super().__init__(sections)
         self.path = path
         self.overrides = list(overrides)
+        self.unused: set[str] = set()  # sections a model bundle replaces (set by workflow.pipeline.plan)
 
     @property
     def title(self) -> str:
@@ -348,7 +349,7 @@ def format_scene(scene: Scene) -> str:
     """Human-readable resolved scene: one TOML-like table per section, with units."""
     lines = [f"# {scene.title}" + (f"  ({scene.path})" if scene.path else "")]
     for name, cls in sections().items():
-        lines.append(f"\n[{name}]")
+        lines.append(f"\n[{name}]" + ("  # not used: [model] bundle replaces it" if name in scene.unused else ""))
         rows = field_rows(cls)
         width = max((len(r["key"]) for r in rows), default=0)
         for r in rows:

@@ -67,6 +67,7 @@ import numpy as np
 NAME = "hb"
 SECTIONS = ("contact", "hb", "sweep", "excitation")
 NEEDS = ("reduced",)
+VIA_BUNDLE = ("excitation",)  # in the reduced load: a user bundle replaces it (#18)
 PRODUCES = ("frf",)
 #: collective under mpirun: the variants, then the reference's frequencies, are
 #: spread over the ranks (each rank sweeps its share on one core); rank 0 gathers
@@ -188,7 +189,7 @@ def contact_law(contact, model, Zr1):
 
     en, et = auto_penalty(Zr1)
     p = model.n_pairs
-    return ContactLaw(mu=np.full(p, float(contact.mu)), eps_n=contact.eps_n or en, eps_t=contact.eps_t or et,
+    return ContactLaw(mu=model.friction(contact.mu)[0], eps_n=contact.eps_n or en, eps_t=contact.eps_t or et,
                       gap=np.asarray(model.gap, dtype=float) + float(contact.gap))
 
 
@@ -747,8 +748,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
         "tied_mode": mode_index + 1,
         "static": {"pairs_in_contact": n_contact, "pairs_slipping": int(np.count_nonzero(static.state == 2)),
                    "normal_load_N": float(-static.lam[:, 0].sum())},
-        "eps_n": float(law.eps_n[0]), "eps_t": float(law.eps_t[0]), "mu": float(ct.mu),
-        "excitation_amplitude_N": float(ex.amplitude),
+        "eps_n": float(law.eps_n[0]), "eps_t": float(law.eps_t[0]),
+        "mu": float(ct.mu) if model.mu is None else [float(m) for m in model.mu], "mu_source": model.friction(ct.mu)[1],
+        "excitation_amplitude_N": None if "excitation" in getattr(scene, "unused", ()) else float(ex.amplitude),
         "condense_seconds": round(condense_seconds, 4),
         "seconds": round(time.perf_counter() - t0, 3),
         "files": files,

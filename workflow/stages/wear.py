@@ -22,11 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from workflow.errors import SolverError
+from workflow.errors import SceneError, SolverError
 
 NAME = "wear"
 SECTIONS = ("contact", "hb", "pseudotime", "wear", "excitation")
 NEEDS = ("reduced",)
+VIA_BUNDLE = ("excitation",)  # in the reduced load: a user bundle replaces it (#18)
 PRODUCES = ("wear",)
 
 _IMPLICIT = ("ser", "bdf", "radau", "lsoda", "rosenbrock")
@@ -58,6 +59,10 @@ def build_problem(model, scene, omega=None):
     w = scene["wear"]
     if omega is None:
         omega = 2 * np.pi * w.frequency_hz if w.frequency_hz > 0 else first_tied_frequency(rc)
+        f_tied = first_tied_frequency(rc) / (2 * np.pi)
+        if w.frequency_hz > 0 and not 0.01 * f_tied <= w.frequency_hz <= 100 * f_tied:  # (#18) a typo, not a study
+            raise SceneError(f"wear.frequency_hz = {w.frequency_hz:g} Hz is outside 0.01–100 × the first tied "
+                             f"frequency of the model ({f_tied:.4g} Hz); 0 means at that resonance")
     hbs, con = scene["hb"], scene["contact"]
     nh = int(hbs.harmonics[0])
     method = hbs.methods[0]
@@ -66,7 +71,7 @@ def build_problem(model, scene, omega=None):
         nit = 2 * nh + 1
     cond = condense(rc, omega, nh)
     en, et = automatic_penalty(cond.Zr[0])
-    law = ContactLaw(mu=np.full(model.n_pairs, con.mu), eps_n=con.eps_n or en, eps_t=con.eps_t or et,
+    law = ContactLaw(mu=model.friction(con.mu)[0], eps_n=con.eps_n or en, eps_t=con.eps_t or et,
                      gap=np.asarray(model.gap, dtype=float) + con.gap)
     hb = HBProblem(cond.Zr, cond.Fr, law, nh, nit, method, max_passes=con.max_passes)
     return hb, rc, omega
