@@ -426,7 +426,7 @@ def run_scene(scene: Scene, out: str | os.PathLike, *, cache: str | os.PathLike 
     # Plan first: a scene that cannot run must not touch the run folder.
     p = grp.together(plan, scene)
     model = grp.on_root(_check_bundle, p.external["bundle"]) if "bundle" in p.external else None
-    grp.on_root(_prepare_out, out)
+    lock = grp.root_only(_prepare_out, out)
     # Only rank 0 logs (to run.log and the terminal); the other ranks' stages talk to no one.
     log = grp.root_only(RunLog, out / "run.log", quiet=quiet, stream=stream) or RunLog(quiet=True)
     if grp.parallel:
@@ -435,9 +435,12 @@ def run_scene(scene: Scene, out: str | os.PathLike, *, cache: str | os.PathLike 
         return _run(scene, p, out, cache_root, fresh, log, model, grp)
     finally:
         log.close()
+        if lock is not None:
+            os.close(lock)
 
 
-def _prepare_out(out: Path) -> None:
+def _prepare_out(out: Path) -> int:
+    """Create or check the run folder and lock it for this run; returns the lock's descriptor."""
     try:
         out.mkdir(parents=True, exist_ok=True)
         if not os.access(out, os.W_OK | os.X_OK):
@@ -449,7 +452,29 @@ def _prepare_out(out: Path) -> None:
         # The run replaces <out>/<stage> entries: never do that in someone else's folder.
         raise OutputError(f"output folder {out} is not empty and is not a bladewear run folder "
                           f"(no run.log or summary.json); choose another --out")
-    clean_stale(out)
+    lock = lock_out(out)
+    clean_stale(out)  # only once the lock is ours: another run's temporaries are not stale
+    return lock
+
+
+def lock_out(out: Path) -> int:
+    """An exclusive lock on the run folder (``flock`` on the folder itself; it dies with the process).
+
+    Two runs into one folder would interleave their links and summaries: the
+    second one stops with an :class:`OutputError` instead. Runs sharing a
+    *cache* are fine (shared lock, entries written whole; see the module doc).
+    """
+    try:
+        fd = os.open(out, os.O_RDONLY)
+    except OSError as exc:
+        raise OutputError(f"cannot open output folder {out}: {exc.strerror or exc}") from exc
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        raise OutputError(f"output folder {out} is in use by another bladewear run; wait for it to finish "
+                          "or choose another --out") from None
+    return fd
 
 
 def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: RunLog,
@@ -612,9 +637,16 @@ def _link(out: Path, folders: dict[str, Path], p: Plan) -> None:
         if "bundle" in p.external:
             _replace_link(out / "model", p.external["bundle"])
         for child in out.iterdir():
-            if child.is_symlink() and child.name not in folders and child.name != "model" \
-                    and child.name in registry.MODULES:
-                child.unlink()
+            if child.name not in folders and child.name != "model" and child.name in registry.MODULES:
+                if child.is_symlink():
+                    child.unlink()
+                elif child.is_dir() and child.name not in p.stages:
+                    # An uncached stage's folder (the report) from an earlier run: it would
+                    # contradict this run's summary.json. Renamed first so removal is all or nothing.
+                    old = child.with_name(f".{child.name}.old")
+                    shutil.rmtree(old, ignore_errors=True)
+                    os.replace(child, old)
+                    shutil.rmtree(old, ignore_errors=True)
         if "bundle" not in p.external and (out / "model").is_symlink():
             (out / "model").unlink()
     except OSError as exc:

@@ -1,0 +1,67 @@
+"""The run folder shows exactly one run (issue 18, items 8 and 12). Fake stages."""
+from __future__ import annotations
+
+import json
+import os
+
+from fakestages import fakes, run  # noqa: F401 (fakes is a fixture)
+from workflow.pipeline import lock_out
+
+
+def _scene(tmp_path, outputs):
+    p = tmp_path / "scene.toml"
+    p.write_text(f"[run]\noutputs = {json.dumps(outputs)}\n")
+    return p
+
+
+def _run(capsys, tmp_path, outputs):
+    return run(capsys, "run", _scene(tmp_path, outputs), "--out", tmp_path / "out", "--cache", tmp_path / "cache",
+               "--quiet")
+
+
+def test_report_of_an_earlier_run_is_removed(tmp_path, capsys, fakes):
+    rc, _, err = _run(capsys, tmp_path, ["frf", "report"])
+    assert rc == 0, err
+    assert (tmp_path / "out" / "report" / "report.md").is_file()
+    rc, _, err = _run(capsys, tmp_path, ["frf"])
+    assert rc == 0, err
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert "report" not in s["stages"]
+    assert not (tmp_path / "out" / "report").exists()
+    assert not [c for c in os.listdir(tmp_path / "out") if c.endswith(".old")]
+    # and back: the report is written again
+    rc, _, _ = _run(capsys, tmp_path, ["frf", "report"])
+    assert rc == 0 and (tmp_path / "out" / "report" / "report.md").is_file()
+
+
+def test_failed_run_keeps_the_previous_report(tmp_path, capsys, fakes, monkeypatch):
+    assert _run(capsys, tmp_path, ["frf", "report"])[0] == 0
+    monkeypatch.setenv("FAKE_CRASH", "hb:interrupt")
+    rc, _, _ = run(capsys, "run", _scene(tmp_path, ["frf"]), "--out", tmp_path / "out", "--cache", tmp_path / "cache",
+                   "--quiet", "--fresh")
+    assert rc == 130
+    assert (tmp_path / "out" / "report" / "report.md").is_file()
+
+
+def test_second_run_on_a_busy_out_folder_is_refused(tmp_path, capsys, fakes):
+    assert _run(capsys, tmp_path, ["modes"])[0] == 0
+    before = (tmp_path / "out" / "summary.json").read_text()
+    fd = lock_out(tmp_path / "out")  # another run holds the folder
+    try:
+        fakes.ran()
+        rc, _, err = _run(capsys, tmp_path, ["modes"])
+        assert rc == 2 and err.startswith("error: ") and err.count("\n") == 1
+        assert "in use by another bladewear run" in err and str(tmp_path / "out") in err
+        assert fakes.ran() == [] and (tmp_path / "out" / "summary.json").read_text() == before
+    finally:
+        os.close(fd)
+    assert _run(capsys, tmp_path, ["modes"])[0] == 0   # the lock dies with its holder
+
+
+def test_two_runs_share_a_cache(tmp_path, capsys, fakes):
+    """Different run folders, one cache: allowed (shared lock); the second finds the first's entries."""
+    sc = _scene(tmp_path, ["frf"])
+    for out in ("a", "b"):
+        rc, _, err = run(capsys, "run", sc, "--out", tmp_path / out, "--cache", tmp_path / "cache", "--quiet")
+        assert rc == 0, err
+    assert json.loads((tmp_path / "b" / "summary.json").read_text())["stages"]["hb"] == "cached"
