@@ -161,30 +161,37 @@ def read_bundle(path: str | Path, matrices: bool = True) -> Bundle:
     missing = [f for f in ("M.npz", "K.npz", "C.npz", "contact.npz", "loads.npz") if not (path / f).is_file()]
     if missing:
         raise BundleError(f"model bundle {path} lacks {', '.join(missing)}")
+    current = path  # the file being read, for the error message
     try:
-        mats = {name: sp.load_npz(path / f"{name}.npz").tocsr() if matrices else
-                sp.csr_matrix(tuple(_matrix_shape(path / f"{name}.npz"))) for name in MATRICES}
+        mats = {}
+        for name in MATRICES:
+            current = path / f"{name}.npz"
+            mats[name] = sp.load_npz(current).tocsr() if matrices else sp.csr_matrix(tuple(_matrix_shape(current)))
+        current = path / "contact.npz"
         with np.load(path / "contact.npz") as z:
             absent = [k for k in CONTACT_KEYS if k not in z]
             if absent:
                 raise BundleError(f"model bundle {path}/contact.npz lacks {', '.join(absent)}")
             contact = Contact(**{k: z[k] for k in CONTACT_KEYS},
                               **{k: z[k] if k in z else None for k in OPTIONAL_CONTACT_KEYS})
+        current = path / "loads.npz"
         with np.load(path / "loads.npz") as z:
             absent = [k for k in LOAD_KEYS if k not in z]
             if absent:
                 raise BundleError(f"model bundle {path}/loads.npz lacks {', '.join(absent)}")
             loads = Loads(**{k: z[k] for k in LOAD_KEYS})
         coords = None
+        current = path / "nodes.npz"
         if (path / "nodes.npz").is_file():
             with np.load(path / "nodes.npz") as z:
                 coords = z["coords"]
+        current = path / "meta.json"
         meta = json.loads((path / "meta.json").read_text()) if (path / "meta.json").is_file() else {}
     except BundleError:
         raise
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
         # A truncated or foreign file: name it rather than leak a zipfile error.
-        raise BundleError(f"model bundle {path} cannot be read: {exc}") from exc
+        raise BundleError(f"model bundle file {current} cannot be read: {exc}") from exc
     bundle = Bundle(**mats, contact=contact, loads=loads, meta=meta, coords=coords, path=path)
     validate(bundle)
     return bundle
@@ -254,9 +261,9 @@ def validate(b: Bundle) -> None:
     for name in MATRICES:
         m = getattr(b, name)
         if m.shape != (n, n):
-            raise BundleError(f"bundle matrix {name} is {m.shape[0]}x{m.shape[1]}, expected {n}x{n}")
+            raise BundleError(f"{at}bundle matrix {name} is {m.shape[0]}x{m.shape[1]}, expected {n}x{n}")
         if not np.all(np.isfinite(m.data)):
-            raise BundleError(f"bundle matrix {name} has non-finite entries")
+            raise BundleError(f"{at}bundle matrix {name} ({name}.npz) has non-finite entries")
         _check_symmetric(m, f"{at}{name}.npz")
     c = b.contact
     p = c.blade_dofs.shape[0]

@@ -48,11 +48,19 @@ EPILOG = """exit status:
 """
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the CLI's error format: one line ``error: …`` and status 2."""
+
+    def error(self, message):
+        print(f"error: {self.prog}: {message} (see {self.prog} --help)", file=sys.stderr)
+        sys.exit(EXIT_ERROR)
+
+
 def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="bladewear", description="Friction-damped vibration and fretting wear of a "
+    ap = _Parser(prog="bladewear", description="Friction-damped vibration and fretting wear of a "
                                  "turbine-blade dovetail (Salles et al. 2012).", epilog=EPILOG,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = ap.add_subparsers(dest="command", required=True, metavar="{run,scenes,show}")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="{run,scenes,show}", parser_class=_Parser)
 
     def common(p):
         p.add_argument("scene", help="scene file, or the name of a shipped scene (see `bladewear scenes`)")

@@ -33,7 +33,10 @@ Run folder
     ``<out>/<stage>`` are relative symbolic links to the cache entries,
     updated only after every stage has succeeded, then ``<out>/summary.json``
     (written atomically, last), ``<out>/scene.json`` (the resolved scene) and
-    ``<out>/run.log``. A failed run leaves the previous summary and links.
+    ``<out>/run.log`` (written as ``.run.log.tmp`` while the run goes on). A
+    failed or interrupted run leaves the previous run folder byte for byte
+    as it was; its log goes to ``<cache>/failed-run.log``. One run at a time
+    per run folder (:func:`lock_out`).
 
 Under MPI (``mpirun -n N bladewear run …``; :mod:`workflow.mpi`)
     Every rank plans (the plan is deterministic); rank 0 alone decides what is
@@ -427,16 +430,44 @@ def run_scene(scene: Scene, out: str | os.PathLike, *, cache: str | os.PathLike 
     p = grp.together(plan, scene)
     model = grp.on_root(_check_bundle, p.external["bundle"]) if "bundle" in p.external else None
     lock = grp.root_only(_prepare_out, out)
-    # Only rank 0 logs (to run.log and the terminal); the other ranks' stages talk to no one.
-    log = grp.root_only(RunLog, out / "run.log", quiet=quiet, stream=stream) or RunLog(quiet=True)
+    # Only rank 0 logs (to the terminal and LIVE_LOG, which becomes run.log when the run
+    # finishes); the other ranks' stages talk to no one.
+    log = grp.root_only(RunLog, out / LIVE_LOG, quiet=quiet, stream=stream) or RunLog(quiet=True)
     if grp.parallel:
         log.info(f"MPI: {grp.size} ranks")
+    done = False
     try:
-        return _run(scene, p, out, cache_root, fresh, log, model, grp)
+        summary = _run(scene, p, out, cache_root, fresh, log, model, grp)
+        done = True
+        return summary
     finally:
         log.close()
+        if grp.root:
+            _keep_log(out, cache_root, done)
         if lock is not None:
             os.close(lock)
+
+
+#: The running log (in the run folder); ``run.log`` once the run has finished.
+LIVE_LOG = ".run.log.tmp"
+#: Where the log of a run that failed or was interrupted goes (in the cache folder), so
+#: that a failed run leaves the previous run folder as it was.
+FAILED_LOG = "failed-run.log"
+
+
+def _keep_log(out: Path, cache_root: Path, done: bool) -> None:
+    live = out / LIVE_LOG
+    if not live.exists():
+        return
+    try:
+        if done:
+            os.replace(live, out / "run.log")
+        else:
+            cache_root.mkdir(parents=True, exist_ok=True)
+            shutil.move(str(live), str(cache_root / FAILED_LOG))
+    except OSError:
+        with contextlib.suppress(OSError):
+            live.unlink()
 
 
 def _prepare_out(out: Path) -> int:
