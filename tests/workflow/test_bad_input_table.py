@@ -82,6 +82,7 @@ SET_CASES = [
     ("scaling-factors-empty", "scaling.factors=[]", ["scaling.factors"]),
     ("h-blade-negative", "geometry.h_blade=-0.004", ["h_blade"]),
     ("h-airfoil-tiny", "geometry.h_airfoil=1e-6", ["h_airfoil", "elements"]),
+    ("span-huge", "geometry.span=1000", ["h_airfoil", "elements", "reduce span"]),
     ("unknown-section", "nosuch.key=1", ["--set nosuch.key=1", "unknown section [nosuch]"]),
     ("unknown-key", "hb.nosuchkey=1", ["unknown key hb.nosuchkey"]),
     ("misspelt-key", "contact.muu=0.3", ["contact.muu", "did you mean contact.mu"]),
