@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``bladewear`` console script; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        with _sigterm_as_interrupt(), _mpi_exit():
+        with _sigterm_as_interrupt(), _sigint_watch(), _mpi_exit():
             return {"run": cmd_run, "scenes": cmd_scenes, "show": cmd_show}[args.command](args)
     except BladewearError as exc:
         if _rank() == 0:
@@ -94,9 +94,66 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_ERROR
     except KeyboardInterrupt:
         if _rank() == 0:
-            print("error: interrupted; completed stages stay cached, the next run resumes from them",
-                  file=sys.stderr)
+            print(f"error: {INTERRUPTED}", file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+#: Seconds Ctrl-C waits for the main thread to stop by itself before the process ends at once.
+INTERRUPT_GRACE = 5.0
+INTERRUPTED = "interrupted; completed stages stay cached, the next run resumes from them"
+
+
+@contextlib.contextmanager
+def _sigint_watch():
+    """Ctrl-C, whatever a library has done to SIGINT's handler.
+
+    Importing gmsh sets SIGINT to SIG_DFL (so that Ctrl-C can stop its C
+    code) until ``gmsh.finalize``: Ctrl-C in the geometry or remap stage
+    killed the process with no message. Here SIGINT is blocked in every
+    thread and a watcher thread waits for it: it raises KeyboardInterrupt
+    in the main thread (through SIGUSR1's Python handler, which no library
+    touches); if the main thread is stuck inside a library call and does
+    not stop within INTERRUPT_GRACE seconds, the watcher prints the same
+    line and ends the process with status 130 (every write is atomic, so
+    nothing is half-written; the next run removes the temporaries). Serial
+    runs in the main thread only: under MPI the launcher owns the signals.
+    """
+    import threading
+
+    from workflow.mpi import launched
+
+    if threading.current_thread() is not threading.main_thread() or launched():
+        yield
+        return
+    import _thread
+    import os
+
+    def raise_interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    old_usr1 = signal.signal(signal.SIGUSR1, raise_interrupt)
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    stop = threading.Event()
+
+    def watch():
+        while not stop.is_set():
+            if signal.sigtimedwait({signal.SIGINT}, 0.2) is None:
+                continue
+            _thread.interrupt_main(signal.SIGUSR1)
+            if not stop.wait(INTERRUPT_GRACE):
+                print(f"error: {INTERRUPTED} (stopped inside a library call)", file=sys.stderr, flush=True)
+                os._exit(EXIT_INTERRUPTED)
+            return
+
+    watcher = threading.Thread(target=watch, name="bladewear-sigint", daemon=True)
+    watcher.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        watcher.join()
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        signal.signal(signal.SIGUSR1, old_usr1)
 
 
 @contextlib.contextmanager
