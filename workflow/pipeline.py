@@ -591,7 +591,8 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
     tmp = grp.on_root(lambda: (log.info(f"{name}: computing (collective, {grp.size} ranks)"), cm.__enter__())[1])
     t0 = time.monotonic()
     try:
-        summary = grp.together(module.run, scene, dict(inputs), tmp, log.child(name))
+        with heartbeat(log, name) if grp.root else contextlib.nullcontext():
+            summary = grp.together(module.run, scene, dict(inputs), tmp, log.child(name))
     except BaseException as exc:
         if grp.root:
             cm.__exit__(type(exc), exc, exc.__traceback__)  # removes the temporary folder
@@ -615,12 +616,42 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
     return grp.on_root(commit)
 
 
+#: Seconds between two "still computing" lines of a stage that says nothing itself.
+HEARTBEAT = 30.0
+
+
+@contextlib.contextmanager
+def heartbeat(log: RunLog, name: str, every: float | None = None) -> Iterator[None]:
+    """Log ``<name>: still computing, m:ss elapsed`` every ``every`` seconds until the block ends.
+
+    Stages built on library calls (gmsh meshing, dolfinx assembly, the
+    eigen-solves) cannot report progress themselves; this says the run is alive.
+    """
+    import threading
+
+    every = HEARTBEAT if every is None else every
+    stop = threading.Event()
+    t0 = time.monotonic()
+
+    def beat():
+        while not stop.wait(every):
+            log.info(f"{name}: still computing, {_hms(time.monotonic() - t0)} elapsed")
+
+    thread = threading.Thread(target=beat, name=f"heartbeat-{name}", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
 def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: str, log: RunLog) -> dict:
     """:func:`_compute` in this process alone (serial runs; non-MPI stages on rank 0)."""
     name = module.NAME
     log.info(f"{name}: computing")
     t0 = time.monotonic()
-    with atomic_dir(entry) as tmp:
+    with atomic_dir(entry) as tmp, heartbeat(log, name):
         summary = module.run(scene, dict(inputs), tmp, log.child(name))
         seconds = time.monotonic() - t0
         got = {"stage": name, "key": key, "summary": summary if summary is not None else {},

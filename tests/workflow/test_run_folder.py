@@ -65,3 +65,21 @@ def test_two_runs_share_a_cache(tmp_path, capsys, fakes):
         rc, _, err = run(capsys, "run", sc, "--out", tmp_path / out, "--cache", tmp_path / "cache", "--quiet")
         assert rc == 0, err
     assert json.loads((tmp_path / "b" / "summary.json").read_text())["stages"]["hb"] == "cached"
+
+
+def test_heartbeat_lines_while_a_stage_is_silent(tmp_path):
+    import io
+    import time
+
+    from workflow.pipeline import RunLog, heartbeat
+
+    buf = io.StringIO()
+    log = RunLog(tmp_path / "log", stream=buf)
+    with heartbeat(log, "assembly", every=0.05):
+        time.sleep(0.3)
+    n = buf.getvalue().count("assembly: still computing")
+    assert 3 <= n <= 7, buf.getvalue()
+    after = buf.getvalue()
+    time.sleep(0.15)
+    assert buf.getvalue() == after          # stopped with the block
+    assert "still computing" in (tmp_path / "log").read_text()
