@@ -205,13 +205,16 @@ def cmd_run(args) -> int:
     from workflow.pipeline import run_scene
     from workflow.scene import load_scene
 
+    scene = load_scene(args.scene, args.overrides)
+    out = _default_out(args, scene)
     if args.quiet:
         # The form compiler (ffcx → setuptools) logs each gcc call at INFO on
         # the root logger on a cold cache; --quiet means none of that.
         logging.disable(logging.INFO)
-    scene = load_scene(args.scene, args.overrides)
-    out = _default_out(args, scene)
-    summary = run_scene(scene, out, cache=args.cache, fresh=args.fresh, quiet=args.quiet)
+    try:
+        summary = run_scene(scene, out, cache=args.cache, fresh=args.fresh, quiet=args.quiet)
+    finally:
+        logging.disable(logging.NOTSET)
     if not summary:
         return EXIT_ERROR
     bad = summary.get("unconverged") or {}

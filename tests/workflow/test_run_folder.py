@@ -83,3 +83,28 @@ def test_heartbeat_lines_while_a_stage_is_silent(tmp_path):
     time.sleep(0.15)
     assert buf.getvalue() == after          # stopped with the block
     assert "still computing" in (tmp_path / "log").read_text()
+
+
+def test_quiet_silences_library_logging(tmp_path, fakes):
+    """The form compiler logs its gcc calls at INFO on the root logger (cold cache): not with --quiet."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    stage = Path(fakes.root / fakes.pkg / "geometry.py")
+    stage.write_text(stage.read_text().replace(
+        'crash = os.environ.get("FAKE_CRASH", "")',
+        'import logging; logging.basicConfig(level=logging.INFO); logging.info("x86_64-linux-gnu-gcc -O2"); '
+        'crash = ""'))
+    driver = tmp_path / "driver.py"
+    driver.write_text(fakes.driver())
+    sc = _scene(tmp_path, ["modes"])
+    errs = {}
+    for quiet in (True, False):
+        r = subprocess.run([sys.executable, str(driver), "run", str(sc), "--out", str(tmp_path / "out"),
+                            "--cache", str(tmp_path / f"cache{quiet}")] + (["--quiet"] if quiet else []),
+                           env=dict(os.environ, FAKE_TRACE=str(fakes.trace)), capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        errs[quiet] = r.stderr
+    assert "gcc" not in errs[True] and errs[True] == ""
+    assert "INFO:root:x86_64-linux-gnu-gcc" in errs[False]
