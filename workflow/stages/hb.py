@@ -657,8 +657,10 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
         raise SolverError(
             f"static contact state: {'no equilibrium' if not static.result.converged else 'every pair separated'} "
             f"({static.result.reason}; ‖F_0‖ = {np.linalg.norm(mid.Fr[0]):.3g} N). The blade touches the disk "
-            "only at the flanks: it needs a preload pressing it into its slot — set rotation.speed_rpm "
-            "(centrifugal) or excitation.static_force, or a negative contact.gap (interference)")
+            "only at the flanks: it needs a preload pressing it into its slot — "
+            + ("the bundle's loads.npz 'static' load" if "rotation" in getattr(scene, "unused", ()) else
+               "set rotation.speed_rpm (centrifugal) or excitation.static_force")
+            + ", or a negative contact.gap (interference)")
     log.info(f"static state: {n_contact}/{model.n_pairs} pairs in contact "
              f"({int(np.count_nonzero(static.state == 2))} slipping), normal load "
              f"{-static.lam[:, 0].sum():.4g} N; ε_N = {law.eps_n[0]:.3g}, ε_T = {law.eps_t[0]:.3g} N/m")
