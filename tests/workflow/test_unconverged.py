@@ -55,3 +55,21 @@ def test_frictionless_quick_scene_exits_3(tmp_path):
     run = s["hb"]["runs"][0]
     assert f"{run['points'] - run['converged_points']}/{run['points']}" in s["unconverged"]["hb"][0]
     assert not s["wear"]["methods"]["pseudo-time"]["steady"]
+
+
+def test_wear_frequency_far_from_the_model_is_refused():
+    """wear.frequency_hz = 1e9 used to be accepted without a word (issue 18, item 5)."""
+    import pytest
+
+    from workflow import extreme as X
+    from workflow.errors import SceneError
+    from workflow.scene import load_scene
+    from workflow.stages.wear import build_problem
+
+    model = X.synthetic_model(2)
+    with pytest.raises(SceneError, match=r"wear\.frequency_hz = 1e\+09 Hz is outside"):
+        build_problem(model, load_scene("quick", ["wear.frequency_hz=1e9"]))
+    _, _, omega = build_problem(model, load_scene("quick"))
+    f = omega / 2 / np.pi
+    _, _, omega2 = build_problem(model, load_scene("quick", [f"wear.frequency_hz={1.05 * f}"]))
+    assert omega2 == pytest.approx(2 * np.pi * 1.05 * f)

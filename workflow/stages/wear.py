@@ -58,11 +58,12 @@ def build_problem(model, scene, omega=None):
     rc = relative_coordinates(model)
     w = scene["wear"]
     if omega is None:
-        omega = 2 * np.pi * w.frequency_hz if w.frequency_hz > 0 else first_tied_frequency(rc)
-        f_tied = first_tied_frequency(rc) / (2 * np.pi)
+        w_tied = first_tied_frequency(rc)
+        f_tied = w_tied / (2 * np.pi)
         if w.frequency_hz > 0 and not 0.01 * f_tied <= w.frequency_hz <= 100 * f_tied:  # (#18) a typo, not a study
             raise SceneError(f"wear.frequency_hz = {w.frequency_hz:g} Hz is outside 0.01–100 × the first tied "
                              f"frequency of the model ({f_tied:.4g} Hz); 0 means at that resonance")
+        omega = 2 * np.pi * w.frequency_hz if w.frequency_hz > 0 else w_tied
     hbs, con = scene["hb"], scene["contact"]
     nh = int(hbs.harmonics[0])
     method = hbs.methods[0]
@@ -146,6 +147,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
     summary = {"frequency_hz": omega / 2 / np.pi, "pairs": hb.p, "csv": "wear.csv", "figures": figures,
                "unworn_point": unworn,
                "tracked_pair": i0, "methods": {m: h.summary() for m, h in histories.items()},
+               "mu_source": model.friction(scene["contact"].mu)[1],
                "unconverged": [f"wear {m}: NOT steady after {h.iterations} iterations ({h.reason}); raise "
                                f"{'wear.max_blocks' if m in ('explicit', 'implicit') else 'pseudotime.max_steps'}"
                                for m, h in histories.items() if not h.steady]}
