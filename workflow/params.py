@@ -76,6 +76,11 @@ class Reduction:
                                     min=0)
     frf_points: int = param(40, "", "frequencies of the linear FRF comparison", min=2)
 
+    def check(self):
+        if self.modes == 0 and self.cutoff_hz == 0:
+            raise SceneError("reduction.modes = 0 needs reduction.cutoff_hz > 0 (keep the fixed-interface modes "
+                             "below it), or set reduction.modes > 0")
+
 
 @dataclass
 class Contact:

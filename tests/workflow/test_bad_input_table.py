@@ -45,6 +45,7 @@ SET_CASES = [
     ("reduction-modes-negative", "reduction.modes=-1", ["reduction.modes"]),
     ("mode-counts-scalar", "reduction.check_mode_counts=5", ["reduction.check_mode_counts", "must be a list"]),
     ("frf-points-1", "reduction.frf_points=1", ["reduction.frf_points"]),
+    ("no-modes-no-cutoff", "reduction.modes=0", ["reduction.modes = 0", "reduction.cutoff_hz"]),
     ("mu-negative", "contact.mu=-1", ["--set contact.mu=-1", "contact.mu"]),
     ("mu-inf", "contact.mu=inf", ["contact.mu", "finite"]),
     ("mu-garbage", "contact.mu=0.3.4", ["contact.mu", "must be a number"]),
