@@ -5,7 +5,6 @@ never used (issue 18, item 2), and unconverged results finish with exit 3
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import pytest

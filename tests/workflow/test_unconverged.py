@@ -16,6 +16,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from workflow.stages import remap
 
@@ -59,8 +60,6 @@ def test_frictionless_quick_scene_exits_3(tmp_path):
 
 def test_wear_frequency_far_from_the_model_is_refused():
     """wear.frequency_hz = 1e9 used to be accepted without a word (issue 18, item 5)."""
-    import pytest
-
     from workflow import extreme as X
     from workflow.errors import SceneError
     from workflow.scene import load_scene
