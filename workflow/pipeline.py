@@ -266,29 +266,41 @@ class RunLog:
     def warning(self, msg: str) -> None:
         self.info(f"warning: {msg}")
 
-    def progress(self, iterable: Iterable, total: int | None = None, label: str = "") -> Iterator:
-        """Yield from ``iterable``, reporting progress (and an ETA when ``total`` is known)."""
+    def progress(self, iterable: Iterable, total: int | None = None, label: str = "",
+                 weights: Iterable[float] | None = None) -> Iterator:
+        """Yield from ``iterable``, reporting progress (and an ETA when ``total`` is known).
+
+        ``weights``: the expected cost of each item (any unit); the percentage
+        and the ETA then count work, not items — items of very different cost
+        in increasing order (HB variants by Nh) made a count-based ETA far too
+        short (said 0:08 at 70 %, took 31 s).
+        """
         if total is None:
             try:
                 total = len(iterable)  # type: ignore[arg-type]
             except TypeError:
                 total = None
+        w = [float(x) for x in weights] if weights is not None else None
+        if w is not None and (len(w) != total or min(w, default=1.0) < 0 or sum(w) <= 0):
+            w = None  # a cost model that does not fit the items: fall back on counting them
         label = label or "progress"
         t0 = time.monotonic()
-        last_draw, last_decile, n = 0.0, 0, 0
+        last_draw, last_decile, n, done = 0.0, 0, 0, 0.0
         tty = self.tty
         for n, item in enumerate(iterable, 1):
             yield item
             now = time.monotonic()
+            done = done + w[n - 1] if w is not None else n
+            frac = min(done / sum(w), 1.0) if w is not None else (n / total if total else None)
             if tty and (now - last_draw > 0.2 or n == total):
                 last_draw = now
-                self.stream.write("\r" + self._tag(_bar(label, n, total, now - t0)) + "\033[K")
+                self.stream.write("\r" + self._tag(_bar(label, n, total, now - t0, frac=frac)) + "\033[K")
                 self.stream.flush()
             if total:
-                decile = (10 * n) // total
+                decile = int(10 * frac + 1e-9)
                 if decile > last_decile:
                     last_decile = decile
-                    self._line(_bar(label, n, total, now - t0, bar=False), tty)
+                    self._line(_bar(label, n, total, now - t0, bar=False, frac=frac), tty)
             elif n & (n - 1) == 0:  # unknown length: 1, 2, 4, 8, … items
                 self._line(_bar(label, n, None, now - t0, bar=False), tty)
         if tty:
@@ -310,10 +322,12 @@ class RunLog:
             self._fh = None
 
 
-def _bar(label: str, n: int, total: int | None, elapsed: float, bar: bool = True) -> str:
+def _bar(label: str, n: int, total: int | None, elapsed: float, bar: bool = True,
+         frac: float | None = None) -> str:
+    """One progress line; ``frac`` is the share of the work done (default: of the items)."""
     if not total:
         return f"{label}: {n} items, {elapsed:.1f} s"
-    frac = min(n / total, 1.0)
+    frac = min(n / total, 1.0) if frac is None else frac
     eta = elapsed / frac * (1 - frac) if frac > 0 else 0.0
     text = f"{label}: {n}/{total} ({100 * frac:3.0f} %), elapsed {_hms(elapsed)}, ETA {_hms(eta)}"
     if bar:

@@ -108,3 +108,25 @@ def test_quiet_silences_library_logging(tmp_path, fakes):
         errs[quiet] = r.stderr
     assert "gcc" not in errs[True] and errs[True] == ""
     assert "INFO:root:x86_64-linux-gnu-gcc" in errs[False]
+
+
+def test_weighted_progress_counts_work_not_items(tmp_path):
+    """Cheap items first (HB variants by Nh): the percentage follows the work (issue 18, item 9)."""
+    import io
+
+    from workflow.pipeline import RunLog
+
+    buf = io.StringIO()
+    log = RunLog(tmp_path / "log", stream=buf)
+    assert list(log.progress([0, 1, 2], total=3, label="v", weights=[1.0, 1.0, 8.0])) == [0, 1, 2]
+    lines = [ln for ln in buf.getvalue().splitlines() if ln.startswith("v: ")]
+    assert lines[0].startswith("v: 1/3 ( 10 %)") and lines[1].startswith("v: 2/3 ( 20 %)")
+    assert lines[-1].startswith("v: 3/3 (100 %)")
+    buf = io.StringIO()
+    log = RunLog(tmp_path / "log2", stream=buf)
+    list(log.progress([0, 1, 2], total=3, label="v"))
+    assert buf.getvalue().splitlines()[0].startswith("v: 1/3 ( 33 %)")
+    # a cost model that does not fit is ignored rather than trusted
+    buf = io.StringIO()
+    list(RunLog(tmp_path / "log3", stream=buf).progress([0, 1], total=2, label="v", weights=[1.0]))
+    assert buf.getvalue().splitlines()[0].startswith("v: 1/2 ( 50 %)")

@@ -681,7 +681,8 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
         # the CPU table normalised by that variant
         HBProblem(mid.Zr, mid.Fr, law, 1, 8, "hbm", stick_anchor=static.anchor).residual_jacobian(
             np.zeros(3 * 3 * model.n_pairs))
-        for i in log.progress(mine, total=len(mine), label="hb variants"):
+        for i in log.progress(mine, total=len(mine), label="hb variants",
+                              weights=[(2 * todo[i].nh + 1) ** 2 * (1.0 + todo[i].nit / 400.0) for i in mine]):
             v = todo[i]
             if sw.method == "arclength":
                 r = done[i] = trace_variant(rc, f0, f1, law, static.anchor, v, max_steps=sw.max_steps,
