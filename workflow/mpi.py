@@ -20,6 +20,13 @@ launcher with more than one rank it returns a :class:`Group` over
 
 The control messages go over a duplicate of the world communicator, so they
 never match a collective call of dolfinx/PETSc inside a stage.
+
+While rank 0 runs a function through :meth:`Group.on_root` the other ranks
+are outside MPI, and no timeout can tell a long stage from a stuck one: such
+a function must never make a collective call on COMM_WORLD (the remap stage
+reads its mesh on COMM_SELF), and PETSc — whose initialisation is
+collective — is initialised on every rank when a run starts
+(:func:`init_petsc`). Both used to hang ``mpirun -n 2 bladewear run quick``.
 """
 from __future__ import annotations
 
