@@ -490,7 +490,10 @@ def _prepare_out(out: Path) -> int:
         out.mkdir(parents=True, exist_ok=True)
         if not os.access(out, os.W_OK | os.X_OK):
             raise PermissionError(13, "Permission denied")
-        foreign = any(out.iterdir()) and not any((out / f).exists() for f in ("run.log", "summary.json"))
+        # Our own leftovers (a first run killed hard leaves .run.log.tmp) do not make it foreign.
+        ours = lambda c: c.name.startswith(".") and c.name.endswith((".tmp", ".old"))  # noqa: E731
+        foreign = any(not ours(c) for c in out.iterdir()) and \
+            not any((out / f).exists() for f in ("run.log", "summary.json"))
     except OSError as exc:
         raise OutputError(f"cannot write output folder {out}: {exc.strerror or exc}") from exc
     if foreign:

@@ -130,3 +130,13 @@ def test_weighted_progress_counts_work_not_items(tmp_path):
     buf = io.StringIO()
     list(RunLog(tmp_path / "log3", stream=buf).progress([0, 1], total=2, label="v", weights=[1.0]))
     assert buf.getvalue().splitlines()[0].startswith("v: 1/2 ( 50 %)")
+
+
+def test_first_run_killed_hard_does_not_block_the_next(tmp_path, capsys, fakes):
+    """SIGKILL during a first run leaves only .run.log.tmp in the new folder: not a foreign folder."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".run.log.tmp").write_text("killed")
+    rc, _, err = _run(capsys, tmp_path, ["modes"])
+    assert rc == 0, err
+    assert not (out / ".run.log.tmp").exists() and (out / "run.log").is_file()
