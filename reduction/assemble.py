@@ -266,7 +266,11 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
 
             f1 = float(frequencies(bundle, 1, tied=True)[0])
         if f1 <= 0:
-            raise BundleError("damping.modal_ratio needs a positive first tied frequency (is the disk clamped?)")
+            rpm = float(_get(rotation, "speed_rpm", 0.0))
+            raise BundleError(f"the first tied frequency is not positive (f1 = {f1:.4g} Hz): K(Ω) is not positive "
+                              "definite" + (f" — rotation.speed_rpm = {rpm:g} softens the sector past zero "
+                                            "(spin softening); lower it" if rpm > 0 else
+                                            " (is the disk clamped?)") + "; damping.modal_ratio needs it")
     if not root:
         return None, {}
     b_modal = modal_beta(ratio, 2 * math.pi * f1) if f1 else 0.0

@@ -21,6 +21,11 @@ from workflow.io import atomic_dir
 MATRICES = ("M", "K", "C")
 CONTACT_KEYS = ("blade_dofs", "disk_dofs", "normal", "t1", "t2", "area", "gap")
 LOAD_KEYS = ("fixed", "static", "harmonic", "observe")
+OPTIONAL_CONTACT_KEYS = ("flank", "position", "mu")
+#: Largest |A − Aᵀ| accepted, relative to the largest |A| (assembly round-off is ~1e-16).
+SYMMETRY_TOL = 1e-8
+#: Tied stiffnesses up to this size are checked densely (eigenvalues); larger ones by LDLᵀ inertia.
+DENSE_CHECK = 2000
 
 
 @dataclass
@@ -32,6 +37,8 @@ class Contact:
     unit vectors, n from the disk into the blade. ``area``: (p,) tributary
     area [m²]. ``gap``: (p,) initial normal gap [m] (>0 open). ``flank``: (p,)
     0 intrados, 1 extrados. ``position``: (p, 3) pair coordinates [m].
+    ``mu``: optional (p,) Coulomb friction coefficient of each pair (absent:
+    the scene's ``contact.mu`` applies; see ``ReducedModel.friction``).
     """
 
     blade_dofs: np.ndarray
@@ -43,6 +50,7 @@ class Contact:
     gap: np.ndarray
     flank: np.ndarray | None = None
     position: np.ndarray | None = None
+    mu: np.ndarray | None = None
 
     @property
     def n_pairs(self) -> int:
@@ -125,7 +133,7 @@ def write_bundle(bundle: Bundle, path: str | Path, extra_files: dict[str, Path] 
             sp.save_npz(tmp / f"{name}.npz", getattr(bundle, name).tocsr(), compressed=False)
         c = bundle.contact
         arrays = {k: getattr(c, k) for k in CONTACT_KEYS}
-        for k in ("flank", "position"):
+        for k in OPTIONAL_CONTACT_KEYS:
             if getattr(c, k) is not None:
                 arrays[k] = getattr(c, k)
         np.savez(tmp / "contact.npz", **arrays)
@@ -153,31 +161,37 @@ def read_bundle(path: str | Path, matrices: bool = True) -> Bundle:
     missing = [f for f in ("M.npz", "K.npz", "C.npz", "contact.npz", "loads.npz") if not (path / f).is_file()]
     if missing:
         raise BundleError(f"model bundle {path} lacks {', '.join(missing)}")
+    current = path  # the file being read, for the error message
     try:
-        mats = {name: sp.load_npz(path / f"{name}.npz").tocsr() if matrices else
-                sp.csr_matrix(tuple(_matrix_shape(path / f"{name}.npz"))) for name in MATRICES}
+        mats = {}
+        for name in MATRICES:
+            current = path / f"{name}.npz"
+            mats[name] = sp.load_npz(current).tocsr() if matrices else sp.csr_matrix(tuple(_matrix_shape(current)))
+        current = path / "contact.npz"
         with np.load(path / "contact.npz") as z:
             absent = [k for k in CONTACT_KEYS if k not in z]
             if absent:
                 raise BundleError(f"model bundle {path}/contact.npz lacks {', '.join(absent)}")
             contact = Contact(**{k: z[k] for k in CONTACT_KEYS},
-                              flank=z["flank"] if "flank" in z else None,
-                              position=z["position"] if "position" in z else None)
+                              **{k: z[k] if k in z else None for k in OPTIONAL_CONTACT_KEYS})
+        current = path / "loads.npz"
         with np.load(path / "loads.npz") as z:
             absent = [k for k in LOAD_KEYS if k not in z]
             if absent:
                 raise BundleError(f"model bundle {path}/loads.npz lacks {', '.join(absent)}")
             loads = Loads(**{k: z[k] for k in LOAD_KEYS})
         coords = None
+        current = path / "nodes.npz"
         if (path / "nodes.npz").is_file():
             with np.load(path / "nodes.npz") as z:
                 coords = z["coords"]
+        current = path / "meta.json"
         meta = json.loads((path / "meta.json").read_text()) if (path / "meta.json").is_file() else {}
     except BundleError:
         raise
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
         # A truncated or foreign file: name it rather than leak a zipfile error.
-        raise BundleError(f"model bundle {path} cannot be read: {exc}") from exc
+        raise BundleError(f"model bundle file {current} cannot be read: {exc}") from exc
     bundle = Bundle(**mats, contact=contact, loads=loads, meta=meta, coords=coords, path=path)
     validate(bundle)
     return bundle
@@ -235,14 +249,22 @@ def _stored_array(f: Path, key: str):
 
 
 def validate(b: Bundle) -> None:
-    """Raise :class:`BundleError` naming the first inconsistent array."""
+    """Raise :class:`BundleError` naming the first inconsistent array.
+
+    Shapes, index ranges, finiteness, symmetry of M, K, C (to
+    :data:`SYMMETRY_TOL`), orthonormal frames, distinct blade and disk DOFs
+    in each pair, and an optional per-pair ``mu`` (finite, ≥ 0). Positive
+    definiteness is :func:`check_definite` (costlier: a factorisation).
+    """
     n = b.M.shape[0]
+    at = f"model bundle {b.path}: " if b.path is not None else ""
     for name in MATRICES:
         m = getattr(b, name)
         if m.shape != (n, n):
-            raise BundleError(f"bundle matrix {name} is {m.shape[0]}x{m.shape[1]}, expected {n}x{n}")
+            raise BundleError(f"{at}bundle matrix {name} is {m.shape[0]}x{m.shape[1]}, expected {n}x{n}")
         if not np.all(np.isfinite(m.data)):
-            raise BundleError(f"bundle matrix {name} has non-finite entries")
+            raise BundleError(f"{at}bundle matrix {name} ({name}.npz) has non-finite entries")
+        _check_symmetric(m, f"{at}{name}.npz")
     c = b.contact
     p = c.blade_dofs.shape[0]
     for k in ("blade_dofs", "disk_dofs", "normal", "t1", "t2"):
@@ -257,6 +279,15 @@ def validate(b: Bundle) -> None:
             raise BundleError(f"bundle contact.{k} indexes outside 0..{n - 1} (or -1 for grounded)")
     if np.any((c.blade_dofs < 0) & (c.disk_dofs < 0)):
         raise BundleError("bundle contact pair grounded on both sides (blade_dofs and disk_dofs both -1)")
+    same = np.flatnonzero(np.any((c.blade_dofs == c.disk_dofs) & (c.blade_dofs >= 0), axis=1))
+    if same.size:
+        raise BundleError(f"{at}contact.npz: pair {same[0]} has the same DOF in blade_dofs and disk_dofs "
+                          f"({same.size} such pairs): a pair joins two different nodes")
+    if c.mu is not None:
+        mu = np.asarray(c.mu)
+        if mu.shape != (p,) or mu.dtype.kind not in "fiu" or not np.all(np.isfinite(mu)) or np.any(mu < 0):
+            raise BundleError(f"{at}contact.npz: mu must be ({p},) finite friction coefficients ≥ 0, got "
+                              f"shape {mu.shape}" + (f", min {mu.min():.3g}" if mu.size and mu.dtype.kind in "fiu" else ""))
     if p and not np.allclose(np.einsum("pij,pkj->pik", c.frames(), c.frames()), np.eye(3), atol=1e-8):
         raise BundleError("bundle contact frames (normal, t1, t2) are not orthonormal")
     if np.any(c.area <= 0) or not np.all(np.isfinite(c.area)):
@@ -271,6 +302,119 @@ def validate(b: Bundle) -> None:
             raise BundleError(f"bundle loads.{k} indexes outside 0..{n - 1}")
     if b.coords is not None and b.coords.shape != (n // 3, 3):
         raise BundleError(f"bundle nodes.coords has shape {b.coords.shape}, expected ({n // 3}, 3)")
+
+
+def _check_symmetric(A: sp.spmatrix, where: str) -> None:
+    if A.nnz == 0:
+        return
+    A = sp.csr_matrix(A)
+    scale = float(np.abs(A.data).max())
+    asym = float(np.abs((A - A.T).data).max(initial=0.0))
+    if asym > SYMMETRY_TOL * scale:
+        raise BundleError(f"{where} is not symmetric: max |A − Aᵀ| = {asym:.3g}, {asym / scale:.1e} of its "
+                          f"largest entry (tolerance {SYMMETRY_TOL:g}); the reduction and the harmonic balance "
+                          "need symmetric M, K, C")
+
+
+def tied_map(b: Bundle) -> sp.csr_matrix:
+    """(n, m) map from the DOFs of the *tied* structure to the bundle's DOFs.
+
+    Each contact pair's blade and disk DOFs become one DOF (a grounded side,
+    −1, holds the other one), and clamped DOFs (``loads.fixed``) are
+    removed: ``Tᵀ K T`` is the stiffness of the structure with its
+    interface stuck, which must be positive definite for any static state.
+    """
+    from scipy.sparse.csgraph import connected_components
+
+    n = b.n_dofs
+    c = b.contact
+    bd, dd = c.blade_dofs.ravel(), c.disk_dofs.ravel()
+    both = (bd >= 0) & (dd >= 0)
+    graph = sp.coo_matrix((np.ones(int(both.sum())), (bd[both], dd[both])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    held = np.zeros(n, dtype=bool)
+    held[np.asarray(b.loads.fixed, dtype=np.int64)] = True
+    held[bd[(bd >= 0) & (dd < 0)]] = True
+    held[dd[(dd >= 0) & (bd < 0)]] = True
+    held_label = np.zeros(label.max(initial=-1) + 1, dtype=bool)
+    np.logical_or.at(held_label, label, held)
+    live = np.flatnonzero(~held_label)
+    cols = -np.ones(held_label.size, dtype=np.int64)
+    cols[live] = np.arange(live.size)
+    rows = np.flatnonzero(~held_label[label])
+    return sp.csr_matrix((np.ones(rows.size), (rows, cols[label[rows]])), shape=(n, live.size))
+
+
+def check_definite(b: Bundle) -> dict:
+    """Raise :class:`BundleError` (naming ``K.npz`` and ``loads.npz``) unless the
+    tied, clamped stiffness ``Tᵀ K T`` (:func:`tied_map`) is positive definite.
+
+    Up to :data:`DENSE_CHECK` DOFs: its eigenvalues (negative ones, and zero
+    ones: below 1e-12 of the largest); beyond: the inertia of a MUMPS LDLᵀ
+    factorisation (negative and null pivots). Returns ``{"tied_dofs",
+    "method", "min_ratio"}`` (smallest / largest eigenvalue, dense only).
+    """
+    T = tied_map(b)
+    Kt = sp.csr_matrix(T.T @ b.K @ T)
+    m = Kt.shape[0]
+    where = f"model bundle {b.path}" if b.path is not None else "model bundle"
+    if m == 0:
+        return {"tied_dofs": 0, "method": "none", "min_ratio": None}
+    if Kt.nnz == 0:
+        neg, zero, info = 0, m, {}
+    elif m <= DENSE_CHECK:
+        w = np.linalg.eigvalsh(Kt.toarray())
+        top = float(np.abs(w).max())
+        neg = int(np.sum(w < -1e-12 * top))
+        zero = int(np.sum(np.abs(w) <= 1e-12 * top))
+        info = {"tied_dofs": m, "method": "eigenvalues", "min_ratio": float(w[0] / top)}
+    else:
+        neg, zero = _ldlt_inertia(Kt)
+        info = {"tied_dofs": m, "method": "ldlt-inertia", "min_ratio": None}
+        if neg or zero:
+            # Rigid-body modes show up as tiny pivots of either sign: one message for both causes.
+            raise BundleError(f"{where}: the stiffness (K.npz) with the contact tied and loads.fixed clamped "
+                              f"is not positive definite: its LDLᵀ factorisation has {neg} negative and {zero} "
+                              f"null pivot(s) of {m} — the structure floats (clamp DOFs in loads.npz 'fixed') "
+                              "or K is indefinite (a dynamic stiffness K − ω²M, or a sign error?)")
+    if neg:
+        raise BundleError(f"{where}/K.npz: the stiffness with the contact tied and loads.fixed clamped has {neg} "
+                          f"negative eigenvalue(s) of {m}: K is not positive definite (a dynamic stiffness "
+                          "K − ω²M, or a sign error?)")
+    if zero:
+        raise BundleError(f"{where}: the stiffness with the contact tied and loads.fixed clamped is singular "
+                          f"({zero} zero eigenvalue(s) of {m}): the structure floats — clamp DOFs in "
+                          "loads.npz 'fixed' (or ground a contact side with -1), or check K.npz")
+    return info
+
+
+def _ldlt_inertia(A: sp.csr_matrix) -> tuple[int, int]:
+    """(negative pivots, null pivots) of a MUMPS LDLᵀ factorisation of symmetric ``A``."""
+    from petsc4py import PETSc
+
+    from reduction.eigen import to_petsc
+
+    P = to_petsc(A)
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    try:
+        ksp.setOperators(P)
+        ksp.setType("preonly")
+        pc = ksp.getPC()
+        pc.setType("cholesky")
+        pc.setFactorSolverType("mumps")
+        pc.setFactorSetUpSolverType()
+        F = pc.getFactorMatrix()
+        F.setMumpsIcntl(24, 1)  # null-pivot detection: INFOG(28)
+        try:
+            ksp.setUp()
+        except PETSc.Error:
+            return 0, 1
+        if F.getMumpsInfog(1) < 0:
+            return 0, 1
+        return int(F.getMumpsInfog(12)), int(F.getMumpsInfog(28))
+    finally:
+        ksp.destroy()
+        P.destroy()
 
 
 def _jsonable(obj):

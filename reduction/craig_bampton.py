@@ -227,7 +227,8 @@ def fixed_interface_modes(K, M, factor: SparseFactor, n_modes: int | None = None
     if n == 0 or n_modes == 0:
         return np.zeros(0), np.zeros((n, 0))
     if n_modes is not None and n_modes > n:
-        raise SolverError(f"{n_modes} fixed-interface modes asked, but only {n} interior DOFs exist")
+        raise SolverError(f"{n_modes} fixed-interface modes asked, but only {n} interior DOFs exist "
+                          f"(set reduction.modes ≤ {n})")
     rng = np.random.default_rng(seed)
     b = min(block, n)
     cap = min(n, 3 * (n_modes or 16) + 4 * b)
@@ -237,12 +238,23 @@ def fixed_interface_modes(K, M, factor: SparseFactor, n_modes: int | None = None
     W, MW = _m_orthonormalize(factor.solve(M @ rng.standard_normal((n, b))[rows]), M, gsum=gsum)
     KW = K @ W
     A = gsum(W.T @ KW)  # Rayleigh quotient matrix, grown block by block (Q is M-orthonormal)
+    # A symmetric positive definite pencil converges in a few blocks beyond the
+    # wanted count (measured: Krylov dimension ≈ 2–3× the modes); a
+    # non-symmetric or indefinite K never does, and growing the basis up to n
+    # (a full re-orthogonalised Krylov space of a big model) looks like a hang.
+    max_dim = 8 * (n_modes or 16) + 16 * b  # with a cut-off: grown below with the count under it
     while True:
+        if Q.k >= max_dim and Q.k < n:
+            raise SolverError(f"block Lanczos found no converged fixed-interface modes within a Krylov space of "
+                              f"{Q.k} vectors ({n_modes or 'cut-off'} modes asked): is K symmetric and positive "
+                              "definite on the interior DOFs?")
         Q.append(W), MQ.append(MW), KQ.append(KW)
         S_last = factor.solve(MW)  # the next Krylov block, before orthogonalisation
         MS_last = M @ S_last
         SQ.append(S_last), MSQ.append(MS_last)
         theta, Y = np.linalg.eigh(0.5 * (A + A.T))
+        if cutoff is not None and n_modes is None:
+            max_dim = max(max_dim, 4 * int(np.sum(theta < cutoff ** 2)) + 16 * b)
         complete = Q.k >= n
         want = _wanted(theta, n_modes, cutoff, complete)
         if want is not None:

@@ -290,7 +290,8 @@ def reduce_bundle_mpi(folder: str | Path, n_modes: int | None = 30, cutoff_hz: f
     }
     model = ReducedModel(M=Mr, K=Kr, C=Cr, B=B, f_static=fr[:, 0], f_harmonic=fr[:, 1], O=O,
                          area=np.asarray(c.area, float), gap=np.asarray(c.gap, float), flank=np.asarray(flank),
-                         position=np.asarray(position, float), info=info)
+                         position=np.asarray(position, float), info=info,
+                         mu=None if c.mu is None else np.asarray(c.mu, float))  # per-pair μ (#18)
     model.validate()
     return model
 

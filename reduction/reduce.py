@@ -137,7 +137,7 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
     }
     model = ReducedModel(M=Mr, K=Kr, C=Cr, B=B, f_static=fs, f_harmonic=fh, O=O, area=np.asarray(c.area, float),
                          gap=np.asarray(c.gap, float), flank=np.asarray(flank), position=np.asarray(position, float),
-                         info=info)
+                         info=info, mu=None if c.mu is None else np.asarray(c.mu, float))
     model.validate()
     return model, Basis(V=V, free=free, boundary=bnd, n_modes=nm, n_load=nl, n_dofs=n)
 

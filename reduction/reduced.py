@@ -28,7 +28,9 @@ class ReducedModel:
     cos(ωt) excitation [N]. ``O``: (n_obs, m), q → observed DOFs. ``area``
     [m²], ``gap`` [m], ``flank`` (0 intrados, 1 extrados): (p,).
     ``position``: (p, 3) [m]. ``info``: provenance (modes kept, boundary DOFs,
-    timings) — JSON-serialisable.
+    timings) — JSON-serialisable. ``mu``: optional (p,) friction coefficient
+    of each pair from the bundle's ``contact.npz`` (None: the scene's
+    ``contact.mu``); use :meth:`friction`, never ``mu`` directly.
     """
 
     M: np.ndarray
@@ -43,6 +45,7 @@ class ReducedModel:
     flank: np.ndarray
     position: np.ndarray
     info: dict = field(default_factory=dict)
+    mu: np.ndarray | None = None
 
     @property
     def n_pairs(self) -> int:
@@ -56,8 +59,9 @@ class ReducedModel:
         """Write one ``.npz`` atomically."""
         import json
 
+        extra = {} if self.mu is None else {"mu": np.asarray(self.mu, float)}
         return write_npz(path, info=np.array(json.dumps(self.info, default=str)),
-                         **{k: getattr(self, k) for k in _ARRAYS})
+                         **{k: getattr(self, k) for k in _ARRAYS}, **extra)
 
     @classmethod
     def load(cls, path: str | Path) -> "ReducedModel":
@@ -68,9 +72,10 @@ class ReducedModel:
             with np.load(path) as z:
                 arrays = {k: z[k] for k in _ARRAYS}
                 info = json.loads(str(z["info"])) if "info" in z else {}
+                mu = z["mu"] if "mu" in z else None  # files written before per-pair μ have none
         except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             raise BundleError(f"reduced model {path} cannot be read: {exc}") from exc
-        model = cls(**arrays, info=info)
+        model = cls(**arrays, info=info, mu=mu)
         model.validate()
         return model
 
@@ -89,9 +94,26 @@ class ReducedModel:
         for k in ("area", "gap", "flank"):
             if getattr(self, k).shape != (p,):
                 raise BundleError(f"reduced model {k} is {getattr(self, k).shape}, expected ({p},)")
+        if self.mu is not None:
+            mu = np.asarray(self.mu)
+            if mu.shape != (p,) or not np.all(np.isfinite(mu)) or np.any(mu < 0):
+                raise BundleError(f"reduced model mu must be ({p},) finite values ≥ 0, got shape {mu.shape}")
         if self.O.ndim != 2 or self.O.shape[1] != m:
             raise BundleError(f"reduced model O is {self.O.shape}, expected (n_obs, {m})")
         for f in fields(self):
             v = getattr(self, f.name)
             if isinstance(v, np.ndarray) and v.dtype.kind == "f" and not np.all(np.isfinite(v)):
                 raise BundleError(f"reduced model {f.name} has non-finite entries")
+
+    def friction(self, mu_scene: float) -> tuple[np.ndarray, str]:
+        """Friction coefficient of each pair, ``(mu (p,), source)``.
+
+        The bundle's per-pair ``mu`` when it has one (``source`` =
+        ``"bundle contact.npz"``), else ``mu_scene`` (the scene's
+        ``contact.mu``) on every pair (``source`` = ``"scene contact.mu"``).
+        The harmonic-balance and wear stages take μ from here and report the
+        source in their summaries.
+        """
+        if self.mu is not None:
+            return np.asarray(self.mu, dtype=float).copy(), "bundle contact.npz"
+        return np.full(self.n_pairs, float(mu_scene)), "scene contact.mu"

@@ -5,10 +5,21 @@
     bladewear show SCENE [--set ...] [--out DIR] [--cache DIR]
 
 SCENE is a path or the name of a shipped scene (``bladewear run quick``).
-Every :class:`~workflow.errors.BladewearError` is printed as one line
-``error: …`` on stderr with exit status 2; other exceptions are bugs and keep
-their traceback. Ctrl-C or SIGTERM stop the run between two writes: cache
-entries and the run folder's summary are written whole or not at all.
+
+Exit status (also in ``bladewear --help`` and the README):
+
+* 0 — finished, every result converged;
+* 2 — error: bad scene, bundle, option or output folder, or a solve that
+  cannot give any result; one line ``error: …`` on stderr naming the key or
+  file, nothing of the previous run folder changed;
+* 3 — finished, with unconverged results: every file is written, and
+  ``summary.json["unconverged"]`` (also the log and the report) says which
+  results did not converge and why;
+* 130 — interrupted (Ctrl-C, SIGTERM): completed stages stay cached.
+
+Other exceptions are bugs and keep their traceback (exit 1). Ctrl-C or
+SIGTERM stop the run between two writes: cache entries and the run folder's
+summary are written whole or not at all.
 
 Under MPI (``mpirun -n 2 bladewear run SCENE``) every rank runs this; only
 rank 0 prints (its log, the summary path, the error line), and every rank
@@ -18,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import signal
 import sys
 from pathlib import Path
@@ -25,13 +37,30 @@ from pathlib import Path
 from workflow.errors import BladewearError
 
 EXIT_ERROR = 2
+EXIT_UNCONVERGED = 3
 EXIT_INTERRUPTED = 130
+
+EPILOG = """exit status:
+  0    finished, every result converged
+  2    error (bad scene key, bundle file, option or output folder; one line 'error: ...')
+  3    finished, with unconverged results (listed in summary.json "unconverged", the log and the report)
+  130  interrupted (Ctrl-C / SIGTERM); completed stages stay cached
+"""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the CLI's error format: one line ``error: …`` and status 2."""
+
+    def error(self, message):
+        print(f"error: {self.prog}: {message} (see {self.prog} --help)", file=sys.stderr)
+        sys.exit(EXIT_ERROR)
 
 
 def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="bladewear", description="Friction-damped vibration and fretting wear of a "
-                                 "turbine-blade dovetail (Salles et al. 2012).")
-    sub = ap.add_subparsers(dest="command", required=True, metavar="{run,scenes,show}")
+    ap = _Parser(prog="bladewear", description="Friction-damped vibration and fretting wear of a "
+                                 "turbine-blade dovetail (Salles et al. 2012).", epilog=EPILOG,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="command", required=True, metavar="{run,scenes,show}", parser_class=_Parser)
 
     def common(p):
         p.add_argument("scene", help="scene file, or the name of a shipped scene (see `bladewear scenes`)")
@@ -42,7 +71,8 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("--cache", type=Path, default=None,
                        help="cache folder (default: $BLADEWEAR_CACHE, else .cache beside the run folder)")
 
-    r = sub.add_parser("run", help="run the stages a scene's outputs need")
+    r = sub.add_parser("run", help="run the stages a scene's outputs need", epilog=EPILOG,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     common(r)
     r.add_argument("--fresh", action="store_true", help="ignore the cache: recompute every stage")
     r.add_argument("--quiet", action="store_true", help="no progress on the terminal (run.log still written)")
@@ -56,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``bladewear`` console script; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        with _sigterm_as_interrupt(), _mpi_exit():
+        with _sigterm_as_interrupt(), _sigint_watch(), _mpi_exit():
             return {"run": cmd_run, "scenes": cmd_scenes, "show": cmd_show}[args.command](args)
     except BladewearError as exc:
         if _rank() == 0:
@@ -64,9 +94,66 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_ERROR
     except KeyboardInterrupt:
         if _rank() == 0:
-            print("error: interrupted; completed stages stay cached, the next run resumes from them",
-                  file=sys.stderr)
+            print(f"error: {INTERRUPTED}", file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+#: Seconds Ctrl-C waits for the main thread to stop by itself before the process ends at once.
+INTERRUPT_GRACE = 5.0
+INTERRUPTED = "interrupted; completed stages stay cached, the next run resumes from them"
+
+
+@contextlib.contextmanager
+def _sigint_watch():
+    """Ctrl-C, whatever a library has done to SIGINT's handler.
+
+    Importing gmsh sets SIGINT to SIG_DFL (so that Ctrl-C can stop its C
+    code) until ``gmsh.finalize``: Ctrl-C in the geometry or remap stage
+    killed the process with no message. Here SIGINT is blocked in every
+    thread and a watcher thread waits for it: it raises KeyboardInterrupt
+    in the main thread (through SIGUSR1's Python handler, which no library
+    touches); if the main thread is stuck inside a library call and does
+    not stop within INTERRUPT_GRACE seconds, the watcher prints the same
+    line and ends the process with status 130 (every write is atomic, so
+    nothing is half-written; the next run removes the temporaries). Serial
+    runs in the main thread only: under MPI the launcher owns the signals.
+    """
+    import threading
+
+    from workflow.mpi import launched
+
+    if threading.current_thread() is not threading.main_thread() or launched():
+        yield
+        return
+    import _thread
+    import os
+
+    def raise_interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    old_usr1 = signal.signal(signal.SIGUSR1, raise_interrupt)
+    old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    stop = threading.Event()
+
+    def watch():
+        while not stop.is_set():
+            if signal.sigtimedwait({signal.SIGINT}, 0.2) is None:
+                continue
+            _thread.interrupt_main(signal.SIGUSR1)
+            if not stop.wait(INTERRUPT_GRACE):
+                print(f"error: {INTERRUPTED} (stopped inside a library call)", file=sys.stderr, flush=True)
+                os._exit(EXIT_INTERRUPTED)
+            return
+
+    watcher = threading.Thread(target=watch, name="bladewear-sigint", daemon=True)
+    watcher.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        watcher.join()
+        signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        signal.signal(signal.SIGUSR1, old_usr1)
 
 
 @contextlib.contextmanager
@@ -120,10 +207,26 @@ def cmd_run(args) -> int:
 
     scene = load_scene(args.scene, args.overrides)
     out = _default_out(args, scene)
-    summary = run_scene(scene, out, cache=args.cache, fresh=args.fresh, quiet=args.quiet)
+    if args.quiet:
+        # The form compiler (ffcx → setuptools) logs each gcc call at INFO on
+        # the root logger on a cold cache; --quiet means none of that.
+        logging.disable(logging.INFO)
+    try:
+        summary = run_scene(scene, out, cache=args.cache, fresh=args.fresh, quiet=args.quiet)
+    finally:
+        logging.disable(logging.NOTSET)
+    if not summary:
+        return EXIT_ERROR
+    bad = summary.get("unconverged") or {}
     if not args.quiet and _rank() == 0:
         print(f"{out / 'summary.json'}")
-    return 0 if summary else EXIT_ERROR
+    if bad:
+        if _rank() == 0:
+            n = sum(len(v) for v in bad.values())
+            print(f"warning: finished with {n} unconverged result(s) in {', '.join(bad)} "
+                  f"(summary.json \"unconverged\"); exit status {EXIT_UNCONVERGED}", file=sys.stderr)
+        return EXIT_UNCONVERGED
+    return 0
 
 
 def cmd_scenes(args) -> int:
@@ -139,12 +242,12 @@ def cmd_scenes(args) -> int:
 
 
 def cmd_show(args) -> int:
-    from workflow.pipeline import default_cache, plan, read_entry
+    from workflow.pipeline import check_entry, default_cache, plan
     from workflow.scene import format_scene, load_scene
 
     scene = load_scene(args.scene, args.overrides)
+    p = plan(scene)  # first: it marks the sections a model bundle replaces
     print(format_scene(scene))
-    p = plan(scene)
     out = _default_out(args, scene)
     cache = args.cache.resolve() if args.cache else default_cache(out)
     print(f"\n# stages for outputs {scene['run'].outputs} (cache {cache}):")
@@ -152,9 +255,11 @@ def cmd_show(args) -> int:
         print(f"#   model bundle: {p.external['bundle']} (replaces geometry + assembly)")
     for name in p.stages:
         module = p.modules[name]
-        cached = getattr(module, "CACHE", True) and read_entry(cache / name / p.keys[name]) is not None
+        got, damage = check_entry(cache / name / p.keys[name]) if getattr(module, "CACHE", True) else (None, None)
+        state = "cached" if got is not None else "damaged" if damage else "to compute"
         reads = f"; reads [{'], ['.join(module.SECTIONS)}]" if module.SECTIONS else ""
-        print(f"#   {name:<16} {'cached' if cached else 'to compute':<11} needs {', '.join(module.NEEDS) or '-'}{reads}")
+        print(f"#   {name:<16} {state:<11} needs {', '.join(module.NEEDS) or '-'}{reads}"
+              + (f" (cache entry damaged: {damage}; will recompute)" if damage else ""))
     return 0
 
 

@@ -127,3 +127,62 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+# ---------------------------------------------------------------- checksums
+
+#: Name of a cache entry's own record (excluded from its checksums).
+_SKIP = (".stage.json",)
+
+
+def file_digest(path: str | os.PathLike) -> str:
+    """SHA-256 of a file's bytes (hex), read in 1 MiB chunks."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def manifest(folder: str | os.PathLike) -> dict[str, list]:
+    """``{relative path: [size in bytes, sha256]}`` of every file under ``folder``.
+
+    Recorded when a cache entry is written, checked by :func:`verify_manifest`
+    before the entry is used: a file truncated, edited, replaced or deleted
+    afterwards is caught (size first, so most damage costs no hashing).
+    """
+    folder = Path(folder)
+    out = {}
+    for f in sorted(p for p in folder.rglob("*") if p.is_file() and not p.is_symlink()):
+        rel = f.relative_to(folder).as_posix()
+        if rel in _SKIP:
+            continue
+        out[rel] = [f.stat().st_size, file_digest(f)]
+    return out
+
+
+def verify_manifest(folder: str | os.PathLike, recorded: dict) -> str | None:
+    """None if every file of ``recorded`` (:func:`manifest`) is in ``folder`` unchanged,
+    else a short description of the first difference."""
+    folder = Path(folder)
+    if not isinstance(recorded, dict):
+        return "no file checksums recorded"
+    for rel, entry in sorted(recorded.items()):
+        f = folder / rel
+        try:
+            size, digest = int(entry[0]), str(entry[1])
+            st = f.stat()
+        except (OSError, TypeError, ValueError, IndexError):
+            return f"{rel} is missing"
+        if not f.is_file():
+            return f"{rel} is missing"
+        if st.st_size != size:
+            return f"{rel} has {st.st_size} bytes, {size} were written"
+        try:
+            if file_digest(f) != digest:
+                return f"{rel} changed since it was written (checksum differs)"
+        except OSError as exc:
+            return f"{rel} cannot be read ({exc.strerror or exc})"
+    return None

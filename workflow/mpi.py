@@ -20,6 +20,13 @@ launcher with more than one rank it returns a :class:`Group` over
 
 The control messages go over a duplicate of the world communicator, so they
 never match a collective call of dolfinx/PETSc inside a stage.
+
+While rank 0 runs a function through :meth:`Group.on_root` the other ranks
+are outside MPI, and no timeout can tell a long stage from a stuck one: such
+a function must never make a collective call on COMM_WORLD (the remap stage
+reads its mesh on COMM_SELF), and PETSc — whose initialisation is
+collective — is initialised on every rank when a run starts
+(:func:`init_petsc`). Both used to hang ``mpirun -n 2 bladewear run quick``.
 """
 from __future__ import annotations
 
@@ -180,6 +187,19 @@ def collect_garbage() -> None:
 
     gc.collect()
     PETSc.garbage_cleanup(PETSc.COMM_WORLD)
+
+
+def init_petsc() -> None:
+    """Initialise PETSc now (call on every rank together, before any stage).
+
+    ``PetscInitialize`` is collective over COMM_WORLD. A serial stage that is
+    the first to import dolfinx/petsc4py on rank 0 (remap, when assembly and
+    reduction came from the cache) would initialise it there alone and wait
+    forever for the idle ranks; and :func:`finish` must find PETSc on every
+    rank or on none. Measured: ``mpirun -n 2 bladewear run quick`` with hb,
+    wear and remap to compute and the rest cached hung in remap without this.
+    """
+    from petsc4py import PETSc  # noqa: F401 - the import initialises PETSc (collective)
 
 
 def finish() -> None:

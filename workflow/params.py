@@ -39,7 +39,7 @@ class Material:
 @dataclass
 class Rotation:
     speed_rpm: float = param(0.0, "rpm", "rotation speed Ω about the engine (x) axis: centrifugal load, stress "
-                                         "stiffening, spin softening", min=0.0)
+                                         "stiffening, spin softening", min=0.0, max=1e5)
     stress_stiffening: bool = param(True, "", "add K_σ from the static prestress (interface tied)")
     spin_softening: bool = param(True, "", "subtract Ω² M_⊥")
     prestress_iterations: int = param(0, "", "re-solve the static prestress with its own K_σ this many times "
@@ -56,7 +56,8 @@ class Damping:
 
 @dataclass
 class Excitation:
-    amplitude: float = param(0.1, "N", "amplitude of the harmonic force at the blade tip (paper: 0.1 N)", min=0.0)
+    amplitude: float = param(0.1, "N", "amplitude of the harmonic force at the blade tip (paper: 0.1 N)", min=0.0,
+                             min_exclusive=True)
     static_force: float = param(0.0, "N", "extra static radial (+z) force on the blade tip, for Ω = 0 studies")
 
 
@@ -74,6 +75,11 @@ class Reduction:
     check_mode_counts: list = param([10, 20, 40, 80], "", "fixed-interface mode counts for the convergence study",
                                     min=0)
     frf_points: int = param(40, "", "frequencies of the linear FRF comparison", min=2)
+
+    def check(self):
+        if self.modes == 0 and self.cutoff_hz == 0:
+            raise SceneError("reduction.modes = 0 needs reduction.cutoff_hz > 0 (keep the fixed-interface modes "
+                             "below it), or set reduction.modes > 0")
 
 
 @dataclass
@@ -95,7 +101,7 @@ class Contact:
 class HB:
     methods: list = param(["hbm"], "", "formulations: hbm (AFT), tcm (collocation), hdhb (time samples)",
                           item_choices=("hbm", "tcm", "hdhb"))
-    harmonics: list = param([3], "", "numbers of harmonics Nh", min=0)
+    harmonics: list = param([3], "", "numbers of harmonics Nh (≥ 1: harmonic 1 is the response)", min=1)
     time_samples: list = param([0], "", "nit per period; 0 means 2Nh+1 (HDHB always uses 2Nh+1)", min=0)
     solver: str = param("newton", "", "nonlinear solver; newton-powell: ≤10 Newton steps from the predictor, then "
                                       "hybrid Powell from the best iterate",

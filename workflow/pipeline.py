@@ -15,13 +15,28 @@ Cache
     An entry is a folder ``<cache>/<stage>/<key>/`` written whole with
     :func:`workflow.io.atomic_dir`: a run killed inside a stage leaves the
     previous entry or none, plus a ``.tmp`` folder that the next run removes.
-    Each entry holds the stage's files and ``.stage.json`` (its summary).
+    Each entry holds the stage's files and ``.stage.json`` (its summary and
+    the size and SHA-256 of every file, :func:`workflow.io.manifest`). An
+    entry is used only if every file still matches (:func:`check_entry`); a
+    damaged one (truncated, edited, deleted file) is recomputed with a
+    warning. Several runs may share a cache: each holds a shared lock, and
+    two runs computing the same entry each write it whole (the last rename
+    wins; both are the same result).
+
+Unconverged results
+    A stage's summary may hold ``"unconverged": [str, …]``, one line per
+    result that did not converge (what and why). The run still finishes;
+    ``summary.json`` gets ``"unconverged": {stage: [...]}`` (empty when all
+    converged), the lines are logged as warnings and the CLI exits 3.
 
 Run folder
     ``<out>/<stage>`` are relative symbolic links to the cache entries,
     updated only after every stage has succeeded, then ``<out>/summary.json``
     (written atomically, last), ``<out>/scene.json`` (the resolved scene) and
-    ``<out>/run.log``. A failed run leaves the previous summary and links.
+    ``<out>/run.log`` (written as ``.run.log.tmp`` while the run goes on). A
+    failed or interrupted run leaves the previous run folder byte for byte
+    as it was; its log goes to ``<cache>/failed-run.log``. One run at a time
+    per run folder (:func:`lock_out`).
 
 Under MPI (``mpirun -n N bladewear run …``; :mod:`workflow.mpi`)
     Every rank plans (the plan is deterministic); rank 0 alone decides what is
@@ -52,7 +67,7 @@ from typing import Iterable, Iterator
 from workflow import mpi
 from workflow import stages as registry
 from workflow.errors import OutputError, SceneError
-from workflow.io import atomic_dir, write_json
+from workflow.io import atomic_dir, manifest, verify_manifest, write_json
 from workflow.scene import Scene
 
 #: Entry file holding a stage's summary inside its output folder.
@@ -120,8 +135,27 @@ def plan(scene: Scene) -> Plan:
     # A stage that sees every product (the report) must run after all others.
     order.sort(key=lambda n: bool(getattr(modules[n], "NEEDS_ALL", False)))
     p = Plan(order, modules, external)
+    scene.unused = unused_sections(p)
     _assign_keys(scene, p)
     return p
+
+
+#: Sections the assembly turns into the bundle; a user's bundle replaces them.
+BUNDLE_SECTIONS = ("material", "rotation", "damping", "excitation")
+
+
+def unused_sections(p: Plan) -> set[str]:
+    """Sections that no stage of the plan reads, because ``[model] bundle`` replaces them.
+
+    A stage lists a section in ``VIA_BUNDLE`` when it reads it only as part
+    of the model (hb, wear: the excitation is in the reduced load); with an
+    external bundle such a section is not read at all and leaves its key.
+    """
+    if "bundle" not in p.external:
+        return set()
+    read = {s for n in p.stages for s in p.modules[n].SECTIONS
+            if s not in getattr(p.modules[n], "VIA_BUNDLE", ())}
+    return {s for s in BUNDLE_SECTIONS if s not in read}
 
 
 def _needs_all(product: str) -> bool:
@@ -138,9 +172,10 @@ def _assign_keys(scene: Scene, p: Plan) -> None:
         if unknown:
             raise TypeError(f"stage {name} reads unknown scene section(s) {unknown}")
         needs = sorted(p.product_keys) if getattr(module, "NEEDS_ALL", False) else sorted(module.NEEDS)
+        read = [s for s in module.SECTIONS if s not in getattr(scene, "unused", ())]
         ident = {
             "stage": name,
-            "sections": json.loads(scene.canonical(module.SECTIONS)),
+            "sections": json.loads(scene.canonical(read)),
             "inputs": {need: p.product_keys[need] for need in needs},
             "code": code_version(),
             "module": _module_digest(module),
@@ -231,29 +266,41 @@ class RunLog:
     def warning(self, msg: str) -> None:
         self.info(f"warning: {msg}")
 
-    def progress(self, iterable: Iterable, total: int | None = None, label: str = "") -> Iterator:
-        """Yield from ``iterable``, reporting progress (and an ETA when ``total`` is known)."""
+    def progress(self, iterable: Iterable, total: int | None = None, label: str = "",
+                 weights: Iterable[float] | None = None) -> Iterator:
+        """Yield from ``iterable``, reporting progress (and an ETA when ``total`` is known).
+
+        ``weights``: the expected cost of each item (any unit); the percentage
+        and the ETA then count work, not items — items of very different cost
+        in increasing order (HB variants by Nh) made a count-based ETA far too
+        short (said 0:08 at 70 %, took 31 s).
+        """
         if total is None:
             try:
                 total = len(iterable)  # type: ignore[arg-type]
             except TypeError:
                 total = None
+        w = [float(x) for x in weights] if weights is not None else None
+        if w is not None and (len(w) != total or min(w, default=1.0) < 0 or sum(w) <= 0):
+            w = None  # a cost model that does not fit the items: fall back on counting them
         label = label or "progress"
         t0 = time.monotonic()
-        last_draw, last_decile, n = 0.0, 0, 0
+        last_draw, last_decile, n, done = 0.0, 0, 0, 0.0
         tty = self.tty
         for n, item in enumerate(iterable, 1):
             yield item
             now = time.monotonic()
+            done = done + w[n - 1] if w is not None else n
+            frac = min(done / sum(w), 1.0) if w is not None else (n / total if total else None)
             if tty and (now - last_draw > 0.2 or n == total):
                 last_draw = now
-                self.stream.write("\r" + self._tag(_bar(label, n, total, now - t0)) + "\033[K")
+                self.stream.write("\r" + self._tag(_bar(label, n, total, now - t0, frac=frac)) + "\033[K")
                 self.stream.flush()
             if total:
-                decile = (10 * n) // total
+                decile = int(10 * frac + 1e-9)
                 if decile > last_decile:
                     last_decile = decile
-                    self._line(_bar(label, n, total, now - t0, bar=False), tty)
+                    self._line(_bar(label, n, total, now - t0, bar=False, frac=frac), tty)
             elif n & (n - 1) == 0:  # unknown length: 1, 2, 4, 8, … items
                 self._line(_bar(label, n, None, now - t0, bar=False), tty)
         if tty:
@@ -275,10 +322,12 @@ class RunLog:
             self._fh = None
 
 
-def _bar(label: str, n: int, total: int | None, elapsed: float, bar: bool = True) -> str:
+def _bar(label: str, n: int, total: int | None, elapsed: float, bar: bool = True,
+         frac: float | None = None) -> str:
+    """One progress line; ``frac`` is the share of the work done (default: of the items)."""
     if not total:
         return f"{label}: {n} items, {elapsed:.1f} s"
-    frac = min(n / total, 1.0)
+    frac = min(n / total, 1.0) if frac is None else frac
     eta = elapsed / frac * (1 - frac) if frac > 0 else 0.0
     text = f"{label}: {n}/{total} ({100 * frac:3.0f} %), elapsed {_hms(elapsed)}, ETA {_hms(eta)}"
     if bar:
@@ -353,11 +402,32 @@ def clean_stale(folder: Path, depth: int = 1) -> list[Path]:
 
 
 def read_entry(entry: Path) -> dict | None:
-    """The ``.stage.json`` of a complete cache entry, or None."""
+    """The ``.stage.json`` of a complete, undamaged cache entry, or None."""
+    return check_entry(entry)[0]
+
+
+def check_entry(entry: Path) -> tuple[dict | None, str | None]:
+    """``(record, None)`` for a usable entry; ``(None, why)`` for a damaged one;
+    ``(None, None)`` when there is no entry.
+
+    Usable: ``.stage.json`` parses and every file it lists has the size and
+    SHA-256 recorded when the entry was written.
+    """
+    f = entry / STAGE_FILE
     try:
-        return json.loads((entry / STAGE_FILE).read_text())
-    except (OSError, ValueError):
-        return None
+        text = f.read_text()
+    except FileNotFoundError:
+        return None, ("its record .stage.json is missing" if entry.is_dir() else None)
+    except OSError as exc:
+        return None, f"its record .stage.json cannot be read ({exc.strerror or exc})"
+    try:
+        got = json.loads(text)
+    except ValueError:
+        return None, "its record .stage.json is not valid JSON"
+    if not isinstance(got, dict) or "files" not in got:
+        return None, "it has no file checksums (written by an older version)"
+    problem = verify_manifest(entry, got["files"])
+    return (None, problem) if problem else (got, None)
 
 
 # ---------------------------------------------------------------- run
@@ -368,33 +438,91 @@ def run_scene(scene: Scene, out: str | os.PathLike, *, cache: str | os.PathLike 
     out = Path(out).resolve()
     cache_root = Path(cache).resolve() if cache else default_cache(out)
     grp = mpi.group()
+    if grp.parallel:
+        grp.together(mpi.init_petsc)  # collective: never first inside a rank-0-only stage
     # Plan first: a scene that cannot run must not touch the run folder.
     p = grp.together(plan, scene)
     model = grp.on_root(_check_bundle, p.external["bundle"]) if "bundle" in p.external else None
-    grp.on_root(_prepare_out, out)
-    # Only rank 0 logs (to run.log and the terminal); the other ranks' stages talk to no one.
-    log = grp.root_only(RunLog, out / "run.log", quiet=quiet, stream=stream) or RunLog(quiet=True)
+    lock = grp.root_only(_prepare_out, out)
+    # Only rank 0 logs (to the terminal and LIVE_LOG, which becomes run.log when the run
+    # finishes); the other ranks' stages talk to no one.
+    log = grp.root_only(RunLog, out / LIVE_LOG, quiet=quiet, stream=stream) or RunLog(quiet=True)
     if grp.parallel:
         log.info(f"MPI: {grp.size} ranks")
+    done = False
     try:
-        return _run(scene, p, out, cache_root, fresh, log, model, grp)
+        summary = _run(scene, p, out, cache_root, fresh, log, model, grp)
+        done = True
+        return summary
     finally:
         log.close()
+        if grp.root:
+            _keep_log(out, cache_root, done)
+        if lock is not None:
+            os.close(lock)
 
 
-def _prepare_out(out: Path) -> None:
+#: The running log (in the run folder); ``run.log`` once the run has finished.
+LIVE_LOG = ".run.log.tmp"
+#: Where the log of a run that failed or was interrupted goes (in the cache folder), so
+#: that a failed run leaves the previous run folder as it was.
+FAILED_LOG = "failed-run.log"
+
+
+def _keep_log(out: Path, cache_root: Path, done: bool) -> None:
+    live = out / LIVE_LOG
+    if not live.exists():
+        return
+    try:
+        if done:
+            os.replace(live, out / "run.log")
+        else:
+            cache_root.mkdir(parents=True, exist_ok=True)
+            shutil.move(str(live), str(cache_root / FAILED_LOG))
+    except OSError:
+        with contextlib.suppress(OSError):
+            live.unlink()
+
+
+def _prepare_out(out: Path) -> int:
+    """Create or check the run folder and lock it for this run; returns the lock's descriptor."""
     try:
         out.mkdir(parents=True, exist_ok=True)
         if not os.access(out, os.W_OK | os.X_OK):
             raise PermissionError(13, "Permission denied")
-        foreign = any(out.iterdir()) and not any((out / f).exists() for f in ("run.log", "summary.json"))
+        # Our own leftovers (a first run killed hard leaves .run.log.tmp) do not make it foreign.
+        ours = lambda c: c.name.startswith(".") and c.name.endswith((".tmp", ".old"))  # noqa: E731
+        foreign = any(not ours(c) for c in out.iterdir()) and \
+            not any((out / f).exists() for f in ("run.log", "summary.json"))
     except OSError as exc:
         raise OutputError(f"cannot write output folder {out}: {exc.strerror or exc}") from exc
     if foreign:
         # The run replaces <out>/<stage> entries: never do that in someone else's folder.
         raise OutputError(f"output folder {out} is not empty and is not a bladewear run folder "
                           f"(no run.log or summary.json); choose another --out")
-    clean_stale(out)
+    lock = lock_out(out)
+    clean_stale(out)  # only once the lock is ours: another run's temporaries are not stale
+    return lock
+
+
+def lock_out(out: Path) -> int:
+    """An exclusive lock on the run folder (``flock`` on the folder itself; it dies with the process).
+
+    Two runs into one folder would interleave their links and summaries: the
+    second one stops with an :class:`OutputError` instead. Runs sharing a
+    *cache* are fine (shared lock, entries written whole; see the module doc).
+    """
+    try:
+        fd = os.open(out, os.O_RDONLY)
+    except OSError as exc:
+        raise OutputError(f"cannot open output folder {out}: {exc.strerror or exc}") from exc
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        raise OutputError(f"output folder {out} is in use by another bladewear run; wait for it to finish "
+                          "or choose another --out") from None
+    return fd
 
 
 def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: RunLog,
@@ -422,7 +550,9 @@ def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: R
                 continue  # runs after the links are in place (the report)
             entry = cache_root / name / p.keys[name]
             t0 = time.monotonic()
-            got = None if fresh else grp.on_root(read_entry, entry)
+            got, damage = (None, None) if fresh else grp.on_root(check_entry, entry)
+            if damage:
+                log.warning(f"{name}: cache entry {entry} is damaged ({damage}); recomputing it")
             if got is not None:
                 status[name] = "cached"
                 log.info(f"{name}: cached ({entry})")
@@ -450,10 +580,15 @@ def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: R
 def _finish(scene, p, out, cache_root, status, timings, summaries, log, t_start) -> dict:
     summary = _summary(scene, p, cache_root, status, timings, summaries)
     summary["total_seconds"] = round(time.monotonic() - t_start, 3)
+    for name, lines in summary["unconverged"].items():
+        for line in lines:
+            log.warning(f"{name}: not converged: {line}")
     write_json(out / "scene.json", json.loads(scene.canonical()))
     write_json(out / "summary.json", summary)
+    n_bad = sum(len(v) for v in summary["unconverged"].values())
     log.info(f"done in {summary['total_seconds']:.1f} s: "
-             + ", ".join(f"{n} {s}" for n, s in status.items()) + f"; summary in {out / 'summary.json'}")
+             + ", ".join(f"{n} {s}" for n, s in status.items()) + f"; summary in {out / 'summary.json'}"
+             + (f"; {n_bad} result(s) NOT converged (exit status 3)" if n_bad else ""))
     return summary
 
 
@@ -473,7 +608,8 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
     tmp = grp.on_root(lambda: (log.info(f"{name}: computing (collective, {grp.size} ranks)"), cm.__enter__())[1])
     t0 = time.monotonic()
     try:
-        summary = grp.together(module.run, scene, dict(inputs), tmp, log.child(name))
+        with heartbeat(log, name) if grp.root else contextlib.nullcontext():
+            summary = grp.together(module.run, scene, dict(inputs), tmp, log.child(name))
     except BaseException as exc:
         if grp.root:
             cm.__exit__(type(exc), exc, exc.__traceback__)  # removes the temporary folder
@@ -485,6 +621,7 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
                "inputs": {k: str(v) for k, v in inputs.items()},
                "sections": json.loads(scene.canonical(module.SECTIONS)), "mpi_ranks": grp.size}
         try:
+            got["files"] = manifest(tmp)
             write_json(tmp / STAGE_FILE, got)
         except BaseException as exc:
             cm.__exit__(type(exc), exc, exc.__traceback__)
@@ -496,12 +633,42 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
     return grp.on_root(commit)
 
 
+#: Seconds between two "still computing" lines of a stage that says nothing itself.
+HEARTBEAT = 30.0
+
+
+@contextlib.contextmanager
+def heartbeat(log: RunLog, name: str, every: float | None = None) -> Iterator[None]:
+    """Log ``<name>: still computing, m:ss elapsed`` every ``every`` seconds until the block ends.
+
+    Stages built on library calls (gmsh meshing, dolfinx assembly, the
+    eigen-solves) cannot report progress themselves; this says the run is alive.
+    """
+    import threading
+
+    every = HEARTBEAT if every is None else every
+    stop = threading.Event()
+    t0 = time.monotonic()
+
+    def beat():
+        while not stop.wait(every):
+            log.info(f"{name}: still computing, {_hms(time.monotonic() - t0)} elapsed")
+
+    thread = threading.Thread(target=beat, name=f"heartbeat-{name}", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
 def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: str, log: RunLog) -> dict:
     """:func:`_compute` in this process alone (serial runs; non-MPI stages on rank 0)."""
     name = module.NAME
     log.info(f"{name}: computing")
     t0 = time.monotonic()
-    with atomic_dir(entry) as tmp:
+    with atomic_dir(entry) as tmp, heartbeat(log, name):
         summary = module.run(scene, dict(inputs), tmp, log.child(name))
         seconds = time.monotonic() - t0
         got = {"stage": name, "key": key, "summary": summary if summary is not None else {},
@@ -509,6 +676,7 @@ def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, k
                "inputs": {k: str(v) for k, v in inputs.items()},
                "sections": json.loads(scene.canonical(module.SECTIONS))}
         # Last file written: an entry without it is never trusted.
+        got["files"] = manifest(tmp)
         write_json(tmp / STAGE_FILE, got)
     log.info(f"{name}: computed in {seconds:.1f} s")
     return json.loads((entry / STAGE_FILE).read_text())
@@ -548,9 +716,16 @@ def _link(out: Path, folders: dict[str, Path], p: Plan) -> None:
         if "bundle" in p.external:
             _replace_link(out / "model", p.external["bundle"])
         for child in out.iterdir():
-            if child.is_symlink() and child.name not in folders and child.name != "model" \
-                    and child.name in registry.MODULES:
-                child.unlink()
+            if child.name not in folders and child.name != "model" and child.name in registry.MODULES:
+                if child.is_symlink():
+                    child.unlink()
+                elif child.is_dir() and child.name not in p.stages:
+                    # An uncached stage's folder (the report) from an earlier run: it would
+                    # contradict this run's summary.json. Renamed first so removal is all or nothing.
+                    old = child.with_name(f".{child.name}.old")
+                    shutil.rmtree(old, ignore_errors=True)
+                    os.replace(child, old)
+                    shutil.rmtree(old, ignore_errors=True)
         if "bundle" not in p.external and (out / "model").is_symlink():
             (out / "model").unlink()
     except OSError as exc:
@@ -572,10 +747,13 @@ def _replace_link(link: Path, target: Path) -> None:
 
 def _check_bundle(folder: Path) -> dict:
     """Validate a user's bundle before anything is written (BundleError names the file)."""
-    from reduction.bundle import read_bundle  # lazily: scipy
+    from reduction.bundle import check_definite, read_bundle  # lazily: scipy
 
     b = read_bundle(folder)
-    return {"bundle": str(folder), "n_dofs": b.n_dofs, "contact_pairs": b.contact.n_pairs}
+    definite = check_definite(b)
+    return {"bundle": str(folder), "n_dofs": b.n_dofs, "contact_pairs": b.contact.n_pairs,
+            "clamped_dofs": int(len(b.loads.fixed)), "tied_stiffness_check": definite,
+            "mu": "per pair (contact.npz)" if b.contact.mu is not None else "scene contact.mu"}
 
 
 def _summary(scene: Scene, p: Plan, cache_root, status, timings, summaries) -> dict:
@@ -584,10 +762,21 @@ def _summary(scene: Scene, p: Plan, cache_root, status, timings, summaries) -> d
          "created": _now(), "code_version": code_version(),
          "cache": str(cache_root) if cache_root else None,
          "stages": dict(status), "timings": dict(timings),
-         "keys": {n: p.keys[n] for n in status if n in p.keys}}
+         "keys": {n: p.keys[n] for n in status if n in p.keys},
+         "unconverged": unconverged(summaries)}
     for name, entry in summaries.items():
         s[name] = entry
     return s
+
+
+def unconverged(summaries: dict) -> dict[str, list[str]]:
+    """``{stage: [line, …]}`` of the stages whose summary lists unconverged results."""
+    out = {}
+    for name, entry in summaries.items():
+        lines = entry.get("unconverged") if isinstance(entry, dict) else None
+        if lines:
+            out[name] = [str(x) for x in (lines if isinstance(lines, (list, tuple)) else [lines])]
+    return out
 
 
 def _now() -> str:

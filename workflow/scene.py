@@ -80,6 +80,7 @@ class Scene(dict):
         super().__init__(sections)
         self.path = path
         self.overrides = list(overrides)
+        self.unused: set[str] = set()  # sections a model bundle replaces (set by workflow.pipeline.plan)
 
     @property
     def title(self) -> str:
@@ -189,17 +190,19 @@ def resolve(raw: dict, path: Path | None = None, overrides: Iterable[str] = ()) 
     base = path.parent if path is not None else Path.cwd()
     tables = {name: _resolve_paths(name, known[name], dict(raw.get(name) or {}), base) for name in known}
     overrides = list(overrides)
+    from_set: dict[str, str] = {}  # "section.key" → the --set text that gave it
     for text in overrides:
         sec, key, value = parse_override(text)
         if sec not in known:
             raise SceneError(f"--set {text}: unknown section [{sec}] (known: {', '.join(known)})")
         tables[sec].update(_resolve_paths(sec, known[sec], {key: value}, Path.cwd()))
+        from_set[f"{sec}.{key}"] = text
     resolved = {}
     for name, cls in known.items():
         try:
             resolved[name] = resolve_section(name, cls, tables[name])
         except SceneError as exc:
-            raise SceneError(f"{_where(path)}{exc}") from None
+            raise SceneError(f"{_blame(str(exc), from_set, path)}{exc}") from None
         except TypeError as exc:  # a dataclass without defaults for some field
             raise SceneError(f"{_where(path)}[{name}]: {exc}") from None
     _check_geometry(resolved["geometry"], path)
@@ -214,6 +217,17 @@ def load_scene(name: str | Path, overrides: Iterable[str] = ()) -> Scene:
 
 def _where(path: Path | None) -> str:
     return f"{path}: " if path is not None else ""
+
+
+def _blame(msg: str, from_set: dict[str, str], path: Path | None) -> str:
+    """Prefix of an error: the ``--set`` that gave a key the message names, else the scene file.
+
+    The first key the message names decides (a cross-key rule names the key at fault first).
+    """
+    named = [(msg.find(k), k) for k in from_set if re.search(rf"(?<![\w.]){re.escape(k)}(?![\w])", msg)]
+    if named:
+        return f"--set {from_set[min(named)[1]]}: "
+    return _where(path)
 
 
 def _resolve_paths(section: str, cls, table: dict, base: Path) -> dict:
@@ -348,7 +362,7 @@ def format_scene(scene: Scene) -> str:
     """Human-readable resolved scene: one TOML-like table per section, with units."""
     lines = [f"# {scene.title}" + (f"  ({scene.path})" if scene.path else "")]
     for name, cls in sections().items():
-        lines.append(f"\n[{name}]")
+        lines.append(f"\n[{name}]" + ("  # not used: [model] bundle replaces it" if name in scene.unused else ""))
         rows = field_rows(cls)
         width = max((len(r["key"]) for r in rows), default=0)
         for r in rows:

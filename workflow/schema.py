@@ -16,14 +16,16 @@ from workflow.errors import SceneError
 
 
 def param(default, unit: str = "", doc: str = "", *, min=None, max=None, min_exclusive: bool = False,
-          choices=None, item_choices=None, finite: bool = True):
+          choices=None, item_choices=None, finite: bool = True, min_items: int = 1):
     """A scene key: default value, unit, one-line doc and its admissible range.
 
     ``min``/``max`` bound numbers (``min_exclusive`` for a strict lower bound);
-    ``choices`` restricts a value, ``item_choices`` each item of a list.
+    ``choices`` restricts a value, ``item_choices`` each item of a list. A
+    list key must be given as a TOML list of at least ``min_items`` items,
+    each of the type of the default's items (int lists take integers only).
     """
     meta = dict(unit=unit, doc=doc, min=min, max=max, min_exclusive=min_exclusive, choices=choices,
-                item_choices=item_choices, finite=finite)
+                item_choices=item_choices, finite=finite, min_items=min_items)
     if isinstance(default, list):
         return dataclasses.field(default_factory=lambda d=default: list(d), metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -54,9 +56,12 @@ def coerce(section: str, key: str, f: dataclasses.Field, value: Any) -> Any:
             raise SceneError(f"{name} must be a string, got {value!r}")
     elif isinstance(default, list):
         if not isinstance(value, list):
-            value = [value]
+            raise SceneError(f"{name} must be a list, e.g. {name}=[{_example(default, value)}]; got {value!r}")
+        if len(value) < meta.get("min_items", 1):
+            raise SceneError(f"{name} must list at least {meta.get('min_items', 1)} value(s), got []")
         items = meta.get("item_choices")
         for item in value:
+            _check_item(name, default, item)
             if isinstance(item, float) and not math.isfinite(item):
                 raise SceneError(f"{name} contains {item!r}; values must be finite")
             if items is not None and item not in items:
@@ -69,6 +74,28 @@ def coerce(section: str, key: str, f: dataclasses.Field, value: Any) -> Any:
         raise SceneError(f"{name} = {value!r} is not one of: {', '.join(map(str, meta['choices']))}")
     _check_range(name, meta, [value])
     return value
+
+
+def _example(default, value) -> str:
+    return repr(value) if isinstance(value, (int, float, str)) and not isinstance(value, bool) else repr(default[0])
+
+
+def _check_item(name: str, default: list, item) -> None:
+    """Each item of a list key has the type of the default's items (numbers: int or float)."""
+    if not default:
+        return
+    kind = type(default[0])
+    if kind is bool:
+        ok = isinstance(item, bool)
+    elif kind is int:
+        ok = isinstance(item, int) and not isinstance(item, bool)
+    elif kind is float:
+        ok = isinstance(item, (int, float)) and not isinstance(item, bool)
+    else:
+        ok = isinstance(item, kind)
+    if not ok:
+        what = {int: "integers", float: "numbers", str: "strings", bool: "true/false"}.get(kind, kind.__name__)
+        raise SceneError(f"{name} contains {item!r}; its items must be {what}")
 
 
 def _check_range(name, meta, values):

@@ -53,13 +53,27 @@ def run(scene, inputs, out, log):
         raise KeyboardInterrupt
     if crash == NAME + ":exit":
         os._exit(9)
+    if crash.startswith(NAME + ":sigdfl"):
+        # what importing gmsh does; then work in Python (loop) or inside a C call (sleep)
+        import signal, time
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        (Path(os.environ["FAKE_TRACE"]).parent / "busy").write_text("")
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 60:
+            if crash.endswith("loop"):
+                sum(range(1000))
+            else:
+                time.sleep(60)
     for _ in log.progress(range(20), label="fake work"):
         pass
     values = {{s: repr(scene[s]) for s in SECTIONS}}
     (out / "data.txt").write_text(NAME + "\\n" + repr(values))
     (out / "figure.png").write_bytes(PNG)
     (out / "table.csv").write_text("i,value\\n" + "".join(f"{{i}},{{i * i}}\\n" for i in range(30)))
-    return {{"name": NAME, "contact_pairs": 8, "files": ["data.txt", "figure.png", "table.csv"]}}
+    summary = {{"name": NAME, "contact_pairs": 8, "files": ["data.txt", "figure.png", "table.csv"]}}
+    if os.environ.get("FAKE_UNCONVERGED") == NAME:
+        summary["unconverged"] = [NAME + ": 2/15 frequencies did not converge (max iterations)"]
+    return summary
 '''
 
 
@@ -109,6 +123,7 @@ def install(tmp_path: Path, monkeypatch) -> Fakes:
     monkeypatch.setattr(pipeline, "code_version", lambda: "test")
     monkeypatch.setenv("FAKE_TRACE", str(fakes.trace))
     monkeypatch.delenv("FAKE_CRASH", raising=False)
+    monkeypatch.delenv("FAKE_UNCONVERGED", raising=False)
     monkeypatch.delenv("BLADEWEAR_CACHE", raising=False)
     return fakes
 

@@ -35,7 +35,7 @@ from workflow.engine import epscheck, penalty
 from workflow.engine.frf import (SweepResult, arclength_scale, frf_error, join_sweeps, seeds_from, sweep_variant,
                                  trace_variant)
 from workflow.engine.linear import band as band_of, first_excited_mode, linear_frfs
-from workflow.engine.variants import Variant, share
+from workflow.engine.variants import Variant, cost, share
 from workflow.errors import BundleError, SolverError
 
 #: reason given to a point that did not converge where the sliding interface is
@@ -141,14 +141,16 @@ class FRFStudy:
     seconds: float = 0.0
 
     def unconverged(self) -> list[str]:
-        """One line per result whose solver gave up (points not converged)."""
+        """One line per sweep with points whose solver gave up: where, and why."""
         out = []
         for r in self.runs + ([self.reference] if self.reference is not None else []):
-            bad = np.flatnonzero(~r.converged)
+            bad = np.flatnonzero(~np.asarray(r.converged, bool))
             if bad.size:
-                why = sorted({r.reasons[i] for i in bad})
-                out.append(f"{r.variant.label}: {bad.size}/{len(r.converged)} points not converged "
-                           f"({'; '.join(why)})")
+                hz = ", ".join(f"{r.freqs_hz[i]:.2f}" for i in bad[:8]) + (", …" if len(bad) > 8 else "")
+                why = "; ".join(sorted({r.reasons[i] for i in bad}))
+                role = "reference " if r is self.reference else ""
+                out.append(f"{role}{r.variant.label} ({r.solver}): {bad.size}/{len(r.freqs_hz)} frequencies did "
+                           f"not converge ({hz} Hz: {why}; raise hb.max_iterations or change hb.solver)")
         return out
 
     def warnings(self) -> list[str]:
@@ -181,8 +183,8 @@ def _variants(rc, cond, freqs, law, static, todo, opt, comm, log):
     kw = dict(solver=opt.solver, tol=opt.tol, maxiter=opt.max_iterations, max_passes=opt.max_passes)
     done = {}
     mine = share(todo, size)[rank]
-    progress = log.progress if log is not None else (lambda it, **k: it)
-    for i in progress(mine, total=len(mine), label="hb variants"):
+    progress = log.progress if log is not None else (lambda it, **k: it)  # noqa: E731
+    for i in progress(mine, total=len(mine), label="hb variants", weights=[cost(todo[i]) for i in mine]):
         v = todo[i]
         if opt.sweep == "arclength":
             r = trace_variant(rc, freqs[0], freqs[-1], law, static, v, max_steps=opt.max_steps,

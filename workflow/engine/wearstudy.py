@@ -73,7 +73,8 @@ class WearStudy:
 
     def unconverged(self) -> list[str]:
         """One line per wear method that did not reach the steady state."""
-        return [f"wear {m}: not steady after {h.iterations} iterations ({h.reason})"
+        return [f"wear {m}: NOT steady after {h.iterations} iterations ({h.reason}); raise "
+                f"{'wear.max_blocks' if m in ('explicit', 'implicit') else 'pseudotime.max_steps'}"
                 for m, h in self.histories.items() if not h.steady]
 
     def warnings(self) -> list[str]:
@@ -102,7 +103,12 @@ def build_problem(model, law, opt: WearOptions, rc=None):
     from workflow.hb import HBProblem
 
     rc = relative_coordinates(model) if rc is None else rc
-    omega = 2 * np.pi * opt.frequency_hz if opt.frequency_hz > 0 else first_tied_frequency(rc)
+    w_tied = first_tied_frequency(rc)
+    f_tied = w_tied / (2 * np.pi)
+    if opt.frequency_hz > 0 and not 0.01 * f_tied <= opt.frequency_hz <= 100 * f_tied:   # a typo, not a study
+        raise SceneError(f"wear.frequency_hz = {opt.frequency_hz:g} Hz is outside 0.01–100 × the first tied "
+                         f"frequency of the model ({f_tied:.4g} Hz); 0 means at that resonance")
+    omega = 2 * np.pi * opt.frequency_hz if opt.frequency_hz > 0 else w_tied
     nit = 2 * opt.nh + 1 if opt.method == "hdhb" else (opt.nit or 2 * opt.nh + 1)
     cond = condense(rc, omega, opt.nh)
     st = static_state(cond.Zr, cond.Fr, law, opt.max_passes)

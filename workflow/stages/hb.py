@@ -18,6 +18,7 @@ import numpy as np
 NAME = "hb"
 SECTIONS = ("contact", "hb", "sweep", "excitation", "pseudotime")
 NEEDS = ("reduced",)
+VIA_BUNDLE = ("excitation",)  # in the reduced load: a user bundle replaces it (#18)
 PRODUCES = ("frf",)
 #: collective under mpirun: the engine shares variants and the reference's
 #: frequencies over the ranks; rank 0 writes every output
@@ -53,14 +54,14 @@ def law_of(scene, model, rc=None):
     from workflow.engine import contact_law
 
     ct = scene["contact"]
-    return contact_law(model, mu=ct.mu, eps_n=ct.eps_n, eps_t=ct.eps_t, gap=ct.gap, factor=ct.penalty_factor,
-                       rc=rc)
+    return contact_law(model, mu=model.friction(ct.mu)[0], eps_n=ct.eps_n, eps_t=ct.eps_t, gap=ct.gap,
+                       factor=ct.penalty_factor, rc=rc)
 
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
     from reduction.reduced import ReducedModel
     from workflow.engine import frf
-    from workflow.errors import BundleError
+    from workflow.errors import BundleError, SolverError
     from workflow.mpi import world
     from workflow.report.frf import write_outputs
 
@@ -73,12 +74,19 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     t0 = time.perf_counter()
     opt, todo = options(scene)
     sw = scene["sweep"]
-    study = frf(model, law_of(scene, model), todo, band_hz=(sw.f_start_hz, sw.f_stop_hz), points=sw.points,
-                options=opt, comm=world(), log=log)
+    try:
+        study = frf(model, law_of(scene, model), todo, band_hz=(sw.f_start_hz, sw.f_stop_hz), points=sw.points,
+                    options=opt, comm=world(), log=log)
+    except SolverError as exc:
+        if "static contact state" in str(exc) and "rotation" in getattr(scene, "unused", ()):
+            raise SolverError(str(exc).replace("set rotation.speed_rpm (centrifugal) or excitation.static_force",
+                                               "the bundle's loads.npz 'static' load")) from None
+        raise
     if study is None:       # MPI rank ≠ 0
         return None
     files = write_outputs(Path(out), study)
     summary = summarise(study, scene)
+    summary["mu_source"] = model.friction(scene["contact"].mu)[1]
     summary.update(seconds=round(time.perf_counter() - t0, 3), files=files)
     return summary
 
@@ -110,8 +118,10 @@ def summarise(study, scene) -> dict:
         "eps_n": float(np.mean(law.eps_n)), "eps_t": float(np.mean(law.eps_t)),
         "eps_n_range": [float(law.eps_n.min()), float(law.eps_n.max())],
         "eps_t_range": [float(law.eps_t.min()), float(law.eps_t.max())],
-        "eps_check": study.eps_check, "mu": float(scene["contact"].mu),
-        "excitation_amplitude_N": float(scene["excitation"].amplitude),
+        "eps_check": study.eps_check,
+        "mu": [float(m) for m in study.law.mu] if np.ptp(study.law.mu) > 0 else float(study.law.mu[0]),
+        "excitation_amplitude_N": None if "excitation" in getattr(scene, "unused", ()) else
+        float(scene["excitation"].amplitude),
         "condense_seconds": round(study.condense_seconds, 4),
         "unconverged": study.unconverged(),
         "warnings": study.warnings(),

@@ -138,7 +138,12 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                             f"(a user bundle needs its mesh for the remap stage)")
     table = read_wear_csv(Path(inputs["wear"]) / WEAR_CSV, getattr(wp, "methods", ()))
     pairs = pair_wear(bundle.contact, table, wp.blade_share)
-    mesh, ct, ft = dc.read_mesh_xdmf(bdir / "mesh.xdmf")
+    # Remap is a serial stage: under mpirun it runs on rank 0 while the other
+    # ranks wait outside MPI collectives, so the mesh must be read on
+    # COMM_SELF (a COMM_WORLD read would wait for them forever).
+    from mpi4py import MPI
+
+    mesh, ct, ft = dc.read_mesh_xdmf(bdir / "mesh.xdmf", comm=MPI.COMM_SELF)
     r = rm.remap_wear(mesh, ft, pairs, rp.max_fraction, rp.smoothing)
     share_max = float(max(pairs.w_blade.max(initial=0.0), pairs.w_disk.max(initial=0.0)))
     log.info(f"remap: wear column {table['method']!r}, max share {share_max:.3g} m, "
@@ -169,6 +174,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
         summary.update(reassemble(scene, bundle, mesh, ct, ft, r, pairs, out, log, inputs.get("reduced")))
         if summary.get("frf_figure"):
             summary["figures"].append(summary["frf_figure"])
+        summary["unconverged"] = _unconverged(summary)
     # ``out`` is a temporary (cache) folder: name the files as they appear in the
     # run folder, <run>/remap/..., next to the summary.json the CLI prints.
     for f in summary["figures"]:
@@ -176,6 +182,15 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     log.info(f"remap: wear map {NAME}/{summary['wear_map']} (ParaView), worn mesh {NAME}/{summary['worn_mesh']}"
              + (f", worn reduced model {NAME}/{summary['reduced']}" if summary.get("reduced") else ""))
     return summary
+
+
+def _unconverged(summary: dict) -> list[str]:
+    """Lines for the pipeline's ``unconverged`` list (exit status 3): the new-vs-worn FRF."""
+    if summary.get("frf_error"):
+        return [f"new-vs-worn FRF not computed: {summary['frf_error']}"]
+    n = summary.get("frf_points", 0)
+    return [f"new-vs-worn FRF, {key} model: {n - got}/{n} frequencies did not converge"
+            for key, got in (summary.get("frf_converged") or {}).items() if got < n]
 
 
 def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log, reduced_dir=None) -> dict:

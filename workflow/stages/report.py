@@ -94,6 +94,13 @@ def _markdown(title, summary, sections) -> str:
     if summary.get("scene"):
         lines += [f"Scene: `{summary['scene']}`" + (f", overrides: `{' '.join(summary['overrides'])}`"
                                                     if summary.get("overrides") else ""), ""]
+    bad = summary.get("unconverged") or {}
+    if bad:
+        # The run finished (exit status 3), but these results are not solutions.
+        lines += ["## ⚠ Unconverged results", "", "<span style='color:#c00'>**These results did not converge; "
+                  "read them as such (exit status 3).**</span>", ""]
+        lines += [f"- **{_md_cell(name)}**: {_md_cell(line)}" for name, ls in bad.items() for line in ls]
+        lines.append("")
     stages = summary.get("stages", {})
     if stages:
         lines += ["## Stages", "", "| stage | status | time (s) |", "|---|---|---|"]
@@ -131,6 +138,12 @@ def _html(title, summary, sections) -> str:
              f"<h1>{e(title)}</h1>"]
     if summary.get("scene"):
         parts.append(f"<p>Scene: <code>{e(summary['scene'])}</code></p>")
+    bad = summary.get("unconverged") or {}
+    if bad:
+        parts.append("<div style='color:#c00;border:2px solid #c00;padding:.5em 1em'>"
+                     "<h2>Unconverged results</h2><p>These results did not converge (exit status 3):</p><ul>"
+                     + "".join(f"<li><b>{e(name)}</b>: {e(line)}</li>" for name, ls in bad.items() for line in ls)
+                     + "</ul></div>")
     stages = summary.get("stages", {})
     if stages:
         parts.append("<h2>Stages</h2><table><tr><th>stage</th><th>status</th><th>time (s)</th></tr>")

@@ -16,6 +16,7 @@ import numpy as np
 NAME = "wear"
 SECTIONS = ("contact", "hb", "pseudotime", "wear", "excitation")
 NEEDS = ("reduced",)
+VIA_BUNDLE = ("excitation",)  # in the reduced load: a user bundle replaces it (#18)
 PRODUCES = ("wear",)
 
 
@@ -64,7 +65,8 @@ def run_wear(model, scene, out: Path, log) -> dict:
     summary = {"frequency_hz": study.omega / 2 / np.pi, "pairs": study.hb.p, "csv": "wear.csv", "figures": figures,
                "unworn_point": u, "tracked_pair": study.tracked_pair,
                "methods": {m: h.summary() for m, h in study.histories.items()},
-               "eps_check": study.eps_check, "unconverged": study.unconverged(), "warnings": study.warnings()}
+               "eps_check": study.eps_check, "unconverged": study.unconverged(), "warnings": study.warnings(),
+               "mu_source": model.friction(ct.mu)[1]}
     if study.profile_max_rel_diff is not None:
         summary["profile_max_rel_diff"] = study.profile_max_rel_diff
         summary["cpu_ratio_pseudo_over_reference"] = study.cpu_ratio_pseudo_over_reference

@@ -1,0 +1,74 @@
+"""Unconverged results: listed per stage, exit status 3 (issue 18, item 6).
+
+The README's contract: a run that finishes with results that did not
+converge exits 3 and says which (summary.json "unconverged", log, report).
+The end-to-end case is the issue's: μ = 0 on the quick scene, where HB
+misses 2 of 15 frequencies and the wear march does not reach its steady
+state within pseudotime.max_steps.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from workflow.stages import remap
+
+
+def test_hb_lines_name_variant_and_frequencies():
+    from workflow.stages.hb import _unconverged
+
+    r = SimpleNamespace(variant=SimpleNamespace(label="HBM-3 nit=64"), solver="newton",
+                        freqs_hz=np.array([190.0, 200.0, 210.0]), converged=np.array([True, False, True]))
+    line = _unconverged(r, None)
+    assert "HBM-3 nit=64" in line and "1/3" in line and "200.00" in line and "hb.max_iterations" in line
+    assert _unconverged(r, r).startswith("reference ")
+    r.converged[:] = True
+    assert _unconverged(r, None) is None
+
+
+def test_remap_lines():
+    assert remap._unconverged({"frf_error": "no equilibrium"}) == ["new-vs-worn FRF not computed: no equilibrium"]
+    s = {"frf_points": 9, "frf_converged": {"new": 9, "worn": 7}}
+    assert remap._unconverged(s) == ["new-vs-worn FRF, worn model: 2/9 frequencies did not converge"]
+    assert remap._unconverged({"frf_points": 9, "frf_converged": {"new": 9, "worn": 9}}) == []
+
+
+def test_frictionless_quick_scene_exits_3(tmp_path):
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYVISTA_OFF_SCREEN="true")
+    env.pop("BLADEWEAR_CACHE", None)
+    r = subprocess.run([str(Path(sys.executable).parent / "bladewear"), "run", "quick", "--out", str(tmp_path / "o"),
+                        "--cache", str(tmp_path / "c"), "--quiet", "--set", "contact.mu=0",
+                        "--set", 'run.outputs=["frf","wear"]'], capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 3, r.stderr
+    assert "Traceback" not in r.stderr and "exit status 3" in r.stderr
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert set(s["unconverged"]) == {"hb", "wear"}
+    assert "frequencies did not converge" in s["unconverged"]["hb"][0]
+    assert "NOT steady" in s["unconverged"]["wear"][0] and "pseudotime.max_steps" in s["unconverged"]["wear"][0]
+    # what the lines say agrees with the stage's own numbers
+    run = s["hb"]["runs"][0]
+    assert f"{run['points'] - run['converged_points']}/{run['points']}" in s["unconverged"]["hb"][0]
+    assert not s["wear"]["methods"]["pseudo-time"]["steady"]
+
+
+def test_wear_frequency_far_from_the_model_is_refused():
+    """wear.frequency_hz = 1e9 used to be accepted without a word (issue 18, item 5)."""
+    from workflow import extreme as X
+    from workflow.errors import SceneError
+    from workflow.scene import load_scene
+    from workflow.stages.wear import build_problem
+
+    model = X.synthetic_model(2)
+    with pytest.raises(SceneError, match=r"wear\.frequency_hz = 1e\+09 Hz is outside"):
+        build_problem(model, load_scene("quick", ["wear.frequency_hz=1e9"]))
+    _, _, omega = build_problem(model, load_scene("quick"))
+    f = omega / 2 / np.pi
+    _, _, omega2 = build_problem(model, load_scene("quick", [f"wear.frequency_hz={1.05 * f}"]))
+    assert omega2 == pytest.approx(2 * np.pi * 1.05 * f)
