@@ -260,7 +260,35 @@ def cmd_show(args) -> int:
         reads = f"; reads [{'], ['.join(module.SECTIONS)}]" if module.SECTIONS else ""
         print(f"#   {name:<16} {state:<11} needs {', '.join(module.NEEDS) or '-'}{reads}"
               + (f" (cache entry damaged: {damage}; will recompute)" if damage else ""))
+    if "reduction" in p.stages and ("hb" in p.stages or "wear" in p.stages):
+        entry = cache / "reduction" / p.keys["reduction"]
+        got, _ = check_entry(entry)
+        print("\n" + _penalty_line(scene, None if got is None else entry / "reduced.npz"))
     return 0
+
+
+def _penalty_line(scene, reduced) -> str:
+    """The DLFT penalties this scene will use: the values when the reduced model is
+    cached, else the rule (they need the reduced model's static stiffness)."""
+    ct = scene["contact"]
+    if ct.eps_n > 0 and ct.eps_t > 0:
+        return f"# DLFT penalties: given, ε_N = {ct.eps_n:g}, ε_T = {ct.eps_t:g} N/m"
+    rule = f"{ct.penalty_factor:g} × each pair's static condensed stiffness (contact.penalty_factor)"
+    from workflow.errors import BladewearError
+
+    if reduced is None or not Path(reduced).is_file():
+        return f"# DLFT penalties: automatic, {rule}; values once the reduced model exists"
+    from reduction.reduced import ReducedModel
+    from workflow.engine import contact_law
+
+    try:
+        model = ReducedModel.load(reduced)
+    except BladewearError as exc:
+        return f"# DLFT penalties: automatic, {rule} (the cached reduced model cannot be read: {exc})"
+    law = contact_law(model, mu=model.friction(ct.mu)[0], eps_n=ct.eps_n, eps_t=ct.eps_t,
+                      factor=ct.penalty_factor)
+    return (f"# DLFT penalties: automatic, {rule}: ε_N {law.eps_n.min():.3g}…{law.eps_n.max():.3g}, "
+            f"ε_T {law.eps_t.min():.3g}…{law.eps_t.max():.3g} N/m over {model.n_pairs} pairs")
 
 
 if __name__ == "__main__":

@@ -117,7 +117,7 @@ class WearProblem:
 
     def __init__(self, hb, area, k_w: float, share: float = 0.5, eps_path=()):
         self.hb = hb
-        #: :func:`workflow.engine.cascade.newton_path` factors for vibration solves
+        #: :func:`workflow.engine.cascade.along_eps_path` factors for vibration solves
         #: that plain Newton does not finish (large ε shrinks its basin)
         self.eps_path = tuple(eps_path)
         self.area = np.broadcast_to(np.asarray(area, dtype=float), (hb.p,)).copy()
@@ -210,9 +210,9 @@ class WearProblem:
         res = newton(hb.residual_jacobian, x0, fun=hb.residual, tol=tol, scale=hb.residual_scale(),
                      maxiter=maxiter)
         if not res.converged and self.eps_path:
-            from workflow.engine.cascade import newton_path
+            from workflow.engine.cascade import along_eps_path
 
-            alt = newton_path(hb, x0, self.eps_path, tol, maxiter)
+            alt = along_eps_path(hb, x0, self.eps_path, tol, maxiter)
             if alt.converged:
                 res = alt
         if not res.converged:

@@ -10,8 +10,11 @@ Two comparisons:
 * the whole chain on 2 ranks (``--fresh``) against 1 rank: the assembly's DOF
   numbering depends on the partition, so the reduced models agree to
   round-off only, which the lightly damped resonance amplifies (a 1e-10
-  frequency shift is ~1e-7 in amplitude; measured 3.6e-8 on the FRF and
-  1.4e-8 on the wear with hb.tol = 1e-12): 1e-6;
+  frequency shift is ~1e-7 in amplitude; measured 3.6e-8 on the FRF): 1e-6.
+  The wear profile agrees only to its integrator's tolerance: at the large
+  default penalty the pseudo-time wear integration rejects and retries steps,
+  and those discrete decisions flip on round-off (measured 2.8e-3 of max W,
+  with pseudotime.wear_rtol = 3e-3): 1e-2 there;
 * hb, wear and remap on 2 ranks from the *serial* reduced model (cache copied,
   their entries removed): the same problem, so 1e-8.
 """
@@ -76,11 +79,11 @@ def runs(tmp_path_factory):
     return tmp, serial
 
 
-def _compare(a: Path, b: Path, rel: float) -> None:
+def _compare(a: Path, b: Path, rel: float, rel_wear: float | None = None) -> None:
     for col in ("frequency_hz", "amplitude_m"):
         assert _rel(_columns(b / "hb" / "frf.csv", col), _columns(a / "hb" / "frf.csv", col)) < rel, col
     w = [_columns(d / "wear" / "wear.csv", "W_pseudo-time_m") for d in (a, b)]
-    assert w[0].max() > 0 and _rel(w[1], w[0]) < rel
+    assert w[0].max() > 0 and _rel(w[1], w[0]) < (rel_wear or rel)
     for d in (a, b):
         s = json.loads((d / "summary.json").read_text())
         assert s["stages"]["remap"] == "computed" and s["unconverged"] == {}
@@ -91,7 +94,7 @@ def test_readme_command_two_ranks_finishes_and_matches_serial(runs):
     tmp, serial = runs
     par = tmp / "fresh2"
     _run(MPIRUN + [BIN, "run", "quick", "--out", par, "--cache", tmp / "c2", "--fresh", "--quiet", *TIGHT])
-    _compare(serial, par, 1e-6)
+    _compare(serial, par, 1e-6, rel_wear=1e-2)
 
 
 def test_serial_stages_on_two_ranks_same_reduced_model(runs):

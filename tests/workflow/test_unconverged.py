@@ -22,15 +22,22 @@ from workflow.stages import remap
 
 
 def test_hb_lines_name_variant_and_frequencies():
-    from workflow.stages.hb import _unconverged
+    from workflow.engine import FRFStudy
 
     r = SimpleNamespace(variant=SimpleNamespace(label="HBM-3 nit=64"), solver="newton",
-                        freqs_hz=np.array([190.0, 200.0, 210.0]), converged=np.array([True, False, True]))
-    line = _unconverged(r, None)
+                        freqs_hz=np.array([190.0, 200.0, 210.0]), converged=np.array([True, False, True]),
+                        reasons=["converged", "stalled", "converged"])
+
+    def lines(runs, ref):
+        return FRFStudy(freqs_hz=r.freqs_hz, band_hz=(190.0, 210.0), tied_hz=None, tied_mode=None, runs=runs,
+                        reference=ref, tied=None, sliding=None, static=None, law=None,
+                        condense_seconds=0.0).unconverged()
+
+    line, = lines([r], None)
     assert "HBM-3 nit=64" in line and "1/3" in line and "200.00" in line and "hb.max_iterations" in line
-    assert _unconverged(r, r).startswith("reference ")
+    assert lines([], r)[0].startswith("reference ")
     r.converged[:] = True
-    assert _unconverged(r, None) is None
+    assert lines([r], None) == []
 
 
 def test_remap_lines():
@@ -62,8 +69,13 @@ def test_wear_frequency_far_from_the_model_is_refused():
     """wear.frequency_hz = 1e9 used to be accepted without a word (issue 18, item 5)."""
     from workflow import extreme as X
     from workflow.errors import SceneError
+    from workflow.engine.wearstudy import build_problem as engine_build
     from workflow.scene import load_scene
-    from workflow.stages.wear import build_problem
+    from workflow.stages.hb import law_of
+    from workflow.stages.wear import options
+
+    def build_problem(model, scene):
+        return engine_build(model, law_of(scene, model), options(scene))
 
     model = X.synthetic_model(2)
     with pytest.raises(SceneError, match=r"wear\.frequency_hz = 1e\+09 Hz is outside"):

@@ -5,9 +5,10 @@
 The scene's model (48 pairs for ``paper-wear``) is built through the
 pipeline up to the reduced model (cached like any run), then the unworn HB
 problem at the wear frequency is solved from the same start (static state +
-tied linear response) by Newton (:meth:`workflow.hb.HBProblem.solve`) and by
-pseudo-time — SER with the Jacobian mass, :func:`workflow.pseudotime.integrate`
-— ``--repeat`` times each, interleaved (alternating which goes first, so
+tied linear response) by Newton and by pseudo-time — SER with the Jacobian
+mass, :func:`workflow.pseudotime.integrate` — both along the default
+penalty's ε-path (:func:`workflow.engine.cascade.along_eps_path`),
+``--repeat`` times each, interleaved (alternating which goes first, so
 neither profits from the other's warm caches), with 1 and with 2 BLAS
 threads. Writes ``unworn_point.json`` (median seconds, iterations, Jacobians,
 residual evaluations, the ratio, the difference of the two roots).
@@ -21,12 +22,14 @@ import time
 from pathlib import Path
 
 
-def measure(hb, repeat: int, threads: int) -> dict:
+def measure(hb, repeat: int, threads: int, eps_path=()) -> dict:
     import numpy as np
 
-    from workflow.pseudotime import integrate
+    from workflow.engine.cascade import along_eps_path, run_solver
     from workflow.solvers import blas_threads
 
+    pseudo = {"scheme": "ser", "precond": "jacobian", "max_steps": 400}
+    run = lambda q, x, s, m: run_solver(q, x, s, 1e-8, m, pseudo)  # noqa: E731
     x0 = hb.x0()
     times = {"newton": [], "pseudo-time": []}
     res = {}
@@ -34,11 +37,7 @@ def measure(hb, repeat: int, threads: int) -> dict:
         for k in range(repeat):
             for name in (("newton", "pseudo-time") if k % 2 else ("pseudo-time", "newton")):
                 t = time.perf_counter()
-                if name == "newton":
-                    r = hb.solve(x0, tol=1e-8, maxiter=100)
-                else:
-                    r = integrate(hb.residual, hb.residual_jacobian, x0, "ser", precond="jacobian", tol=1e-8,
-                                  scale=hb.residual_scale(), max_steps=400)
+                r = along_eps_path(hb, x0, eps_path, 1e-8, 100 if name == "newton" else 400, run=run, solver=name)
                 times[name].append(time.perf_counter() - t)
                 res[name] = r
     n, p = res["newton"], res["pseudo-time"]
@@ -53,8 +52,11 @@ def measure(hb, repeat: int, threads: int) -> dict:
 def main(argv=None) -> int:
     from reduction.reduced import ReducedModel
     from workflow.io import write_json
+    from workflow.engine import penalty
+    from workflow.engine.wearstudy import build_problem
     from workflow.scene import load_scene
-    from workflow.stages import wear as wear_stage
+    from workflow.stages.hb import law_of
+    from workflow.stages.wear import options
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="paper-wear")
@@ -65,9 +67,11 @@ def main(argv=None) -> int:
     subprocess.run([str(Path(sys.executable).parent / "bladewear"), "run", a.scene, "--set", 'run.outputs=["reduced"]',
                     "--out", str(run_dir), "--quiet"], check=True)
     model = ReducedModel.load(run_dir / "reduction" / "reduced.npz")
-    hb, _, omega = wear_stage.build_problem(model, load_scene(a.scene))
+    scene = load_scene(a.scene)
+    hb, _, omega = build_problem(model, law_of(scene, model), options(scene))
+    path = penalty.path(scene["contact"].penalty_factor)
     out = {"scene": a.scene, "pairs": hb.p, "unknowns": hb.n, "frequency_hz": omega / 6.283185307179586,
-           "repeat": a.repeat, "runs": [measure(hb, a.repeat, t) for t in (1, 2)]}
+           "repeat": a.repeat, "eps_path_steps": len(path), "runs": [measure(hb, a.repeat, t, path) for t in (1, 2)]}
     write_json(a.out / "unworn_point.json", out)
     for r in out["runs"]:
         print(f"{r['threads']} BLAS thread(s): newton {r['newton']['median_s']:.3f} s "

@@ -6,7 +6,7 @@ usual first; each later attempt exists because a measured case needed it):
 1. a guess that already satisfies R = 0 (one residual, no Jacobian);
 2. ``newton-powell`` only: Newton from each guess, the smallest residual
    first, *along the ε-path* (``eps_path``: the root at a moderate ε, then
-   ε up by decades, each from the last root — :func:`newton_path`), then
+   ε up by decades, each from the last root — :func:`along_eps_path`), then
    MINPACK's Powell from Newton's best iterate;
 3. the solver from each guess in turn (``short`` iterations each);
 4. ``smooth`` (aliased variants): a guess from the same Nh with many time
@@ -52,7 +52,7 @@ NEWTON_STEPS = 30
 HOMOTOPY = (0.2, 0.4, 0.6, 0.8, 1.0)
 #: decades of the ε-continuation (from ε·10^-EPS_DECADES up to ε).
 EPS_DECADES = 3
-#: The ε-path of :func:`newton_path` comes from :func:`workflow.engine.penalty.path`.
+#: The ε-path of :func:`along_eps_path` comes from :func:`workflow.engine.penalty.path`.
 #: Measured on the quick sector (HBM-3 nit=64, 15 points, ε = 10³× stiffness):
 #: Newton straight at ε from the secant predictor 4.1 s with 15 points lost
 #: after the first failure; from the root at ε·10⁻³ by decades 0.53 s, 3
@@ -112,20 +112,22 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
     raise SceneError(f"hb.solver: {solver!r} is not one of {', '.join(SOLVERS)}")
 
 
-def newton_path(prob, x0, eps_path, tol: float, maxiter: int):
-    """Newton from ``x0`` along ``eps_path`` (factors < 1 of the law's ε, rising),
-    then at the law's own ε: the large penalty's root from a moderate one's.
-    A step that fails is skipped (the next starts from the last root); the
-    result is the final solve's, at the law's ε."""
+def along_eps_path(prob, x0, eps_path, tol: float, maxiter: int, run=None, solver: str = "newton"):
+    """``solver`` (Newton by default; ``run`` the cascade's runner, for its
+    pseudo-time options) from ``x0`` along ``eps_path`` (factors < 1 of the
+    law's ε, rising), then at the law's own ε: the large penalty's root from
+    a moderate one's. A step that fails is skipped (the next starts from the
+    last root); the result is the final solve's, at the law's ε."""
+    run = run or (lambda q, x, s, m: run_solver(q, x, s, tol, m))
     x, its = x0, 0
     for f in eps_path:
         q = prob.with_linear(prob.Zr, prob.Fr)
         q.set_contact(penalty.scaled(prob.law, f))
-        res = run_solver(q, x, "newton", tol, maxiter)
+        res = run(q, x, solver, maxiter)
         its += int(res.iterations)
         if res.converged:
             x = res.x
-    res = run_solver(prob, x, "newton", tol, maxiter)
+    res = run(prob, x, solver, maxiter)
     return replace(res, iterations=its + int(res.iterations))
 
 
@@ -213,7 +215,7 @@ def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=
     ``guesses`` (unknown vectors; None entries skipped) through the cascade
     of the module docstring. ``tol`` is relative to ‖F‖. ``smooth``
     (optional) is a callable returning ``(x or None, iterations)``.
-    ``eps_path``: see :func:`newton_path` (empty: Newton at the law's ε);
+    ``eps_path``: see :func:`along_eps_path` (empty: Newton at the law's ε);
     ``pseudo``: see :func:`run_solver`."""
     if solver not in SOLVERS:
         raise SceneError(f"hb.solver: {solver!r} is not one of {', '.join(SOLVERS)}")
@@ -229,13 +231,17 @@ def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=
     inner = "newton" if solver == "newton-powell" else solver
     if solver == "newton-powell":
         for k in sorted(norms, key=norms.get):
-            if best.keep(newton_path(prob, guesses[k], eps_path, tol, newton_steps(prob, maxiter))):
+            if best.keep(along_eps_path(prob, guesses[k], eps_path, tol, newton_steps(prob, maxiter))):
                 return PointResult(best.res, best.total, "newton")
         if best.res is not None and best.keep(run(prob, best.res.x, "powell", maxiter)):
             return PointResult(best.res, best.total, "powell")
         solver = "powell"
     for k, x0 in enumerate(guesses):
-        if x0 is not None and best.keep(run(prob, x0, solver, short)):
+        if x0 is None:
+            continue
+        res = along_eps_path(prob, x0, eps_path, tol, short, run, solver) if solver != "powell" else \
+            run(prob, x0, solver, short)
+        if best.keep(res):
             return PointResult(best.res, best.total, f"guess{k}")
     if smooth is not None:
         xs, its = smooth()

@@ -219,7 +219,7 @@ def trace_variant(rc, f0: float, f1: float, law, static, v: Variant, *, solver: 
 
     With an ``eps_path`` the curve is traced at the path's first (moderate)
     penalty and every point is then carried up the path to the law's ε at
-    its own ω (:func:`workflow.engine.cascade.newton_path`): the corrector's
+    its own ω (:func:`workflow.engine.cascade.along_eps_path`): the corrector's
     basin shrinks with ε like Newton's (measured on the synthetic blade at
     10³× the stiffness: the trace stalled at a stick/slip kink at 98.1 Hz of
     94–104; at 1× it crosses the band in 114 steps)."""

@@ -107,7 +107,7 @@ def contact_law(model, contact, Zr0: np.ndarray, *, mu=None):
 
 
 def path(factor: float, user_given: bool = False) -> tuple:
-    """The ε-path of :func:`workflow.engine.cascade.newton_path` for penalties
+    """The ε-path of :func:`workflow.engine.cascade.along_eps_path` for penalties
     ``factor`` × the reference stiffness: half decades from
     :data:`START_FACTOR` up to (not including) the target, as fractions of
     it; empty for a user's own ε (nothing to continue from). Half decades:

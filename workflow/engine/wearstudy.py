@@ -115,22 +115,31 @@ def build_problem(model, law, opt: WearOptions, rc=None):
     return HBProblem(cond.Zr, cond.Fr, law, opt.nh, nit, opt.method, max_passes=opt.max_passes, static=st), rc, omega
 
 
-def unworn_solvers(hb, x0, newton_result, *, tol: float, max_steps: int) -> dict:
-    """The unworn HB point by Newton (given) and by pseudo-time from the same
-    start (SER with the Jacobian mass: pseudo-transient continuation), each
-    with seconds, steps, Jacobians, and the relative difference of the two
-    solutions (max |Δx| / max |x|)."""
-    from workflow.pseudotime import integrate
+def unworn_solvers(hb, x0, *, tol: float, max_steps: int, eps_path=()) -> dict:
+    """The unworn HB point by Newton and by pseudo-time (SER with the Jacobian
+    mass: pseudo-transient continuation) from the same start ``x0`` along the
+    same ε-path (:func:`workflow.engine.cascade.along_eps_path`), each with
+    seconds, iterations (steps), Jacobians, and the relative difference of
+    the two solutions (max |Δx| / max |x|)."""
+    import time
 
-    pt = integrate(hb.residual, hb.residual_jacobian, x0, "ser", precond="jacobian", tol=tol,
-                   scale=hb.residual_scale(), max_steps=max_steps)
-    row = lambda r: {"seconds": r.seconds, "iterations": int(r.iterations),  # noqa: E731
-                     "jacobian_evaluations": int(r.jacobian_evaluations), "converged": bool(r.converged),
-                     "reason": r.reason}
-    top = max(float(np.abs(newton_result.x).max()), 1e-300)
-    return {"newton": row(newton_result), "pseudo-time": row(pt),
-            "max_rel_diff": float(np.abs(pt.x - newton_result.x).max() / top) if pt.converged else None,
-            "time_ratio_pseudo_over_newton": pt.seconds / max(newton_result.seconds, 1e-12)}
+    from workflow.engine.cascade import along_eps_path, run_solver
+
+    pseudo = {"scheme": "ser", "precond": "jacobian", "max_steps": max_steps}
+    out = {}
+    for name, solver in (("newton", "newton"), ("pseudo-time", "pseudo-time")):
+        t0 = time.perf_counter()
+        r = along_eps_path(hb, x0, eps_path, tol, max_steps,
+                           run=lambda q, x, s, m: run_solver(q, x, s, tol, m, pseudo), solver=solver)
+        out[name] = (r, time.perf_counter() - t0)
+    row = lambda r, s: {"seconds": s, "iterations": int(r.iterations),  # noqa: E731
+                        "jacobian_evaluations": int(r.jacobian_evaluations), "converged": bool(r.converged),
+                        "reason": r.reason}
+    (n, tn), (pt, tp) = out["newton"], out["pseudo-time"]
+    top = max(float(np.abs(n.x).max()), 1e-300)
+    return {"newton": row(n, tn), "pseudo-time": row(pt, tp), "eps_path_steps": len(eps_path),
+            "max_rel_diff": float(np.abs(pt.x - n.x).max() / top) if pt.converged and n.converged else None,
+            "time_ratio_pseudo_over_newton": tp / max(tn, 1e-12)}
 
 
 def _unworn_point(hb, omega: float, opt: WearOptions, eps_path):
@@ -160,7 +169,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=pe
                       log=None) -> WearStudy:
     """Fretting wear of ``model``'s pairs under ``law`` to the worn steady state
     by each of ``opt.methods`` (see the module docstring); ``eps_path`` as in
-    :func:`workflow.engine.cascade.newton_path` (default: the default penalty's)."""
+    :func:`workflow.engine.cascade.along_eps_path` (default: the default penalty's)."""
     from workflow.wear import WearProblem, profile_rel_diff
 
     opt = opt or WearOptions()
@@ -172,10 +181,8 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=pe
         log.info(f"wear at {omega / 2 / np.pi:.3f} Hz, {hb.p} pairs, Nh = {hb.nh}, nit = {hb.nit}, {hb.method}; "
                  f"{penalty.describe(law)}")
     base = _unworn_point(hb, omega, opt, eps_path)
-    # the paper's comparison at the unworn point: plain Newton and pseudo-time from the same start
-    x0 = hb.x0()
-    unworn = unworn_solvers(hb, x0, hb.solve(x0, tol=opt.tol, maxiter=opt.max_iterations), tol=opt.tol,
-                            max_steps=opt.max_steps)
+    # the paper's comparison at the unworn point: Newton and pseudo-time from the same start
+    unworn = unworn_solvers(hb, hb.x0(), tol=opt.tol, max_steps=min(opt.max_steps, 400), eps_path=eps_path)
     wp = WearProblem(hb, model.area, opt.k_w, opt.blade_share, eps_path=eps_path)
     i0 = int(np.argmax(wp.evaluate(base.x).rate))
     histories = {}
