@@ -38,6 +38,7 @@ PRODUCERS: dict[str, str] = {
     "extreme": "extreme",
     "report": "report",
     "scaling": "scaling",
+    "contact_convergence": "contact_convergence",
 }
 
 #: stage name → module path. Tests and plug-ins may register others here.
