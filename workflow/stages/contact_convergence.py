@@ -276,7 +276,7 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
     t_wear = time.perf_counter() - t2
     L = scene["geometry"].axial_length
     row = {"nodes_along": int(na), "nodes_across": int(nc), "pairs": int(model.n_pairs),
-           "h_contact_m": L / (na - 1), "dofs": info["dofs"], "peak_hz": pk["peak_hz"],
+           "h_contact_m": L / (na - 1), "dofs": info["dofs"], "tied_hz": pk["tied_hz"], "peak_hz": pk["peak_hz"],
            "peak_amplitude_m": pk["peak_amplitude_m"], "energy_J": pk["energy_J"],
            "max_wear_m": float(worn["W"].max()) if worn else None,
            "wear_steady": worn["steady"] if worn else None, "wear_hz": worn["frequency_hz"] if worn else None,
