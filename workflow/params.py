@@ -237,6 +237,9 @@ class ContactConvergence:
     profile_points: list = param([41, 9], "", "common flank points (along, across) per flank where the worn "
                                               "profiles of all meshes are compared", min=2)
     wear: bool = param(True, "", "also compute the worn profile (pseudo-time wear) of every mesh")
+    penalty_per_area: float = param(0.0, "N/m³", "DLFT penalties ε_N = ε_T = this × the pair's tributary area, "
+                                                  "the same interface stiffness per unit area on every mesh (0: the "
+                                                  "automatic per-pair penalty of [contact])", min=0.0)
 
     def check(self):
         if len(self.nodes_along) != len(self.nodes_across) or len(self.nodes_along) < 2:

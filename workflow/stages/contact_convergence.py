@@ -50,6 +50,17 @@ OPEN_GAP = 1.0
 
 # ------------------------------------------------------------------ engine calls
 
+def _area_penalty(law, model, cc):
+    """``law`` with ε_N,i = ε_T,i = ``cc.penalty_per_area`` · A_i [N/m] when that is > 0:
+    an interface stiffness per unit area that does not change with the mesh
+    (the automatic ε is a per-pair stiffness, so it does). Unchanged otherwise."""
+    k = float(cc.penalty_per_area)
+    if k <= 0:
+        return law
+    eps = k * np.asarray(model.area, dtype=float)
+    return law.with_penalty(eps, eps.copy())
+
+
 def _friction_peak(model, contact, hb, cc) -> dict:
     """Friction-damped peak of ``model``: ``peak_hz``, ``peak_amplitude_m`` (first
     harmonic at the observed DOFs), ``energy_J`` (friction, per cycle, at the
@@ -73,7 +84,7 @@ def _friction_peak(model, contact, hb, cc) -> dict:
     grid = np.linspace((1 - cc.band) * f_tied, (1 + cc.band) * f_tied, int(cc.points))
     cond = [condense(rc, 2 * np.pi * f, v.nh) for f in grid]
     mid = cond[len(cond) // 2]
-    law = contact_law(contact, model, mid.Zr[1])
+    law = _area_penalty(contact_law(contact, model, mid.Zr[1]), model, cc)
     anchor = HBProblem(mid.Zr[:1], mid.Fr[:1], law, 0, 1, "hbm", max_passes=contact.max_passes).static_state().anchor
     kw = dict(solver=hb.solver, tol=hb.tol, maxiter=hb.max_iterations, max_passes=contact.max_passes)
     sw = sweep_variant(rc, cond, law, anchor, v, **kw)
@@ -101,6 +112,7 @@ def _friction_peak(model, contact, hb, cc) -> dict:
     energy = float(energy_per_cycle(st.lam[..., 1:], st.slip).sum())
     return {"peak_hz": float(f_pk), "peak_amplitude_m": float(a_pk), "energy_J": energy,
             "grid_hz": grid, "grid_m": sw.amplitude, "evaluations": len(solved), "tied_hz": float(f_tied),
+            "eps_n": float(np.mean(law.eps_n)), "eps_t": float(np.mean(law.eps_t)),
             "at_band_edge": bool(i in (0, len(grid) - 1))}
 
 
@@ -136,13 +148,19 @@ def _worn_profile(model, scene, cc) -> dict:
     """Worn steady state of ``model`` by pseudo-time wear (eq. 22): ``W`` (p,) [m],
     ``steady``, ``steps``, ``frequency_hz``; the scene's contact, wear and
     pseudotime sections, HBM with the stage's Nh and nit."""
+    from reduction.condense import condense
+    from workflow.hb import HBProblem
     from workflow.stages.wear import build_problem
     from workflow.wear import WearProblem, pseudo_time_wear
 
     hbs, w, pt = scene["hb"], scene["wear"], scene["pseudotime"]
     sc = {"wear": w, "contact": scene["contact"],
           "hb": replace(hbs, methods=["hbm"], harmonics=[int(cc.harmonics)], time_samples=[int(cc.time_samples)])}
-    hb, _, omega = build_problem(model, sc)
+    hb, rc, omega = build_problem(model, sc)
+    if cc.penalty_per_area > 0:
+        c = condense(rc, omega, hb.nh)
+        hb = HBProblem(c.Zr, c.Fr, _area_penalty(hb.law, model, cc), hb.nh, hb.nit, hb.method,
+                       max_passes=hb.max_passes)
     base = hb.solve(hb.x0(), tol=hbs.tol, maxiter=hbs.max_iterations)
     if not base.converged:
         raise SolverError(f"contact_convergence: unworn HB point at {omega / 2 / np.pi:.4g} Hz did not converge "
@@ -281,7 +299,7 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
            "max_wear_m": float(worn["W"].max()) if worn else None,
            "wear_steady": worn["steady"] if worn else None, "wear_hz": worn["frequency_hz"] if worn else None,
            "area_sum_rel_err": abs(float(model.area.sum()) - info["flank_area_m2"]) / info["flank_area_m2"],
-           **static, "peak_evaluations": pk["evaluations"], "peak_at_band_edge": pk["at_band_edge"],
+           **static, "eps_n": pk["eps_n"], "eps_t": pk["eps_t"], "peak_evaluations": pk["evaluations"], "peak_at_band_edge": pk["at_band_edge"],
            "build_seconds": t_build, "peak_seconds": t_peak, "wear_seconds": t_wear,
            "seconds": time.perf_counter() - t0}
     log.info(f"contact mesh {na}×{nc}: {row['pairs']} pairs, {row['dofs']} DOFs; peak {row['peak_hz']:.4f} Hz "
@@ -344,11 +362,11 @@ def plot(out: Path, rows: list[dict], points, pflank, profiles) -> list[str]:
         q = np.array([r[k] for r in rows], dtype=float)
         axs[0, j].plot(1e3 * h, q, "o-")
         axs[0, j].set_title(lab, fontsize=9)
-        axs[0, j].invert_xaxis()
         d = np.abs(q[:-1] - q[-1]) / abs(q[-1])
         axs[1, j].loglog(1e3 * h[:-1], np.where(d > 0, d, np.nan), "s-")
         axs[1, j].set_title("|q − q_finest| / q_finest", fontsize=9)
         for ax in axs[:, j]:
+            ax.invert_xaxis()  # finer meshes to the right
             ax.set_xlabel("flank element length along x (mm)")
             ax.grid(True, which="both", alpha=0.3)
     fig.suptitle("contact-mesh convergence: " + ", ".join(f"{r['pairs']}" for r in rows) + " pairs")
