@@ -363,7 +363,7 @@ def plot(out: Path, rows: list[dict], points, pflank, profiles) -> list[str]:
         axs[0, j].plot(1e3 * h, q, "o-")
         axs[0, j].set_title(lab, fontsize=9)
         d = np.abs(q[:-1] - q[-1]) / abs(q[-1])
-        axs[1, j].loglog(1e3 * h[:-1], np.where(d > 0, d, np.nan), "s-")
+        axs[1, j].semilogy(1e3 * h[:-1], np.where(d > 0, d, np.nan), "s-")
         axs[1, j].set_title("|q − q_finest| / q_finest", fontsize=9)
         for ax in axs[:, j]:
             ax.invert_xaxis()  # finer meshes to the right
