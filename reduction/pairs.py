@@ -144,10 +144,11 @@ def _facet_nodes(V, facet_tags, group: int, xV: np.ndarray) -> np.ndarray:
     fdim = mesh.topology.dim - 1
     facets = dc.tagged_entities(facet_tags, group)
     facets = facets[facets < mesh.topology.index_map(fdim).size_local]
+    # locate_dofs_topological is collective: every rank calls it, with or without facets.
+    xf = xV[dc.blocks_of_facets(V, facets)]
     if facets.size == 0:
         return np.zeros((0, 6, 3))
     xv = np.asarray(mesh.geometry.x, dtype=float)[dc.facet_vertex_nodes(mesh, facets)]
-    xf = xV[dc.blocks_of_facets(V, facets)]
     tree = cKDTree(xf)
     mids = [xf[tree.query(0.5 * (xv[:, a] + xv[:, b]))[1]] for a, b in ((0, 1), (1, 2), (2, 0))]
     return np.concatenate([xv, np.stack(mids, axis=1)], axis=1)
