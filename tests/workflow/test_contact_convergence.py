@@ -118,5 +118,6 @@ def test_stage_writes_table_and_figures(scene, tmp_path):
         # Friction softens the tied interface: the peak sits at or below the tied resonance.
         assert 0.9 * r["tied_hz"] < r["peak_hz"] <= r["tied_hz"] * (1 + 1e-3)
     assert s["peak_change_last"] is not None
+    assert s["worst_midside_gap_min_m"] >= -1e-15 > s["worst_vertex_only_midside_gap_min_m"]
     for f in s["figures"] + [s["csv"]]:
         assert (tmp_path / f).is_file()

@@ -269,6 +269,9 @@ def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
            "max_wear_change_last": rel_change(rows[-2]["max_wear_m"], rows[-1]["max_wear_m"]),
            "observed_order": {k: observed_order(h, [r[k] for r in rows])
                               for k in ("peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m")}}
+    for k in ("midside_gap_min_m", "vertex_only_midside_gap_min_m"):
+        vals = [r[k] for r in rows if r.get(k) is not None]
+        out[f"worst_{k}"] = min(vals) if vals else None  # < 0: the flank meshes interpenetrate
     if profiles is not None and len(profiles) >= 2:
         top = max(float(np.abs(profiles[-1]).max()), 1e-300)
         out["profile_change_last"] = float(np.abs(profiles[-1] - profiles[-2]).max() / top)
