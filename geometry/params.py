@@ -39,6 +39,8 @@ from workflow.errors import GeometryError
 MAX_ELEMENTS = 2_000_000
 #: Largest aspect ratio of the flank's structured cells (along x vs across).
 MAX_FLANK_ASPECT = 10.0
+#: Contact-node layouts of ``contact_nodes`` (the same as reduction.pairs.NODE_LAYOUTS; geometry stays light).
+CONTACT_NODES = ("vertices", "all")
 
 
 @dataclass(frozen=True)
@@ -86,6 +88,11 @@ class SectorParams:
             and platform, the disk, and the airfoil, m.
         nodes_along: contact vertices per flank along x (leading → trailing).
         nodes_across: contact vertices per flank across the flank.
+        contact_nodes: which flank nodes are contact nodes: "vertices" (the
+            nodes_along × nodes_across corner nodes, the paper's layout) or
+            "all" (vertices and midside nodes of the quadratic facets,
+            (2·nodes_along − 1)(2·nodes_across − 1) per flank, with a linear
+            contact layer; reduction/pairs.py, docs/contact-layout.md).
         element_order: 1 or 2 (Lagrange tetrahedra).
     """
 
@@ -120,6 +127,7 @@ class SectorParams:
     nodes_along: int = 4
     nodes_across: int = 2
     element_order: int = 2
+    contact_nodes: str = "vertices"
 
     # ---- derived quantities (all in the y–z plane, half profile y ≥ 0) ----
 
@@ -153,6 +161,9 @@ def _check_types(p: SectorParams) -> None:
         if f.type in ("int", int):
             if isinstance(v, bool) or not isinstance(v, int):
                 _fail(f.name, f"must be an integer, got {v!r}")
+        elif f.type in ("str", str):
+            if v not in CONTACT_NODES:
+                _fail(f.name, f"must be one of {', '.join(map(repr, CONTACT_NODES))}, got {v!r}")
         else:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 _fail(f.name, f"must be a finite number, got {v!r}")

@@ -59,8 +59,10 @@ def build_sector(params: SectorParams | None, msh_path) -> dict:
 
     * ``sector_angle`` (rad), ``element_order``, ``n_nodes``, ``n_elements``
       (tetrahedra), ``n_vertices`` (corner nodes), measured on the written file;
-    * ``contact_pairs``: blade flank vertices matched to disk flank vertices,
-      both flanks (= 2·nodes_along·nodes_across); ``pairs_per_flank``;
+    * ``contact_pairs``: blade flank nodes matched to disk flank nodes, both
+      flanks (= 2·nodes_along·nodes_across vertices, or with
+      ``contact_nodes = "all"`` every flank node); ``pairs_per_flank``:
+      vertices per flank;
     * ``pair_distance_max`` (m): largest distance between matched vertices;
       ``pair_distance_max_all_nodes`` (m): the same over every flank node
       including the quadratic mid-edge nodes;
@@ -264,7 +266,7 @@ def _measure(msh_file: Path, p: SectorParams) -> dict:
                                     f"({len(bv)} vs {len(dv)} vertices) or share nodes")
             dmax = max(dmax, _match_distance(gm.node_coords(bv), gm.node_coords(dv)))
             dmax_all = max(dmax_all, _match_distance(gm.node_coords(ball), gm.node_coords(dall)))
-            pairs += len(bv)
+            pairs += len(bv) if p.contact_nodes == "vertices" else len(ball)
             per_flank[side] = len(bv)
         for name in ("blade", "disk"):
             vert_total.update(gm.group_nodes(*GROUPS[name])[0].tolist())

@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from reduction import dolfinx_compat as dc
 from reduction import elasticity as el
 from reduction.bundle import Bundle, Contact, Loads, write_bundle
-from reduction.pairs import contact_pairs
+from reduction.pairs import bundle_keys, contact_pairs, layout_of
 from reduction.prestress import static_displacement, tie_map
 from workflow.errors import BundleError, GeometryError, SceneError
 
@@ -215,8 +215,10 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
 
     ``pairs``: contact arrays as returned by
     :func:`reduction.pairs.contact_pairs` (on rank 0) to use instead of
-    matching the flank vertices of ``mesh`` — e.g. the unworn pairs of a worn
-    mesh, whose flank vertices no longer coincide. Returns ``(bundle, info)``
+    matching the flank nodes of ``mesh`` — e.g. the unworn pairs of a worn
+    mesh, whose flank nodes no longer coincide. Without it the pairs follow
+    the layout ``geometry_info["params"]["contact_nodes"]`` (default
+    "vertices"; :mod:`reduction.pairs`). Returns ``(bundle, info)``
     with ``info`` the summary (timings, mass…).
     """
     t = {}
@@ -230,7 +232,7 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
     bs = dc.block_size(V)
     t0 = time.perf_counter()
     if comm.bcast(pairs is None, root=dc.ROOT):
-        pairs = contact_pairs(V, facet_tags)
+        pairs = contact_pairs(V, facet_tags, nodes=layout_of(geometry_info))
     fixed = clamped_dofs(V, facet_tags)
     t["pairs_s"] = time.perf_counter() - t0
     ops, _ = assemble_operators(
@@ -249,7 +251,7 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
         harmonic = point_load(n, tip, float(_get(excitation, "amplitude", 0.1)),
                               geometry_info["excitation_direction"], bs)
         loads = Loads(fixed=fixed, static=ops.f_static, harmonic=harmonic, observe=bs * tip + np.arange(bs))
-        contact = Contact(**pairs)
+        contact = Contact(**bundle_keys(pairs))
         bundle = Bundle(M=ops.M, K=ops.K, C=sp.csr_matrix(ops.M.shape), contact=contact, loads=loads, coords=coords)
     # Damping: Rayleigh plus β for a modal ratio on the first tied mode.
     t0 = time.perf_counter()

@@ -13,7 +13,7 @@ from workflow.errors import SceneError
 from workflow.schema import param
 
 PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report",
-            "scaling", "verification")
+            "scaling", "verification", "contact_convergence")
 
 
 @dataclass
@@ -256,9 +256,40 @@ class Verification:
                                  f"verification.harmonics = {nh}")
 
 
+@dataclass
+class ContactConvergence:
+    nodes_along: list = param([4, 7, 10], "", "flank vertices along x of each contact mesh, coarse to fine "
+                                              "(geometry.contact_nodes chooses vertices or every node)", min=2)
+    nodes_across: list = param([2, 3, 4], "", "flank vertices across the flank, one entry per contact mesh", min=2)
+    harmonics: int = param(1, "", "Nh of the FRF peak and wear solves (dense Newton cost grows like "
+                                  "((2Nh+1)·3·pairs)³)", min=0)
+    time_samples: int = param(32, "", "nit per period (≥ 2Nh+1)", min=1)
+    band: float = param(0.1, "", "peak search band: ± this fraction of the first tied frequency", min=0.0,
+                        min_exclusive=True, max=0.5)
+    points: int = param(9, "", "frequencies of the coarse grid that brackets the peak", min=3)
+    peak_xtol: float = param(2e-5, "", "peak frequency tolerance of the bounded search, relative to the first "
+                                       "tied frequency", min=0.0, min_exclusive=True)
+    profile_points: list = param([41, 9], "", "common flank points (along, across) per flank where the worn "
+                                              "profiles of all meshes are compared", min=2)
+    wear: bool = param(True, "", "also compute the worn profile (pseudo-time wear) of every mesh")
+    penalty_per_area: float = param(0.0, "N/m³", "DLFT penalties ε_N = ε_T = this × the pair's tributary area, "
+                                                  "the same interface stiffness per unit area on every mesh (0: the "
+                                                  "automatic per-pair penalty of [contact])", min=0.0)
+
+    def check(self):
+        if len(self.nodes_along) != len(self.nodes_across) or len(self.nodes_along) < 2:
+            raise SceneError(f"contact_convergence.nodes_along ({len(self.nodes_along)} entries) and "
+                             f"contact_convergence.nodes_across ({len(self.nodes_across)}) need the same length ≥ 2")
+        if self.time_samples < 2 * self.harmonics + 1:
+            raise SceneError(f"contact_convergence.time_samples = {self.time_samples} < 2·harmonics+1 = "
+                             f"{2 * self.harmonics + 1}")
+        if len(self.profile_points) != 2:
+            raise SceneError("contact_convergence.profile_points must be [along, across]")
+
+
 SECTIONS = {
     "run": Run, "model": Model, "material": Material, "rotation": Rotation, "damping": Damping,
     "excitation": Excitation, "modes": Modes, "reduction": Reduction, "contact": Contact, "hb": HB,
     "sweep": Sweep, "pseudotime": PseudoTime, "wear": Wear, "remap": Remap, "extreme": Extreme,
-    "scaling": Scaling, "verification": Verification,
+    "scaling": Scaling, "verification": Verification, "contact_convergence": ContactConvergence,
 }

@@ -192,3 +192,26 @@ def test_worn_msh_round_trip(tmp_path):
     rm.write_worn_msh(tmp_path / "new.msh", tmp_path / "worn.msh", z["gmsh_node_tags"], z["coords"])
     m2, _, f2 = dc.read_msh(tmp_path / "worn.msh")
     np.testing.assert_allclose(np.sort(m2.geometry.x, axis=0), np.sort(r.x, axis=0), atol=1e-15)
+
+
+def test_every_node_layout_carries_the_wear_exactly_to_every_flank_node(model):
+    """With contact on every flank node (contact_nodes = "all") each flank
+    geometry node is a contact node: the wear field on the mesh is the pairs'
+    wear itself, no interpolation, on the blade and the disk flanks alike."""
+    from scipy.spatial import cKDTree
+
+    from reduction import dolfinx_compat as dc
+    from reduction.pairs import contact_pairs
+
+    msh, _, ft, _ = model
+    cp = contact_pairs(dc.vector_space(msh, 2), ft, nodes="all")
+    W = bump(cp, 1e-6)
+    x = msh.geometry.x
+    flanks = rm.flank_node_sets(msh, ft)
+    wear, motion = rm.flank_field(x, flanks, pair_wear(cp, W, share=0.7))
+    for fs in flanks:
+        sel = cp["flank"] == fs.flank
+        assert len(fs.nodes) == sel.sum()  # every geometry node of the flank is a pair
+        _, near = cKDTree(cp["position"][sel]).query(x[fs.nodes])
+        share = 0.7 if fs.body == "blade" else 0.3
+        np.testing.assert_allclose(wear[fs.nodes], share * W[sel][near], rtol=1e-12, atol=0)

@@ -190,3 +190,33 @@ def test_failure_on_two_ranks_is_one_error(runs, tmp_path):
     lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
     assert len(lines) == 1 and "fixed-interface modes asked" in lines[0], r.stderr
     assert not any(n.name.endswith(".tmp") for n in (cache / "reduction").iterdir())
+
+
+PAIRS_SCRIPT = """
+import sys
+import numpy as np
+from mpi4py import MPI
+from reduction import dolfinx_compat as dc
+from reduction.pairs import contact_pairs
+mesh, _, ft = dc.read_msh(sys.argv[1])
+cp = contact_pairs(dc.vector_space(mesh, 2), ft, nodes="all")
+if MPI.COMM_WORLD.rank == 0:
+    np.savez(sys.argv[2], **cp)
+"""
+
+
+def test_every_node_pairs_on_two_ranks_equal_serial(dovetail, tmp_path):
+    """contact_nodes = "all" gathers facets and nodes from every rank (a rank without
+    flank facets still joins the collective calls): same pairs, areas, frames."""
+    script = tmp_path / "pairs.py"
+    script.write_text(PAIRS_SCRIPT)
+    out = {n: tmp_path / f"pairs{n}.npz" for n in (1, 2)}
+    _run([sys.executable, str(script), str(dovetail[0]), str(out[1])], timeout=120)
+    _run(MPIRUN + [sys.executable, str(script), str(dovetail[0]), str(out[2])], timeout=120)
+    a, b = np.load(out[1]), np.load(out[2])
+    np.testing.assert_array_equal(a["flank"], b["flank"])
+    np.testing.assert_array_equal(a["vertex"], b["vertex"])
+    np.testing.assert_allclose(b["position"], a["position"], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(b["area"], a["area"], rtol=1e-12)
+    for k in ("normal", "t1", "t2"):  # unit vectors; the sums run in another order
+        np.testing.assert_allclose(b[k], a[k], rtol=0, atol=1e-12)

@@ -28,7 +28,9 @@ class WearOptions:
     tied resonance); Archard ``k_w`` (m²/N) and ``blade_share``; the march:
     ``cycles_per_block``, ``max_blocks``, ``block_tol``, ``steady_tol``,
     ``reference_check``; pseudo-time: ``max_steps``, ``rtol``,
-    ``dt_max_blocks``; ``eps_check_factor`` (0: off)."""
+    ``dt_max_blocks``; ``eps_check_factor`` (0: off); ``compare_unworn``:
+    also solve the unworn point by Newton and by pseudo-time (the paper's
+    comparison)."""
 
     methods: tuple = ("pseudo-time", "implicit")
     method: str = "hbm"
@@ -49,6 +51,7 @@ class WearOptions:
     rtol: float = 3e-3
     dt_max_blocks: float = 0.0
     eps_check_factor: float = penalty.CHECK_FACTOR
+    compare_unworn: bool = True
 
 
 @dataclass
@@ -182,7 +185,8 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=pe
                  f"{penalty.describe(law)}")
     base = _unworn_point(hb, omega, opt, eps_path)
     # the paper's comparison at the unworn point: Newton and pseudo-time from the same start
-    unworn = unworn_solvers(hb, hb.x0(), tol=opt.tol, max_steps=min(opt.max_steps, 400), eps_path=eps_path)
+    unworn = unworn_solvers(hb, hb.x0(), tol=opt.tol, max_steps=min(opt.max_steps, 400), eps_path=eps_path) \
+        if opt.compare_unworn else {}
     wp = WearProblem(hb, model.area, opt.k_w, opt.blade_share, eps_path=eps_path)
     i0 = int(np.argmax(wp.evaluate(base.x).rate))
     histories = {}

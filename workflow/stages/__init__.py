@@ -39,6 +39,7 @@ PRODUCERS: dict[str, str] = {
     "report": "report",
     "scaling": "scaling",
     "verification": "verification",
+    "contact_convergence": "contact_convergence",
 }
 
 #: stage name → module path. Tests and plug-ins may register others here.

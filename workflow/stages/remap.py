@@ -215,12 +215,12 @@ def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log, reduced_di
     rotation, damping, excitation = scene.get("rotation"), scene.get("damping"), scene.get("excitation")
     geometry_info = meta.get("geometry") or {}
     from reduction.assemble import DEGREE
-    from reduction.pairs import contact_pairs
+    from reduction.pairs import contact_pairs, layout_of
 
     # Wear opens the gap; it does not change who touches whom. On the worn mesh
     # the flank vertices are W apart and would not match, so the pairs (DOFs,
     # frames, areas) are taken from the unworn mesh.
-    unworn = contact_pairs(dc.vector_space(mesh, DEGREE), ft)
+    unworn = contact_pairs(dc.vector_space(mesh, DEGREE), ft, nodes=layout_of(geometry_info))
     with moved(mesh, r.x):
         worn, _ = build_bundle(mesh, ct, ft, geometry_info, material, rotation, damping, excitation,
                                pairs=unworn)

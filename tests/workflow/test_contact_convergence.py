@@ -1,0 +1,123 @@
+"""Contact-convergence stage: its convergence arithmetic, the common flank points,
+no interpenetration at the midside nodes with every node in contact, and a
+small run of the stage."""
+from __future__ import annotations
+
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from workflow.errors import SceneError
+from workflow.stages import contact_convergence as cc
+
+
+def test_observed_order_recovers_the_exponent_for_uneven_ratios():
+    h = np.array([1.0, 0.5, 1 / 3, 0.25])
+    for p in (1.0, 2.0, 0.5):
+        q = 3.0 + 0.7 * h ** p
+        assert cc.observed_order(h, q) == pytest.approx(p, rel=1e-9)
+    assert cc.observed_order(h, [1.0, 2.0, 1.5, 1.7]) is None     # oscillating: no asymptotic range
+    assert cc.observed_order(h[:2], [1.0, 2.0]) is None
+    assert cc.rel_change(1.0, 1.25) == pytest.approx(0.2)
+    assert cc.rel_change(None, 1.0) is None
+
+
+def test_summarise_reports_the_two_finest_meshes():
+    h = [0.02, 0.01, 0.005]
+    rows = [dict(h_contact_m=x, peak_hz=100 + x, peak_amplitude_m=1e-3 * (1 + x ** 2), energy_J=1e-4 * (1 + x),
+                 max_wear_m=1e-6 * (1 + 10 * x)) for x in h]
+    W = np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 2.1]])
+    s = cc.summarise(rows, W)
+    assert s["peak_change_last"] == pytest.approx(abs(h[1] ** 2 - h[2] ** 2) / (1 + h[2] ** 2))
+    assert s["observed_order"]["peak_amplitude_m"] == pytest.approx(2.0, rel=1e-9)
+    assert s["observed_order"]["energy_J"] == pytest.approx(1.0, rel=1e-9)
+    assert s["profile_change_last"] == pytest.approx(0.1 / 2.1)
+
+
+def _flank_grid(na, nc):
+    """Two planar 40 mm × 5 mm flanks inclined at ±45° (positions, flank ids)."""
+    u, v = np.meshgrid(np.linspace(0, 0.04, na), np.linspace(0, 0.005, nc), indexing="ij")
+    out, fl = [], []
+    for f, s in ((0, -1.0), (1, 1.0)):
+        out.append(np.column_stack([u.ravel(), s * (0.01 + v.ravel() / np.sqrt(2)), 0.2 + v.ravel() / np.sqrt(2)]))
+        fl.append(np.full(u.size, f))
+    return np.concatenate(out), np.concatenate(fl)
+
+
+def test_profiles_of_a_linear_field_agree_on_the_common_points():
+    """A wear field linear on the flank is carried exactly from any contact mesh to the common points."""
+    coarse, fc = _flank_grid(4, 2)
+    fine, ff = _flank_grid(13, 5)
+    pts, pf = cc.common_points(coarse, fc, (11, 4))
+    assert len(pts) == 2 * 11 * 4
+    field = lambda x, f: 1e-6 * (1 + 20 * x[:, 0] + 100 * (x[:, 2] - 0.2)) * (1 + f)  # noqa: E731
+    a = cc.profile_at(pts, pf, coarse, fc, field(coarse, fc))
+    b = cc.profile_at(pts, pf, fine, ff, field(fine, ff))
+    np.testing.assert_allclose(a, field(pts, pf), rtol=1e-10)
+    np.testing.assert_allclose(b, a, rtol=1e-10)
+
+
+def test_section_checks_name_the_keys():
+    from workflow.scene import resolve
+
+    with pytest.raises(SceneError, match="contact_convergence.nodes_along"):
+        resolve({"contact_convergence": {"nodes_along": [4, 7], "nodes_across": [2]}})
+    with pytest.raises(SceneError, match="contact_convergence.time_samples"):
+        resolve({"contact_convergence": {"harmonics": 3, "time_samples": 5}})
+
+
+def test_bad_layout_names_the_geometry_key():
+    from workflow.errors import GeometryError
+    from workflow.scene import resolve
+
+    with pytest.raises((SceneError, GeometryError), match="contact_nodes"):
+        resolve({"geometry": {"contact_nodes": "edges"}})
+
+
+# ------------------------------------------------------------ on the sector
+
+@pytest.fixture(scope="module")
+def scene():
+    from workflow.scene import load_scene
+
+    return load_scene("contact-convergence", ["contact_convergence.nodes_along=[3, 4]",
+                                              "contact_convergence.nodes_across=[2, 2]",
+                                              "contact_convergence.points=5", "contact_convergence.wear=false"])
+
+
+@pytest.fixture(scope="module")
+def quick_model(scene, tmp_path_factory):
+    return cc.build_model(scene, 4, 2, tmp_path_factory.mktemp("cc"))
+
+
+def test_every_node_layout_closes_the_midside_interpenetration(scene, quick_model):
+    """Under the centrifugal preload, contact at the vertices alone lets the flanks
+    interpenetrate at midside nodes (by µm: the order of the wear depth); with
+    every node in contact the midside gaps are ≥ 0 to round-off."""
+    model, vertex, info = quick_model
+    assert model.n_pairs == 2 * 7 * 3 and vertex.sum() == 2 * 4 * 2
+    assert abs(model.area.sum() - info["flank_area_m2"]) <= 1e-12 * info["flank_area_m2"]
+    s = cc._static_gaps(model, scene["contact"], vertex)
+    assert s["pairs_in_contact"] > 0
+    assert s["midside_gap_min_m"] >= -1e-15
+    assert s["vertex_only_midside_gap_min_m"] < -1e-7
+    assert 0.0 < s["vertex_load_share"] < 1.0
+
+
+@pytest.mark.slow
+def test_stage_writes_table_and_figures(scene, tmp_path):
+    log = SimpleNamespace(info=lambda m: None, progress=lambda it, total=None, label="": it)
+    s = cc.run(scene, {}, tmp_path, log)
+    json.dumps(s)
+    assert [r["pairs"] for r in s["rows"]] == [2 * 5 * 3, 2 * 7 * 3]
+    for r in s["table"]:
+        assert r["peak_amplitude_m"] > 0 and r["energy_J"] > 0
+        assert r["midside_gap_min_m"] >= -1e-15 and r["area_sum_rel_err"] < 1e-12
+        # Friction softens the tied interface: the peak sits at or below the tied resonance.
+        assert 0.9 * r["tied_hz"] < r["peak_hz"] <= r["tied_hz"] * (1 + 1e-3)
+    assert s["peak_change_last"] is not None
+    assert s["worst_midside_gap_min_m"] >= -1e-15 > s["worst_vertex_only_midside_gap_min_m"]
+    for f in s["figures"] + [s["csv"]]:
+        assert (tmp_path / f).is_file()
