@@ -111,6 +111,13 @@ def condense(rc: RelativeCoordinates, omega: float, nh: int, derivative: bool = 
     for j in range(nh + 1):
         D, dD = dynamic_stiffness(rc, j, omega)
         f = harmonic_load(rc, j)
+        if D.shape[0] == r:
+            # every coordinate is a relative contact DOF (e.g. Den Hartog's oscillator):
+            # nothing to condense, and LAPACK refuses an empty factorisation
+            Zr[j], Fr[j] = D, f
+            if derivative:
+                dZr[j], dFr[j] = dD, np.zeros(r, dtype=complex)
+            continue
         lu = sla.lu_factor(D[r:, r:], check_finite=False)
         rhs = np.concatenate([D[r:, :r], f[r:, None]], axis=1)
         sol = sla.lu_solve(lu, rhs, check_finite=False)
@@ -136,6 +143,6 @@ def recover(rc: RelativeCoordinates, omega: float, Ur: np.ndarray) -> np.ndarray
     for j in range(Ur.shape[0]):
         D, _ = dynamic_stiffness(rc, j, omega)
         f = harmonic_load(rc, j)
-        y = np.linalg.solve(D[r:, r:], f[r:] - D[r:, :r] @ Ur[j])
+        y = np.linalg.solve(D[r:, r:], f[r:] - D[r:, :r] @ Ur[j]) if D.shape[0] > r else np.zeros(0, complex)
         out[j] = rc.O[:, :r] @ Ur[j] + rc.O[:, r:] @ y
     return out

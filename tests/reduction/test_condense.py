@@ -75,3 +75,22 @@ def test_floating_body_static_condensation_is_finite():
     # Z_r0 inherits exactly the one zero-energy direction.
     ev = np.linalg.eigvalsh(0.5 * (cond.Zr[0].real + cond.Zr[0].real.T))
     assert abs(ev[0]) < 1e-8 * ev[-1] and ev[1] > 1e-6 * ev[-1]
+
+
+def test_every_coordinate_a_contact_dof_needs_no_condensation():
+    """Den Hartog's oscillator as a bundle: u_r is the whole model, so Zr = D_j and
+    Fr = f_j exactly (LAPACK used to refuse the empty interior factorisation)."""
+    from reduction.condense import condense, recover, relative_coordinates
+    from reduction.reduced import ReducedModel
+
+    M, K, C = np.eye(3), np.diag([2.0, 1.0, 1.0]), 0.1 * np.eye(3)
+    m = ReducedModel(M=M, K=K, C=C, B=np.eye(3), f_static=np.array([-0.5, 0, 0.0]), f_harmonic=np.array([0, 1.0, 0]),
+                     O=np.array([[0, 1.0, 0]]), area=np.ones(1), gap=np.zeros(1), flank=np.zeros(1, int),
+                     position=np.zeros((1, 3)))
+    rc = relative_coordinates(m)
+    c = condense(rc, 0.7, 2, derivative=True)
+    np.testing.assert_allclose(c.Zr[1], K - 0.49 * M + 0.7j * C, atol=1e-14)
+    np.testing.assert_allclose(c.Fr[1], [0, 1.0, 0], atol=1e-14)
+    np.testing.assert_allclose(c.dZr[2], -2 * 4 * 0.7 * M + 2j * C, atol=1e-14)
+    U = np.array([[0, 0, 0], [0, 0.3 - 0.1j, 0], [0, 0, 0]], dtype=complex)
+    assert recover(rc, 0.7, U)[1, 0] == U[1, 1]
