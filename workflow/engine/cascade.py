@@ -121,9 +121,7 @@ def along_eps_path(prob, x0, eps_path, tol: float, maxiter: int, run=None, solve
     run = run or (lambda q, x, s, m: run_solver(q, x, s, tol, m))
     x, its = x0, 0
     for f in eps_path:
-        q = prob.with_linear(prob.Zr, prob.Fr)
-        q.set_contact(penalty.scaled(prob.law, f))
-        res = run(q, x, solver, maxiter)
+        res = run(_with_penalty(prob, f), x, solver, maxiter)
         its += int(res.iterations)
         if res.converged:
             x = res.x
@@ -160,18 +158,31 @@ def _satisfied(prob, guesses, tol):
     return None, None, norms
 
 
-def eps_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Best, x=None) -> bool:
-    """Attempt 5: from ``x`` (default: the stuck guess) at ε·10⁻³, up by decades to ε."""
-    for d in range(EPS_DECADES, -1, -1):
-        q = prob.with_linear(prob.Zr, prob.Fr)
-        if d:
-            q.set_contact(penalty.scaled(prob.law, 10.0 ** -d))
+def _chain(problems, run, solver: str, maxiter: int, best: _Best, x=None) -> bool:
+    """Solve each problem of ``problems`` from the previous root (the first from
+    ``x``, or its own stuck guess); stop at the first failure. The last problem is
+    the one wanted: its root is kept."""
+    res = None
+    for q in problems:
         res = run(q, q.x0() if x is None else x, solver, maxiter)
         best.total += int(res.iterations)
         if not res.converged:
             return False
         x = res.x
     return best.keep(res, count=False)
+
+
+def _with_penalty(prob, factor: float):
+    q = prob.with_linear(prob.Zr, prob.Fr)
+    if factor != 1.0:
+        q.set_contact(penalty.scaled(prob.law, factor))
+    return q
+
+
+def eps_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Best, x=None) -> bool:
+    """Attempt 5: from ``x`` (default: the stuck guess) at ε·10⁻³, up by decades to ε."""
+    return _chain([_with_penalty(prob, 10.0 ** -d) for d in range(EPS_DECADES, -1, -1)], run, solver, maxiter,
+                  best, x)
 
 
 def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Best) -> bool:
@@ -196,17 +207,12 @@ def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Bes
 
 def homotopy(prob, run, solver: str, tol: float, maxiter: int, best: _Best) -> bool:
     """Attempt 7: the dynamic forcing scaled by :data:`HOMOTOPY` from the stuck state."""
-    x = None
-    for frac in HOMOTOPY:
+    def scaled_forcing(frac):
         F = prob.Fr.copy()
         F[1:] *= frac
-        q = prob.with_linear(prob.Zr, F) if frac < 1.0 else prob
-        res = run(q, q.x0() if x is None else x, solver, maxiter)
-        best.total += int(res.iterations)
-        if not res.converged:
-            return False
-        x = res.x
-    return best.keep(res, count=False)
+        return prob.with_linear(prob.Zr, F) if frac < 1.0 else prob
+
+    return _chain([scaled_forcing(f) for f in HOMOTOPY], run, solver, maxiter, best)
 
 
 def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=None,
