@@ -297,13 +297,21 @@ def _h1(wp: WearProblem, x, track: int) -> float:
 # ------------------------------------------------------------------ step control
 
 def penetration_scale(wp: WearProblem, st: WearState) -> float:
-    """Largest mean normal interpenetration ``−⟨λ_N⟩/ε_N`` [m] of the pairs (the W scale of the dynamics).
+    """Largest ``−⟨λ_N⟩ / k_N`` [m] over the pairs, with k_N each pair's static condensed
+    normal stiffness (:func:`workflow.engine.penalty.reference_stiffness`): the W scale
+    of the dynamics.
 
-    A wear depth of that order unloads a pair completely, so it is the
-    natural absolute scale of W for the step controls (W starts at 0, where a
-    purely relative control is undefined).
+    A wear depth of that order unloads a pair through the structure's own
+    stiffness, so it is the natural absolute scale of W for the step controls
+    (W starts at 0, where a purely relative control is undefined). It used to
+    be ``−⟨λ_N⟩/ε_N`` — the penalty's interpenetration, which shrank 1000× when
+    ε became 10³× the stiffness and made the reference march take thousands of
+    blocks to leave W ≈ 0 (paper-wear: not steady after 1000 blocks).
     """
-    pen = np.maximum(-np.mean(st.lam[..., 0], axis=0), 0.0) / wp.hb.law.eps_n
+    from workflow.engine.penalty import reference_stiffness
+
+    k_n = reference_stiffness(np.real(wp.hb.Zr[0]))[:, 0]
+    pen = np.maximum(-np.mean(st.lam[..., 0], axis=0), 0.0) / k_n
     return max(float(np.max(pen)) if pen.size else 0.0, 1e-300)
 
 

@@ -227,8 +227,10 @@ def test_reference_and_pseudo_time_converge_to_the_same_trajectory_end():
     """The worn steady state is a manifold (any W where every pair sticks or separates): the
     profile reached is the end of the wear trajectory dW/dt = rate(W). The adaptive reference
     (blocks wearing ≤ block_tol of the W scale) and the error-controlled pseudo-time (local
-    error ≤ rtol) both approximate that trajectory, so their profiles approach each other as
-    the tolerances tighten (measured: 2.3 % at 0.02/3e-2 → 0.15 % at 0.005/3e-3)."""
+    error ≤ rtol) both approximate that trajectory, so their profiles agree within the
+    tolerances (measured with the wear scale λ_N/k_N of the structure's own stiffness: 0.22 %
+    at 0.02/3e-2, 0.28 % at 0.005/3e-3, 0.14 % at 0.002/1e-3 — already at the floor of the
+    steady-state test; with the penalty's λ_N/ε_N as the scale it was 2.3 % → 0.15 %)."""
     hb = hb_problem(20.0, nh=3, nit=32)
     x0 = hb.solve(tol=1e-10).x
     wp = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=1e-14)
@@ -244,7 +246,7 @@ def test_reference_and_pseudo_time_converge_to_the_same_trajectory_end():
         W[name] = (hr.W, hp.W)
     d_loose = profile_rel_diff(*W["loose"])
     d_tight = profile_rel_diff(*W["tight"])
-    assert d_tight <= 0.005 and d_tight < 0.5 * d_loose, (d_loose, d_tight)
+    assert d_tight <= 0.005 and d_loose <= 0.01, (d_loose, d_tight)
     # each method converges on its own: the tight profiles are closer to each other than
     # the loose reference is to the tight one
     assert profile_rel_diff(W["loose"][0], W["tight"][0]) > d_tight
