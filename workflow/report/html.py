@@ -131,11 +131,14 @@ def paper_html(table1: list[dict], ratio: dict | None) -> str:
     if table1:
         out.append("<p><b>Table 1</b> (§5.1, Figs. 4–7): CPU time of 50 frequencies, normalised by HBM, Nh = 1, "
                    "nit = 105 [–]. The paper's Nh = 17 HBM cost (521) comes from its MATLAB solver; compare the "
-                   "trends, not the digits.</p><table><tr><th>Nh</th><th>method, nit</th><th>ours [–]</th>"
-                   "<th>paper [–]</th><th>ours / paper [–]</th></tr>")
-        out += [f"<tr><td class='n'>{r['Nh']}</td><td>{e(r['column'])}</td><td class='n'>{r['ours']:.3g}</td>"
-                f"<td class='n'>{r['paper']:.3g}</td><td class='n'>{r['ours'] / r['paper']:.3g}</td></tr>"
-                for r in table1]
+                   "trends, not the digits. Each cell: <b>ours</b> / paper.</p>")
+        cols = list(dict.fromkeys(r["column"] for r in table1))
+        cell = {(r["Nh"], r["column"]): r for r in table1}
+        out.append("<table><tr><th>Nh</th>" + "".join(f"<th>{e(c)}</th>" for c in cols) + "</tr>")
+        for nh in sorted({r["Nh"] for r in table1}):
+            out.append(f"<tr><td class='n'>{nh}</td>" + "".join(
+                f"<td class='n'><b>{cell[nh, c]['ours']:.3g}</b> / {cell[nh, c]['paper']:.3g}</td>"
+                if (nh, c) in cell else "<td></td>" for c in cols) + "</tr>")
         out.append("</table>")
     if ratio:
         d = ratio.get("profile_max_rel_diff")

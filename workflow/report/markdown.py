@@ -5,6 +5,8 @@ from workflow.report import format as fmt
 from workflow.report.html import LABELS
 
 MARK = {"green": "🟢", "amber": "🟠", "red": "🔴", "none": "⚪"}
+#: A check's verdict (a card's is :data:`workflow.report.html.LABELS`).
+VERDICT = {"green": "ok", "amber": "warning", "red": "failed", "none": "not checked"}
 
 
 def _cell(s) -> str:
@@ -29,7 +31,7 @@ def headline_md(h: dict) -> list[str]:
     out = [f"**Status: {MARK[st]} {LABELS[st]}**", "", "| result | value | detail |", "|---|---|---|"]
     out += [f"| {a} | {_cell(b)} | {_cell(c)} |" for a, b, c in rows]
     out += ["", "| | check | status | reason |", "|---|---|---|---|"]
-    out += [f"| {c['item']} | {_cell(c['name'])} | {MARK[c['status']]} {LABELS[c['status']]} | {_cell(c['reason'])} |"
+    out += [f"| {c['item']} | {_cell(c['name'])} | {MARK[c['status']]} {VERDICT[c['status']]} | {_cell(c['reason'])} |"
             for c in h.get("checks", [])]
     return out + [""]
 
