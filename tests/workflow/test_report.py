@@ -84,8 +84,12 @@ def test_tied_peak_missed_by_the_grid_is_amber(tmp_path):
     # An even number of points around the tied mode leaves no point at it.
     damping = {"alpha": 0.0, "beta_total": 2 * 0.002 / (2 * np.pi * 210.0)}
     hb, _, _ = _hb_folder(tmp_path, np.ones(14, bool), tied_at_mode=False)
-    c = [c for c in hl.hb_headline(hb, tmp_path, damping)[1] if c.name == "tied peak resolved"][0]
+    v, checks = hl.hb_headline(hb, tmp_path, damping)
+    c = [c for c in checks if c.name == "tied peak resolved"][0]
     assert c.status == "amber" and "under-read" in c.reason
+    # … and the tied peak is read off the mode through the nearest point: the SDOF's exact peak.
+    exact = 1.0 / 1.0e4 / (2 * 0.002 * np.sqrt(1 - 0.002 ** 2))
+    assert v["tied_peak_hz"] == 210.0 and v["tied_peak_amplitude_m"] == pytest.approx(exact, rel=1e-9)
 
 
 def test_headline_of_a_whole_summary(tmp_path):
