@@ -191,7 +191,8 @@ def write_viewer_3d(path: Path, points, cells, types, body, surfaces, method: st
     if deepest is not None and len(deepest.wear):
         i = int(np.argmax(deepest.wear))
         x = np.asarray(deepest.points[i]) * 1e3
-        note = (f"deepest wear {deepest.wear[i] * 1e6:.3g} µm ({method}) on the {deepest.label}, "
+        note = (f"deepest wear {deepest.wear[i] * 1e6:.3g} µm ({method}; each body wears its share of W) "
+                f"on the {deepest.label}, "
                 f"at x, y, z = {x[0]:.1f}, {x[1]:.1f}, {x[2]:.1f} mm")
     write_viewer(path, points, cells, types, body, surfaces, "worn sector: flanks coloured by wear depth", note)
     return Path(path).name
