@@ -28,9 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-#: Largest relative peak move under the ε-, nit- and Nh-checks counted as converged
-#: (the engine's own tolerance, workflow/engine/penalty.py:CHECK_TOL).
-EPS_TOL = 1.0e-3
+from workflow.engine.penalty import CHECK_TOL
+
+#: Largest relative peak move under the ε-, nit- and Nh-checks counted as converged:
+#: the engine's own tolerance (one decision, one place).
+EPS_TOL = CHECK_TOL
 #: FRF error against the reference (peak-relative, hb `error`) still marked green.
 REFERENCE_TOL = 0.02
 #: Relative difference of two wear profiles (pseudo-time vs reference march) still green.
