@@ -21,7 +21,7 @@ PYTEST_ARGS ?=
 export PYVISTA_OFF_SCREEN := true
 export OMP_NUM_THREADS ?= 2
 
-.PHONY: all install demo test test-slow test-all bench clean-venv
+.PHONY: all install demo test test-slow test-all test-browser bench clean-venv
 
 all: test
 
@@ -57,6 +57,12 @@ test-slow: install
 
 test-all: install
 	$(PY) -m pytest -q -m "slow or not slow" $(PYTEST_ARGS)
+
+# The report opened in headless Chromium (Debian's chromium, installed here only:
+# `make test` stays quick and leaves the browser tests out).
+test-browser: install
+	@command -v chromium >/dev/null || { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; }
+	$(PY) -m pytest -q -m browser -s tests/workflow/test_report_browser.py $(PYTEST_ARGS)
 
 # Benchmarks write their timings and errors under results/bench/.
 bench: install

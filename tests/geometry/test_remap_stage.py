@@ -88,6 +88,10 @@ def test_remap_stage_outputs(upstream, worn_run):
     assert len(s["figures"]) == 3, lines
     assert all((tmp_path / f).stat().st_size > 20_000 for f in s["figures"])
     assert "figures/frf_worn_vs_new.png" in s["figures"]
+    # The interactive 3D view: one self-contained page (no network), small.
+    page = (tmp_path / s["viewer_3d"]).read_text()
+    assert s["viewer_3d_bytes"] == len(page.encode()) < 10e6
+    assert "http://" not in page and "https://" not in page
     # Every figure's path is logged (make demo shows where the maps are).
     for f in s["figures"]:
         assert any(f"remap/{f}" in line for line in lines)

@@ -103,6 +103,9 @@ def test_report_runs_last_with_figures_and_tables(tmp_path, fakes):
     assert (rep / "figures" / "modes" / "figure.png").is_file()
     assert "<img src='figures/mesh/figure.png'" in (rep / "report.html").read_text()
     assert s["report"]["figures"] == 3
+    # summary.json carries the headline even when the run has no FRF or wear (values null, said so).
+    h = s["report"]["headline"]
+    assert h["peak_hz"] is None and h["max_wear_m"] is None and h["status"] in ("none", "green")
     # The report is rewritten each run (it shows this run's timings), the rest is cached.
     s = go(tmp_path, scene(tmp_path, ["report", "modes"]))
     assert s["stages"]["report"] == "computed" and s["stages"]["modes"] == "cached"

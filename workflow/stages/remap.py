@@ -55,6 +55,8 @@ N_FREQ = 6
 #: Points of the new-vs-worn nonlinear FRF: the scene's sweep.points clipped to this range.
 FRF_POINTS = (9, 15)
 FRF_FIGURE = "frf_worn_vs_new.png"
+#: The self-contained interactive 3D page of the worn sector (workflow/report/viewer3d.py).
+VIEWER = "wear_3d.html"
 
 
 # ------------------------------------------------------------- reading inputs
@@ -163,7 +165,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
             render.render_sector(cells, types, points, body, surfaces, out / FIG_DIR / "wear_sector.png",
                                  rp.image_width)]
 
+    viewer = write_viewer_3d(out / VIEWER, points, cells, types, body, surfaces, table["method"])
     summary = {
+        "viewer_3d": viewer, "viewer_3d_bytes": (out / viewer).stat().st_size,
         "wear_map": "wear_map.xdmf", "worn_mesh": "worn_mesh.xdmf", "worn_nodes": "worn_nodes.npz",
         "figures": [str(Path(f).relative_to(out)) for f in figs], "wear_column": table["method"],
         "max_node_motion_m": r.max_node_motion, "max_wear_share_m": share_max,
@@ -191,6 +195,22 @@ def _unconverged(summary: dict) -> list[str]:
     n = summary.get("frf_points", 0)
     return [f"new-vs-worn FRF, {key} model: {n - got}/{n} frequencies did not converge"
             for key, got in (summary.get("frf_converged") or {}).items() if got < n]
+
+
+def write_viewer_3d(path: Path, points, cells, types, body, surfaces, method: str) -> str:
+    """The interactive 3D page (sector + flanks coloured by wear depth) at ``path``; returns its name."""
+    from workflow.report.viewer3d import write_viewer
+
+    deepest = max(surfaces, key=lambda s: float(np.max(s.wear)) if len(s.wear) else 0.0, default=None)
+    note = ""
+    if deepest is not None and len(deepest.wear):
+        i = int(np.argmax(deepest.wear))
+        x = np.asarray(deepest.points[i]) * 1e3
+        note = (f"deepest wear {deepest.wear[i] * 1e6:.3g} µm ({method}; each body wears its share of W) "
+                f"on the {deepest.label}, "
+                f"at x, y, z = {x[0]:.1f}, {x[1]:.1f}, {x[2]:.1f} mm")
+    write_viewer(path, points, cells, types, body, surfaces, "worn sector: flanks coloured by wear depth", note)
+    return Path(path).name
 
 
 def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log, reduced_dir=None) -> dict:

@@ -1,21 +1,31 @@
-"""Report stage: one Markdown and one HTML page with the run's figures and tables.
+"""Report stage: one HTML and one Markdown page, results first.
 
 It runs last and sees every product of the run (``NEEDS_ALL``) plus
 ``inputs["summary"]``, the run summary so far (stage status, timings and
-each stage's summary). It copies the PNG figures the stages wrote into its
-own folder, so ``report/`` stands alone when copied elsewhere, and turns CSV
-tables into Markdown/HTML tables (truncated: the CSV files stay the data).
-Never cached: it shows this run's timings.
+each stage's summary). It computes the headline (``workflow/report/
+headline.py``: peak, damping achieved, deepest wear, worn frequency shift,
+run time, each with its status), puts the paper's numbers beside ours for
+the paper scenes (``workflow/report/paper.py``), copies the PNG figures and
+the interactive 3D view (``wear_3d.html``, written by the remap stage) into
+its own folder so ``report/`` stands alone when copied elsewhere, and turns
+CSV tables into HTML/Markdown tables (truncated: the CSV files stay the
+data). The headline is returned, so summary.json carries it as
+``report.headline``. Never cached: it shows this run's timings.
 """
 from __future__ import annotations
 
 import csv
-import html
 import json
+import os
+import platform
 import shutil
 from pathlib import Path
 
 from workflow.io import write_text
+from workflow.report import html as html_page
+from workflow.report import markdown as md_page
+from workflow.report import paper
+from workflow.report.headline import headline, read_rows
 
 NAME = "report"
 SECTIONS = ("run",)
@@ -27,20 +37,43 @@ NEEDS_ALL = True
 MAX_ROWS = 12  # table rows shown per CSV
 MAX_COLS = 10
 MAX_FIGURES = 40  # per product: guards against a stage that writes hundreds of frames
+VIEWER = "wear_3d.html"  # the remap stage's interactive page (workflow/stages/remap.py:VIEWER)
 
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
-    """Write ``report.md`` and ``report.html`` under ``out``; return their names."""
+    """Write ``report.html``, ``report.md`` (and copies of the figures and the 3D
+    view) under ``out``; return their names and the headline."""
+    out = Path(out)
     summary = json.loads(Path(inputs["summary"]).read_text()) if "summary" in inputs else {}
     title = scene["run"].title or summary.get("title") or "bladewear run"
-    sections = []  # (product, figures [(rel png, caption)], tables [(caption, header, rows, total rows)])
-    seen: set[Path] = set()
-    for product, folder in sorted(inputs.items()):
-        if product == "summary":
-            continue
-        folder = Path(folder)
+    folders = {p: Path(f) for p, f in inputs.items() if p != "summary" and Path(f).is_dir()}
+    sections = collect(folders, out)
+    viewer = copy_viewer(folders.get("wear_map"), out)
+    h = headline(summary, folders)
+    stem = Path(str(summary.get("scene", ""))).stem
+    table1 = paper.table1_side_by_side(read_rows(folders["frf"] / "cpu_table.csv")) \
+        if stem == "paper-frf" and "frf" in folders else []
+    ratio = paper.cpu_ratio_52(summary.get("wear")) if stem == "paper-wear" else None
+    stages = [(n, s, summary.get("timings", {}).get(n, "")) for n, s in summary.get("stages", {}).items()]
+    scalars = {n: _scalars(summary.get(n)) for n in summary.get("stages", {})}
+    args = (title, h, viewer, (table1, ratio), sections, provenance(summary), stages, scalars)
+    write_text(out / "report.html", html_page.page(*args))
+    write_text(out / "report.md", md_page.page(*args))
+    n_fig = sum(len(s[1]) for s in sections)
+    n_tab = sum(len(s[2]) for s in sections)
+    log.info(f"{n_fig} figures, {n_tab} tables; headline status {h['status']}"
+             + (f"; 3D view {viewer[0]} ({viewer[1] / 1e6:.2g} MB)" if viewer[0] else ""))
+    return {"markdown": "report.md", "html": "report.html", "figures": n_fig, "tables": n_tab,
+            "viewer_3d": viewer[0], "headline": h}
+
+
+def collect(folders: dict, out: Path) -> list:
+    """Per product: figures copied under ``out/figures/<product>/`` as
+    ``(rel path, stem, caption, paper figure)`` and CSV tables."""
+    sections, seen = [], set()
+    for product, folder in sorted(folders.items()):
         real = folder.resolve()
-        if real in seen or not folder.is_dir():
+        if real in seen:
             continue
         seen.add(real)
         figures = []
@@ -48,15 +81,33 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
             rel = Path("figures") / product / png.relative_to(folder)
             (out / rel).parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(png, out / rel)
-            figures.append((rel.as_posix(), png.relative_to(folder).as_posix()))
+            figures.append((rel.as_posix(), png.stem, *paper.caption(png.stem)))
         tables = [_read_csv(f, folder) for f in sorted(folder.rglob("*.csv"))]
         sections.append((product, figures, [t for t in tables if t is not None]))
-    n_fig = sum(len(s[1]) for s in sections)
-    n_tab = sum(len(s[2]) for s in sections)
-    log.info(f"{n_fig} figures, {n_tab} tables")
-    write_text(out / "report.md", _markdown(title, summary, sections))
-    write_text(out / "report.html", _html(title, summary, sections))
-    return {"markdown": "report.md", "html": "report.html", "figures": n_fig, "tables": n_tab}
+    return sections
+
+
+def copy_viewer(folder: Path | None, out: Path) -> tuple:
+    """(name, bytes) of the 3D view copied into ``out``, or (None, None)."""
+    src = folder / VIEWER if folder is not None else None
+    if src is None or not src.is_file():
+        return None, None
+    shutil.copyfile(src, out / VIEWER)
+    return VIEWER, (out / VIEWER).stat().st_size
+
+
+def provenance(summary: dict) -> dict:
+    """Where the numbers come from: scene, overrides, code, machine, times."""
+    uname = platform.uname()
+    return {
+        "scene": summary.get("scene", ""), "overrides": " ".join(summary.get("overrides") or []) or "none",
+        "created": summary.get("created", ""), "code version": summary.get("code_version", ""),
+        "cache": summary.get("cache", ""),
+        "machine": f"{uname.node}: {uname.system} {uname.release} {uname.machine}, {os.cpu_count()} CPUs, "
+                   f"Python {platform.python_version()}",
+        "threads": f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}",
+        "stage times [s]": ", ".join(f"{k} {v}" for k, v in (summary.get("timings") or {}).items()),
+    }
 
 
 def _read_csv(path: Path, folder: Path):
@@ -83,91 +134,3 @@ def _short(v) -> str:
         return f"{v:.6g}"
     s = str(v)
     return s if len(s) <= 80 else s[:77] + "…"
-
-
-def _md_cell(s: str) -> str:
-    return str(s).replace("|", "\\|").replace("\n", " ")
-
-
-def _markdown(title, summary, sections) -> str:
-    lines = [f"# {title}", ""]
-    if summary.get("scene"):
-        lines += [f"Scene: `{summary['scene']}`" + (f", overrides: `{' '.join(summary['overrides'])}`"
-                                                    if summary.get("overrides") else ""), ""]
-    bad = summary.get("unconverged") or {}
-    if bad:
-        # The run finished (exit status 3), but these results are not solutions.
-        lines += ["## ⚠ Unconverged results", "", "<span style='color:#c00'>**These results did not converge; "
-                  "read them as such (exit status 3).**</span>", ""]
-        lines += [f"- **{_md_cell(name)}**: {_md_cell(line)}" for name, ls in bad.items() for line in ls]
-        lines.append("")
-    stages = summary.get("stages", {})
-    if stages:
-        lines += ["## Stages", "", "| stage | status | time (s) |", "|---|---|---|"]
-        for name, status in stages.items():
-            lines.append(f"| {name} | {status} | {summary.get('timings', {}).get(name, '')} |")
-        lines.append("")
-        for name in stages:
-            items = _scalars(summary.get(name))
-            if items:
-                lines += [f"### {name}", "", "| | |", "|---|---|"]
-                lines += [f"| {_md_cell(k)} | {_md_cell(v)} |" for k, v in items]
-                lines.append("")
-    for product, figures, tables in sections:
-        if not figures and not tables:
-            continue
-        lines += [f"## {product}", ""]
-        for rel, caption in figures:
-            lines += [f"![{caption}]({rel})", "", f"*{caption}*", ""]
-        for caption, header, rows, total in tables:
-            lines += [f"**{caption}**" + (f" (first {len(rows)} of {total} rows)" if total > len(rows) else ""), ""]
-            lines.append("| " + " | ".join(_md_cell(h) for h in header) + " |")
-            lines.append("|" + "---|" * len(header))
-            for r in rows:
-                lines.append("| " + " | ".join(_md_cell(c) for c in r + [""] * (len(header) - len(r))) + " |")
-            lines.append("")
-    return "\n".join(lines) + "\n"
-
-
-def _html(title, summary, sections) -> str:
-    e = html.escape
-    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{e(title)}</title>",
-             "<style>body{font-family:sans-serif;max-width:70em;margin:2em auto;padding:0 1em}"
-             "table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:.2em .6em;"
-             "text-align:right}img{max-width:100%}figure{margin:1em 0}</style></head><body>",
-             f"<h1>{e(title)}</h1>"]
-    if summary.get("scene"):
-        parts.append(f"<p>Scene: <code>{e(summary['scene'])}</code></p>")
-    bad = summary.get("unconverged") or {}
-    if bad:
-        parts.append("<div style='color:#c00;border:2px solid #c00;padding:.5em 1em'>"
-                     "<h2>Unconverged results</h2><p>These results did not converge (exit status 3):</p><ul>"
-                     + "".join(f"<li><b>{e(name)}</b>: {e(line)}</li>" for name, ls in bad.items() for line in ls)
-                     + "</ul></div>")
-    stages = summary.get("stages", {})
-    if stages:
-        parts.append("<h2>Stages</h2><table><tr><th>stage</th><th>status</th><th>time (s)</th></tr>")
-        for name, status in stages.items():
-            parts.append(f"<tr><td>{e(name)}</td><td>{e(status)}</td>"
-                         f"<td>{e(str(summary.get('timings', {}).get(name, '')))}</td></tr>")
-        parts.append("</table>")
-        for name in stages:
-            items = _scalars(summary.get(name))
-            if items:
-                parts.append(f"<h3>{e(name)}</h3><table>")
-                parts += [f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>" for k, v in items]
-                parts.append("</table>")
-    for product, figures, tables in sections:
-        if not figures and not tables:
-            continue
-        parts.append(f"<h2>{e(product)}</h2>")
-        for rel, caption in figures:
-            parts.append(f"<figure><img src='{e(rel)}' alt='{e(caption)}'><figcaption>{e(caption)}</figcaption></figure>")
-        for caption, header, rows, total in tables:
-            more = f" (first {len(rows)} of {total} rows)" if total > len(rows) else ""
-            parts.append(f"<p><b>{e(caption)}</b>{e(more)}</p><table><tr>"
-                         + "".join(f"<th>{e(h)}</th>" for h in header) + "</tr>")
-            parts += ["<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in rows]
-            parts.append("</table>")
-    parts.append("</body></html>")
-    return "\n".join(parts) + "\n"

@@ -1,0 +1,183 @@
+"""The report's headline (peak, damping achieved, wear, status), its formatting,
+the paper side by side and the self-contained 3D view — without a browser
+(tests/workflow/test_report_browser.py opens the page in Chromium)."""
+from __future__ import annotations
+
+import base64
+import json
+import re
+import types
+
+import numpy as np
+import pytest
+
+from workflow.report import format as fmt
+from workflow.report import headline as hl
+from workflow.report import paper, viewer3d
+
+
+def sdof(f, fn, zeta, k=1.0e4, force=1.0):
+    """|x| [m] of a single-DOF oscillator (stiffness k [N/m], damping ratio ζ) at f [Hz]."""
+    r = np.asarray(f) / fn
+    return force / k / np.sqrt((1 - r ** 2) ** 2 + (2 * zeta * r) ** 2)
+
+
+@pytest.mark.parametrize("z2", [0.004, 0.02, 0.08])
+def test_equivalent_damping_ratio_recovers_the_damping_of_a_linear_peak(z2):
+    # The friction-damped peak replaced by the same mode with more damping:
+    # ζ_eq from the peak amplitudes must give that damping back (module docstring).
+    fn, z1 = 200.0, 0.002
+    f = np.linspace(150.0, 250.0, 400_001)
+    _, _, a_tied = hl.grid_peak(f, sdof(f, fn, z1))
+    _, _, a_nl = hl.grid_peak(f, sdof(f, fn, z2))
+    z_eq = hl.equivalent_damping_ratio(z1, a_nl / a_tied)
+    # Exact peak 1/(2ζ√(1−ζ²)): the estimate is off by O(ζ²) only.
+    assert z_eq == pytest.approx(z2, rel=z2 ** 2 + 1e-6)
+
+
+def test_tied_damping_ratio_is_rayleigh_at_the_tied_frequency():
+    w = 2 * np.pi * 212.0
+    assert hl.tied_damping_ratio({"alpha": 3.0, "beta_total": 0.0}, 212.0) == pytest.approx(3.0 / (2 * w))
+    assert hl.tied_damping_ratio({"alpha": 0.0, "beta_total": 3e-6}, 212.0) == pytest.approx(3e-6 * w / 2)
+    assert hl.tied_damping_ratio(None, 212.0) is None and hl.equivalent_damping_ratio(None, 0.5) is None
+
+
+def _hb_folder(tmp_path, converged, tied_at_mode=True):
+    """frf.csv / linear.csv of an SDOF-like run: friction peak ζ = 0.01, tied ζ = 0.002."""
+    f = np.linspace(190.0, 230.0, 15) if tied_at_mode else np.linspace(190.0, 230.0, 14)
+    a = sdof(f, 209.0, 0.01)
+    rows = ["method,Nh,nit,solver,frequency_hz,amplitude_m,iterations,seconds,converged,amplitude_max_m,role,reason"]
+    rows += [f"hbm,3,64,newton,{fi!r},{ai!r},5,0.1,{int(c)},{ai!r},variant," for fi, ai, c in zip(f, a, converged)]
+    (tmp_path / "frf.csv").write_text("\n".join(rows) + "\n")
+    lin = ["frequency_hz,tied_m,sliding_m"] + [f"{fi!r},{ti!r},{si!r}" for fi, ti, si in
+                                               zip(f, sdof(f, 210.0, 0.002), sdof(f, 203.0, 0.002))]
+    (tmp_path / "linear.csv").write_text("\n".join(lin) + "\n")
+    hb = {"runs": [{"method": "hbm", "harmonics": 3, "time_samples": 64, "error": None}], "reference": None,
+          "tied_frequency_hz": 210.0, "tied_mode": 1, "eps_check": {"factor": 10.0, "max_rel_change": 2e-4}}
+    return hb, f, a
+
+
+def test_headline_peak_and_status_follow_convergence(tmp_path):
+    damping = {"alpha": 0.0, "beta_total": 2 * 0.002 / (2 * np.pi * 210.0)}
+    ok = np.ones(15, bool)
+    hb, f, a = _hb_folder(tmp_path, ok)
+    v, checks = hl.hb_headline(hb, tmp_path, damping)
+    i = int(np.argmax(a))
+    assert v["peak_hz"] == f[i] and v["peak_amplitude_m"] == a[i]
+    assert v["tied_peak_hz"] == 210.0 and v["amplitude_ratio"] == pytest.approx(a[i] / sdof(210.0, 210.0, 0.002))
+    assert v["tied_damping_ratio"] == pytest.approx(0.002)
+    assert hl.worst(checks) == "green"
+    # A point next to the peak not converged: red (the peak may be missed); elsewhere: amber.
+    for bad, status in ((i + 1, "red"), (0 if i > 2 else 14, "amber")):
+        conv = ok.copy()
+        conv[bad] = False
+        hb, _, _ = _hb_folder(tmp_path, conv)
+        assert hl.worst(hl.hb_headline(hb, tmp_path, damping)[1]) == status
+    # ε check over tolerance: amber with its reason.
+    hb, _, _ = _hb_folder(tmp_path, ok)
+    hb["eps_check"]["max_rel_change"] = 5e-3
+    c = [c for c in hl.hb_headline(hb, tmp_path, damping)[1] if c.name == "ε check"][0]
+    assert c.status == "amber" and "5.00e-03" in c.reason
+
+
+def test_tied_peak_missed_by_the_grid_is_amber(tmp_path):
+    # An even number of points around the tied mode leaves no point at it.
+    damping = {"alpha": 0.0, "beta_total": 2 * 0.002 / (2 * np.pi * 210.0)}
+    hb, _, _ = _hb_folder(tmp_path, np.ones(14, bool), tied_at_mode=False)
+    v, checks = hl.hb_headline(hb, tmp_path, damping)
+    c = [c for c in checks if c.name == "tied peak resolved"][0]
+    assert c.status == "amber" and "under-read" in c.reason
+    # … and the tied peak is read off the mode through the nearest point: the SDOF's exact peak.
+    exact = 1.0 / 1.0e4 / (2 * 0.002 * np.sqrt(1 - 0.002 ** 2))
+    assert v["tied_peak_hz"] == 210.0 and v["tied_peak_amplitude_m"] == pytest.approx(exact, rel=1e-9)
+
+
+def test_headline_of_a_whole_summary(tmp_path):
+    hb, f, a = _hb_folder(tmp_path, np.ones(15, bool))
+    (tmp_path / "wear").mkdir()
+    (tmp_path / "wear" / "wear.csv").write_text(
+        "pair,flank,x_m,y_m,z_m,W_pseudo-time_m\n0,intrados,0,-0.004,0.23,1e-6\n1,extrados,0,0.004,0.23,3e-6\n")
+    summary = {"hb": hb, "assembly": {"damping": {"alpha": 0.0, "beta_total": 3e-6}},
+               "wear": {"methods": {"pseudo-time": {"steady": True, "reason": "steady"}}, "unconverged": [],
+                        "warnings": ["something odd"], "eps_check": {"factor": 10, "max_rel_change": 0.0}},
+               "remap": {"wear_column": "pseudo-time", "frf_peak_hz": {"new": 209.0, "worn": 209.4},
+                         "frf_converged": {"new": 9, "worn": 9}, "frf_points": 9, "freq_shift_hz": [0.1, 0.2]},
+               "timings": {"hb": 2.5, "wear": 1.5}, "unconverged": []}
+    h = hl.headline(summary, {"frf": tmp_path, "wear": tmp_path / "wear"})
+    json.dumps(h)
+    assert set(h) >= {"peak_hz", "peak_amplitude_m", "tied_peak_amplitude_m", "amplitude_ratio",
+                      "equivalent_damping_ratio", "max_wear_m", "worn_frequency_shift_hz", "status", "warnings"}
+    assert h["max_wear_m"] == 3e-6 and h["max_wear_where"] == "pair 1, extrados flank"
+    assert h["worn_frequency_shift_hz"] == pytest.approx(0.4) and h["run_seconds"] == 4.0
+    assert "something odd" in h["warnings"]
+    assert h["status"] == "green"  # stage warnings are listed; the status comes from the checks
+    summary["wear"]["methods"]["pseudo-time"]["steady"] = False
+    assert hl.headline(summary, {"frf": tmp_path, "wear": tmp_path / "wear"})["status"] == "red"
+
+
+def test_formatting_puts_units_where_engineers_read_them():
+    assert fmt.si(6.37356e-4, "m") == "637 µm" and fmt.si(2.2932e-6, "m") == "2.29 µm"
+    assert fmt.si(None, "m") == "—" and fmt.si(0.0, "m") == "0 m"
+    assert fmt.header("frequency_hz") == "frequency [Hz]"
+    assert fmt.header("W_pseudo-time_m") == "W pseudo-time [m]"
+    assert fmt.header("omega_rad_s") == "omega [rad/s]" and fmt.header("seconds") == "time [s]"
+    assert fmt.signed_hz(-0.1234) == "-0.123 Hz"
+
+
+def test_table1_side_by_side_pairs_our_cells_with_the_papers():
+    rows = [{"method": "hbm", "Nh": "1", "nit": "105", "nit_label": "105", "normalised": "1"},
+            {"method": "hdhb", "Nh": "17", "nit": "35", "nit_label": "2Nh+1", "normalised": "30.8"},
+            {"method": "hbm", "Nh": "25", "nit": "128", "nit_label": "128", "normalised": "99"}]
+    t = paper.table1_side_by_side(rows)
+    assert [(r["Nh"], r["column"], r["ours"], r["paper"]) for r in t] == \
+        [(1, "HBM nit=105", 1.0, 1.0), (17, "HDHB nit=2Nh+1", 30.8, 46.70)]
+    assert paper.cpu_ratio_52({"cpu_ratio_pseudo_over_reference": 0.08})["paper"] == 0.29
+    assert paper.caption("frf_nh1_3")[1] == "Figs. 4–5" and paper.caption("wear_profile")[1] == "Fig. 9"
+
+
+def cube_tets():
+    """The unit cube as 6 tetrahedra around the diagonal 0–6 (VTK linear tets)."""
+    pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
+    tets = np.array([[0, 1, 2, 6], [0, 2, 3, 6], [0, 3, 7, 6], [0, 7, 4, 6], [0, 4, 5, 6], [0, 5, 1, 6]])
+    return pts, tets
+
+
+def test_boundary_of_a_meshed_cube_is_closed_and_encloses_its_volume():
+    pts, tets = cube_tets()
+    cells = np.hstack([np.full((len(tets), 1), 4), tets]).ravel()
+    corners = viewer3d.tet_corners(cells, np.full(len(tets), 10))
+    tri = viewer3d.boundary_triangles(corners)
+    assert len(tri) == 12  # 6 faces × 2 triangles; interior faces cancel
+    edges = np.sort(np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    assert (np.unique(edges, axis=0, return_counts=True)[1] == 2).all()  # closed, manifold
+    # Divergence theorem: |Σ (a·(b×c))/6| over the surface = the cube's volume.
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    assert abs(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6) == pytest.approx(1.0)
+    from workflow.errors import GeometryError
+
+    with pytest.raises(GeometryError, match="not tetrahedra"):
+        viewer3d.tet_corners(np.array([8, *range(8)]), np.array([12]))
+
+
+def test_viewer_page_is_self_contained_and_carries_the_wear(tmp_path):
+    pts, tets = cube_tets()
+    pts = pts * 0.01  # m
+    cells = np.hstack([np.full((len(tets), 1), 4), tets]).ravel()
+    body = np.array([1, 1, 1, 2, 2, 2])
+    flank = types.SimpleNamespace(points=pts[[0, 1, 2, 3]], triangles=np.array([[0, 1, 2], [0, 2, 3]]),
+                                  wear=np.array([0.0, 1e-6, 2e-6, 0.5e-6]), normal=np.array([0.0, 0.0, 1.0]),
+                                  body="blade")
+    path = viewer3d.write_viewer(tmp_path / "v.html", pts, cells, np.full(6, 10), body, [flank], "t", "note")
+    page = path.read_text()
+    assert "http://" not in page and "https://" not in page and "<script src" not in page
+    data = json.loads(re.search(r"const DATA = (\{.*?\});", page).group(1))
+    tri = np.frombuffer(base64.b64decode(data["triangles"]), np.uint32).reshape(-1, 3)
+    col = np.frombuffer(base64.b64decode(data["colours"]), np.uint8).reshape(-1, 3)
+    part = np.frombuffer(base64.b64decode(data["part"]), np.uint8)
+    pos = np.frombuffer(base64.b64decode(data["positions"]), np.float32).reshape(-1, 3)
+    assert len(tri) == data["n_triangles"] and tri.max() < len(pos) == len(col) == len(part)
+    # The flank's four vertices come last, flagged blade + flank, coloured on viridis 0…max.
+    assert (part[-4:] == 3).all()
+    np.testing.assert_array_equal(col[-4:], viewer3d.viridis_rgb(flank.wear, 2e-6))
+    assert ">2<" in page  # colour bar's top label: max wear 2 µm
+    assert float(np.ptp(pos[:, 0])) == pytest.approx(10.0, rel=1e-6)  # mm

@@ -1,0 +1,65 @@
+"""The run's report as Markdown, in the HTML page's order (results first, provenance last)."""
+from __future__ import annotations
+
+from workflow.report import format as fmt
+from workflow.report.html import LABELS
+
+MARK = {"green": "🟢", "amber": "🟠", "red": "🔴", "none": "⚪"}
+#: A check's verdict (a card's is :data:`workflow.report.html.LABELS`).
+VERDICT = {"green": "ok", "amber": "warning", "red": "failed", "none": "not checked"}
+
+
+def _cell(s) -> str:
+    return str(s).replace("|", "\\|").replace("\n", " ")
+
+
+def headline_md(h: dict) -> list[str]:
+    st = h.get("status", "none")
+    pos = h.get("max_wear_position_m")
+    where = (h.get("max_wear_where") or "") + (f" at ({', '.join(f'{1e3 * c:.1f}' for c in pos)}) mm" if pos else "")
+    rows = [
+        ("friction-damped peak", f"{fmt.hz(h.get('peak_hz'))}, {fmt.si(h.get('peak_amplitude_m'), 'm')}",
+         f"tied peak {fmt.si(h.get('tied_peak_amplitude_m'), 'm')}, sliding {fmt.si(h.get('sliding_peak_amplitude_m'), 'm')}"),
+        ("damping achieved", "amplitude ratio " + ("—" if h.get("amplitude_ratio") is None
+                                                   else f"{h['amplitude_ratio']:.3g}"),
+         f"ζ_eq = {fmt.percent(h.get('equivalent_damping_ratio'))} (structural {fmt.percent(h.get('tied_damping_ratio'))})"),
+        ("deepest wear", fmt.si(h.get("max_wear_m"), "m"), where),
+        ("worn frequency shift", fmt.signed_hz(h.get("worn_frequency_shift_hz")),
+         h.get("worn_frequency_shift_source") or "not computed"),
+        ("run time", fmt.seconds(h.get("run_seconds")), ""),
+    ]
+    out = [f"**Status: {MARK[st]} {LABELS[st]}**", "", "| result | value | detail |", "|---|---|---|"]
+    out += [f"| {a} | {_cell(b)} | {_cell(c)} |" for a, b, c in rows]
+    out += ["", "| | check | status | reason |", "|---|---|---|---|"]
+    out += [f"| {c['item']} | {_cell(c['name'])} | {MARK[c['status']]} {VERDICT[c['status']]} | {_cell(c['reason'])} |"
+            for c in h.get("checks", [])]
+    return out + [""]
+
+
+def page(title: str, h: dict, viewer: tuple, paper: tuple, sections, prov: dict, stages, scalars) -> str:
+    """The Markdown report (same arguments as :func:`workflow.report.html.page`)."""
+    lines = [f"# {title}", ""] + headline_md(h)
+    if h.get("warnings"):
+        lines += ["## Warnings", ""] + [f"* {_cell(w)}" for w in h["warnings"]] + [""]
+    if viewer[0]:
+        lines += [f"Interactive 3D view of the worn sector: [{viewer[0]}]({viewer[0]}) (open in a browser)", ""]
+    table1, ratio = paper
+    if table1:
+        lines += ["## Beside the paper: Table 1 (normalised CPU, 50 frequencies)", "",
+                  "| Nh | method, nit | ours [–] | paper [–] |", "|---|---|---|---|"]
+        lines += [f"| {r['Nh']} | {r['column']} | {r['ours']:.3g} | {r['paper']:.3g} |" for r in table1] + [""]
+    if ratio:
+        lines += [f"§5.2 CPU ratio pseudo-time / reference: ours {ratio['ours']:.3g}, paper {ratio['paper']:.2g}", ""]
+    for product, figures, _ in sections:
+        for rel, stem, cap, fig in figures:
+            lines += [f"![{rel.rsplit('/', 1)[-1]}]({rel})", "", f"*{stem}*" + (f" (paper {fig})" if fig else "") + f". {cap}", ""]
+    for product, _, tables in sections:
+        for caption, head, rows, total in tables:
+            more = f" (first {len(rows)} of {total} rows)" if total > len(rows) else ""
+            lines += [f"**{product}/{caption}**{more}", "", "| " + " | ".join(_cell(fmt.header(x)) for x in head) + " |",
+                      "|" + "---|" * len(head)]
+            lines += ["| " + " | ".join(_cell(c) for c in r + [""] * (len(head) - len(r))) + " |" for r in rows]
+            lines.append("")
+    lines += ["## Provenance", ""] + [f"* {k}: `{_cell(v)}`" for k, v in prov.items()] + [""]
+    lines += ["| stage | status | time [s] |", "|---|---|---|"] + [f"| {n} | {s} | {t} |" for n, s, t in stages]
+    return "\n".join(lines) + "\n"

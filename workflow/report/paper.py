@@ -1,0 +1,86 @@
+"""The paper's numbers beside ours (Salles et al. 2012), and what each figure shows.
+
+Paper values are copied from the reference text
+(/work/shared/reference/salles-2012-dual-time-stepping-hb-fretting-wear.md):
+Table 1 (§5.1, CPU time of 50 frequencies normalised by HBM, Nh = 1,
+nit = 105) and the §5.2 CPU share of the pseudo-time method (29 % of the
+implicit DLFT march). Ours come from the run: the hb stage's
+``cpu_table.csv`` and the wear stage's ``cpu_ratio_pseudo_over_reference``.
+"""
+from __future__ import annotations
+
+#: Paper Table 1: normalised CPU per (Nh, column); columns as in the paper.
+TABLE1_COLUMNS = (("hbm", "105"), ("hbm", "2Nh+1"), ("tcm", "105"), ("tcm", "2Nh+1"), ("hdhb", "2Nh+1"))
+TABLE1 = {1: (1.0, 0.17, 1.43, 0.18, 0.17),
+          3: (3.71, 0.51, 2.70, 0.45, 0.71),
+          7: (14.59, 6.41, 7.10, 3.24, 3.71),
+          17: (521.0, 88.44, 44.62, 46.60, 46.70)}
+#: Paper §5.2: pseudo-time CPU / implicit DLFT CPU to the worn steady state.
+CPU_RATIO_52 = 0.29
+PAPER_SCENES = ("paper-frf", "paper-wear")
+
+#: Figure file (stem) → (what to look at, the paper's figure it corresponds to or "").
+CAPTIONS = {
+    "frf_nh": ("Tip amplitude (first harmonic) against frequency for each method and nit; grey dash-dot: "
+               "the tied and sliding linear limits. Look at how far the friction-damped peak sits below the tied "
+               "peak and between the two limits, and whether the methods agree.", "Figs. 4–5"),
+    "frf_nit_aliasing": ("The same at the lowest Nh with nit = 2Nh+1 against a large nit: where the curves part, "
+                         "the few time samples alias the contact forces.", "Fig. 6"),
+    "iterations": ("Solver iterations per frequency: peaks mark where the contact state changes (stick → slip); "
+                   "a method that needs many more there is the harder one to converge.", "Fig. 7"),
+    "tangential": ("Tangential relative displacement of one contact pair over one period at resonance: flat parts "
+                   "are stick, sloped parts slip; the methods should overlay.", "Fig. 8"),
+    "error_vs_time": ("FRF error against the converged reference versus CPU time: the lower-left point is the "
+                      "best buy.", ""),
+    "wear_profile": ("Wear depth W per contact pair at the worn steady state, per method: the profiles should "
+                     "coincide; the tallest bars are where the flank wears first.", "Fig. 9"),
+    "tip_cycle": ("Tip displacement over one period before and after wear: the change is what wear does to the "
+                  "blade's response.", "Fig. 10"),
+    "max_wear": ("Deepest wear against cycles (physical for the march, pseudo for pseudo-time): the curve "
+                 "flattening is the worn steady state.", "Fig. 11"),
+    "harmonic1": ("First harmonic of the tracked pair's tangential displacement against cycles: it settles when "
+                  "the wear stops redistributing the contact.", "Fig. 12"),
+    "wear_flanks": ("Each flank unrolled, coloured by wear depth [µm]: where (leading/trailing edge, top/bottom) "
+                    "and how deep each flank wore.", "Fig. 3 (contact grid)"),
+    "wear_sector": ("The sector with the blade pulled axially out of the disk, flanks coloured by wear depth: "
+                    "the worn zones in place. The interactive view above can be turned.", ""),
+    "frf_worn_vs_new": ("Nonlinear FRF of the new and the worn model on one grid: the peak's shift is the worn "
+                        "blade's frequency change.", ""),
+    "convergence": ("Reduced-model frequency error against the number of fixed-interface modes.", ""),
+    "scaling": ("Run time against problem size.", ""),
+}
+
+
+def caption(stem: str) -> tuple[str, str]:
+    """(what to look at, paper figure) for a figure file stem; the longest
+    matching key wins (``frf_nh1_3`` → ``frf_nh``)."""
+    keys = [k for k in CAPTIONS if stem == k or stem.startswith(k)]
+    return CAPTIONS[max(keys, key=len)] if keys else ("", "")
+
+
+def table1_side_by_side(cpu_rows: list[dict]) -> list[dict]:
+    """Rows ``{"Nh", "column", "ours", "paper"}`` for every (Nh, method, nit)
+    that both the run's ``cpu_table.csv`` rows and the paper's Table 1 have
+    (normalised CPU, dimensionless)."""
+    ours = {}
+    for r in cpu_rows:
+        try:
+            ours[(int(float(r["Nh"])), r["method"], r["nit_label"])] = float(r["normalised"])
+        except (KeyError, ValueError):
+            continue
+    out = []
+    for nh, values in TABLE1.items():
+        for (method, nit), paper in zip(TABLE1_COLUMNS, values):
+            if (nh, method, nit) in ours:
+                out.append({"Nh": nh, "column": f"{method.upper()} nit={nit}",
+                            "ours": ours[(nh, method, nit)], "paper": paper})
+    return out
+
+
+def cpu_ratio_52(wear: dict) -> dict | None:
+    """Our pseudo-time / reference-march CPU ratio beside the paper's §5.2 29 %."""
+    r = (wear or {}).get("cpu_ratio_pseudo_over_reference")
+    if r is None:
+        return None
+    return {"ours": float(r), "paper": CPU_RATIO_52,
+            "profile_max_rel_diff": (wear or {}).get("profile_max_rel_diff")}
