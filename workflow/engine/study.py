@@ -200,8 +200,8 @@ def _variants(rc, cond, freqs, law, static, todo, opt, comm, log):
     return [done[i] for i in range(len(todo))]
 
 
-def _reference(rc, cond, freqs, law, static, runs, opt, comm):
-    """The reference sweep (rank 0 gets it, others None)."""
+def _reference(rc, cond, freqs, law, static, runs, opt, comm, log=None):
+    """The reference sweep (rank 0 gets it, others None), in the log's progress bar."""
     size, rank = (1, 0) if comm is None else (comm.Get_size(), comm.Get_rank())
     kw = dict(tol=opt.tol, maxiter=opt.max_iterations, max_passes=opt.max_passes)
     if opt.sweep == "arclength":
@@ -214,7 +214,8 @@ def _reference(rc, cond, freqs, law, static, runs, opt, comm):
     cuts = np.linspace(0, len(freqs), size + 1).round().astype(int)
     lo, hi = cuts[rank], cuts[rank + 1]
     part = sweep_variant(rc, cond[lo:hi], law, static, opt.reference, seeds=seeds[lo:hi], solver="newton-powell",
-                         eps_path=opt.eps_path, **kw) if hi > lo else None
+                         eps_path=opt.eps_path, progress=log.progress if log is not None else None,
+                         **kw) if hi > lo else None
     parts = [part] if comm is None else comm.gather(part, root=0)
     return join_sweeps([p for p in parts if p is not None]) if rank == 0 else None
 
@@ -263,7 +264,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
     with blas_threads(1):   # small dense systems: threads only add spinning CPU time
         _warm_up(cond[len(cond) // 2], law, static)
         runs = _variants(rc, cond, freqs, law, static, variants, opt, comm, log)
-        ref = _reference(rc, cond, freqs, law, static, runs, opt, comm) if opt.reference else None
+        ref = _reference(rc, cond, freqs, law, static, runs, opt, comm, log) if opt.reference else None
         if comm is not None and comm.Get_rank() != 0:
             return None
         for r in runs + ([ref] if ref is not None else []):
