@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workflow.report.png import save_png
+from workflow.report.png import finish_axes, write_figure
 
 
 def plot(out: Path, rows: list[dict], points, pflank, profiles) -> list[str]:
@@ -34,9 +34,7 @@ def plot(out: Path, rows: list[dict], points, pflank, profiles) -> list[str]:
             ax.set_xlabel("flank element length along x (mm)")
             ax.grid(True, which="both", alpha=0.3)
     fig.suptitle("contact-mesh convergence: " + ", ".join(f"{r['pairs']}" for r in rows) + " pairs")
-    fig.tight_layout()
-    files = [save_png(fig, out / "convergence.png")]
-    plt.close(fig)
+    files = [write_figure(fig, out / "convergence.png")]
     if profiles is not None:
         files.append(plot_profiles(out / "profiles.png", rows, points, pflank, profiles))
     return [str(Path(f).relative_to(out)) for f in files]
@@ -58,12 +56,6 @@ def plot_profiles(path: Path, rows, points, pflank, profiles) -> Path:
         for r, W in zip(rows, profiles):
             o = np.argsort(x[line])
             ax.plot(1e3 * x[line][o], W[sel][line][o], ".-", label=f"{r['pairs']} pairs")
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("wear depth W (m)")
-        ax.set_title(f"flank {int(f)} ({'intrados' if f == 0 else 'extrados'}), line of max wear", fontsize=9)
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
-    fig.tight_layout()
-    p = save_png(fig, path)
-    plt.close(fig)
-    return p
+        finish_axes(ax, "x (mm)", "wear depth W (m)",
+                    f"flank {int(f)} ({'intrados' if f == 0 else 'extrados'}), line of max wear", title_size=9)
+    return write_figure(fig, path)

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from workflow.engine.compare import peak
-from workflow.report.png import save_png
+from workflow.report.png import finish_axes, write_figure
 
 
 def frf_summary(frf: dict) -> dict:
@@ -38,12 +38,6 @@ def render_frf_worn_vs_new(frf: dict, path: Path) -> Path:
         f_pk, a_pk = peak(r)
         lab = f"{key}" + (f": peak {f_pk:.2f} Hz, {a_pk:.3g} m" if f_pk is not None else " (no point converged)")
         ax.plot(r.freqs_hz, a, style, ms=4, label=lab)
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("tip amplitude, 1st harmonic (m)")
-    ax.set_title(f"nonlinear FRF, new vs worn ({frf['variant'].label})")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    path = save_png(fig, path)
-    plt.close(fig)
-    return path
+    finish_axes(ax, "frequency (Hz)", "tip amplitude, 1st harmonic (m)",
+                f"nonlinear FRF, new vs worn ({frf['variant'].label})")
+    return write_figure(fig, path)
