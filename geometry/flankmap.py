@@ -83,3 +83,31 @@ def interpolate_on_flank(nodes: np.ndarray, values: np.ndarray, targets: np.ndar
             lin[bad] = NearestNDInterpolator(uv, values)(tv[bad])
         out[rest] = lin
     return out
+
+
+def common_points(position: np.ndarray, flank: np.ndarray, shape) -> tuple[np.ndarray, np.ndarray]:
+    """A ``shape`` = (along, across) grid of points [m] on each flank, spanning
+    the pairs' extent in the flank plane; returns (points (k, 3), flank (k,)).
+    The contact-mesh study compares its meshes' fields there."""
+    pts, fl = [], []
+    for f in np.unique(flank):
+        x = position[flank == f]
+        c, axes = flank_axes(x)
+        uv = flank_params(x, c, axes)
+        u = np.linspace(uv[:, 0].min(), uv[:, 0].max(), int(shape[0]))
+        w = np.linspace(uv[:, 1].min(), uv[:, 1].max(), int(shape[1]))
+        U, V = np.meshgrid(u, w, indexing="ij")
+        pts.append(c + U.reshape(-1, 1) * axes[0] + V.reshape(-1, 1) * axes[1])
+        fl.append(np.full(U.size, f))
+    return np.concatenate(pts), np.concatenate(fl)
+
+
+def profile_at(points, pflank, position, flank, W) -> np.ndarray:
+    """A field W (p,) of the pairs at ``position`` (p, 3) [m] on ``flank`` (p,),
+    carried to the ``points`` of :func:`common_points` on ``pflank``, flank by
+    flank (:func:`interpolate_on_flank`: linear in the flank plane)."""
+    out = np.zeros(len(points))
+    for f in np.unique(pflank):
+        sel = flank == f
+        out[pflank == f] = interpolate_on_flank(position[sel], W[sel], points[pflank == f])
+    return out

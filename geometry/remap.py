@@ -88,6 +88,38 @@ def wear_shares(W: np.ndarray, blade_share: float) -> tuple[np.ndarray, np.ndarr
     return w_blade, W - w_blade
 
 
+def pair_wear(contact, table: dict, blade_share: float) -> PairWear:
+    """:class:`PairWear` in bundle pair order from the wear stage's table
+    (:func:`workflow.report.wear.read_wear_csv`) and the bundle's ``contact``.
+
+    Rows are matched by ``pair`` index and checked against the bundle's pair
+    positions (1 µm); shares come from the CSV when present, else from
+    ``blade_share``.
+    """
+    from workflow.errors import BundleError
+
+    p = contact.n_pairs
+    if contact.position is None or contact.flank is None:
+        raise BundleError("the bundle's contact.npz lacks position/flank, needed to map wear onto the mesh")
+    idx = table["pair"]
+    if len(idx) != p or set(idx.tolist()) != set(range(p)):
+        raise GeometryError(f"wear.csv has {len(idx)} rows / pairs {idx.min()}..{idx.max()}, "
+                            f"the bundle {p} pairs")
+    order = np.argsort(idx)
+    if table["position"] is not None:
+        off = np.linalg.norm(table["position"][order] - contact.position, axis=1).max()
+        if off > 1e-6:
+            raise GeometryError(f"wear.csv positions differ from the bundle's pairs by up to {off:.3g} m "
+                                f"(was the wear computed on another bundle?)")
+    W = table["W"][order]
+    if table["W_blade"] is not None and table["W_disk"] is not None:
+        w_blade, w_disk = table["W_blade"][order], table["W_disk"][order]
+    else:
+        w_blade, w_disk = wear_shares(W, blade_share)
+    return PairWear(np.asarray(contact.position, float), np.asarray(contact.normal, float),
+                    np.asarray(contact.flank), np.clip(w_blade, 0.0, None), np.clip(w_disk, 0.0, None))
+
+
 @dataclass
 class FlankNodes:
     """Geometry nodes of one flank facet group: ``nodes`` (k,) indices, ``tag``."""

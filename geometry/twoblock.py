@@ -68,63 +68,17 @@ def build_two_block(params: TwoBlockParams = TwoBlockParams(), msh_path=None, co
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.model.add("twoblock")
     try:
-        occ = gmsh.model.occ
-        b, t, w, H, L = p.bottom_half, p.top_half, p.disk_half, p.height, p.length
-
-        def prism(yz):
-            pts = [occ.addPoint(0.0, y, z) for y, z in yz]
-            lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
-            surf = occ.addPlaneSurface([occ.addCurveLoop(lines)])
-            out = occ.extrude([(2, surf)], L, 0.0, 0.0)
-            return next(tag for dim, tag in out if dim == 3)
-
-        blade = prism([(-b, 0.0), (b, 0.0), (t, H), (-t, H)])
-        disk_ex = prism([(b, 0.0), (w, 0.0), (w, H), (t, H)])
-        disk_in = prism([(-b, 0.0), (-t, H), (-w, H), (-w, 0.0)])
-        occ.synchronize()
-
-        def faces(vol):
-            return [tag for _, tag in gmsh.model.getBoundary([(3, vol)], oriented=False)]
-
-        def centre(tag):
-            return np.array(occ.getCenterOfMass(2, tag))
-
-        ym = 0.5 * (b + t)  # y of the flank centres
-        def find(vol, pred):
-            hits = [f for f in faces(vol) if pred(centre(f))]
-            if len(hits) != 1:
-                raise GeometryError(f"two-block model: expected one face, found {len(hits)}")
-            return hits[0]
-
-        near = lambda a, c: abs(a - c) < 1e-9
-        bf_in = find(blade, lambda c: near(c[1], -ym) and near(c[2], 0.5 * H))
-        bf_ex = find(blade, lambda c: near(c[1], ym) and near(c[2], 0.5 * H))
-        df_in = find(disk_in, lambda c: near(c[1], -ym) and near(c[2], 0.5 * H))
-        df_ex = find(disk_ex, lambda c: near(c[1], ym) and near(c[2], 0.5 * H))
-        tip = find(blade, lambda c: near(c[2], H))
-        clamp = [find(disk_ex, lambda c: near(c[1], w)), find(disk_in, lambda c: near(c[1], -w))]
-
-        # Structured flank grids: nodes_along × nodes_across vertices.
-        flank_len = math.hypot(b - t, H)
-        for face in (bf_in, bf_ex):
-            for _, curve in gmsh.model.getBoundary([(2, face)], oriented=False):
-                lo, hi = gmsh.model.getBoundingBox(1, curve)[0::3], gmsh.model.getBoundingBox(1, curve)[3::3]
-                along = abs(hi[0] - lo[0]) > 0.5 * L
-                gmsh.model.mesh.setTransfiniteCurve(curve, p.nodes_along if along else p.nodes_across)
-            gmsh.model.mesh.setTransfiniteSurface(face)
-        identity = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
-        gmsh.model.mesh.setPeriodic(2, [df_in, df_ex], [bf_in, bf_ex], identity)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", p.h)
-        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.25 * min(p.h, flank_len / max(p.nodes_across - 1, 1)))
-
+        blade, disk_ex, disk_in = _volumes(p)
+        f = _faces(p, blade, disk_ex, disk_in)
+        _flank_grids(p, f)
         _group(3, [blade], 1, "blade")
         _group(3, [disk_ex, disk_in], 2, "disk")
-        _group(2, [bf_in], 11, "blade_flank_intrados")
-        _group(2, [bf_ex], 12, "blade_flank_extrados")
-        _group(2, [df_in], 21, "disk_flank_intrados")
-        _group(2, [df_ex], 22, "disk_flank_extrados")
-        _group(2, clamp, 31, "disk_clamp")
-        _group(2, [tip], 41, "blade_tip")
+        _group(2, [f["bf_in"]], 11, "blade_flank_intrados")
+        _group(2, [f["bf_ex"]], 12, "blade_flank_extrados")
+        _group(2, [f["df_in"]], 21, "disk_flank_intrados")
+        _group(2, [f["df_ex"]], 22, "disk_flank_extrados")
+        _group(2, f["clamp"], 31, "disk_clamp")
+        _group(2, [f["tip"]], 41, "blade_tip")
         gmsh.model.mesh.generate(3)
         if p.order == 2:
             gmsh.model.mesh.setOrder(2)
@@ -135,6 +89,76 @@ def build_two_block(params: TwoBlockParams = TwoBlockParams(), msh_path=None, co
         return model_to_mesh(gmsh.model, comm, 3)  # tags named cell_tags / facet_tags
     finally:
         gmsh.finalize()
+
+
+def _volumes(p: TwoBlockParams) -> tuple[int, int, int]:
+    """The blade and the two disk halves (gmsh volume tags), extruded along x by ``p.length``."""
+    import gmsh
+
+    occ = gmsh.model.occ
+    b, t, w, H, L = p.bottom_half, p.top_half, p.disk_half, p.height, p.length
+
+    def prism(yz):
+        pts = [occ.addPoint(0.0, y, z) for y, z in yz]
+        lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
+        surf = occ.addPlaneSurface([occ.addCurveLoop(lines)])
+        out = occ.extrude([(2, surf)], L, 0.0, 0.0)
+        return next(tag for dim, tag in out if dim == 3)
+
+    blade = prism([(-b, 0.0), (b, 0.0), (t, H), (-t, H)])
+    disk_ex = prism([(b, 0.0), (w, 0.0), (w, H), (t, H)])
+    disk_in = prism([(-b, 0.0), (-t, H), (-w, H), (-w, 0.0)])
+    occ.synchronize()
+    return blade, disk_ex, disk_in
+
+
+def _faces(p: TwoBlockParams, blade: int, disk_ex: int, disk_in: int) -> dict:
+    """Face tags found by their centres: the four flanks (``bf_in``, ``bf_ex``,
+    ``df_in``, ``df_ex``), the blade ``tip`` and the disk ``clamp`` (two faces)."""
+    import gmsh
+
+    occ = gmsh.model.occ
+    b, t, w, H = p.bottom_half, p.top_half, p.disk_half, p.height
+
+    def faces(vol):
+        return [tag for _, tag in gmsh.model.getBoundary([(3, vol)], oriented=False)]
+
+    def centre(tag):
+        return np.array(occ.getCenterOfMass(2, tag))
+
+    ym = 0.5 * (b + t)  # y of the flank centres
+    def find(vol, pred):
+        hits = [f for f in faces(vol) if pred(centre(f))]
+        if len(hits) != 1:
+            raise GeometryError(f"two-block model: expected one face, found {len(hits)}")
+        return hits[0]
+
+    near = lambda a, c: abs(a - c) < 1e-9
+    return {"bf_in": find(blade, lambda c: near(c[1], -ym) and near(c[2], 0.5 * H)),
+            "bf_ex": find(blade, lambda c: near(c[1], ym) and near(c[2], 0.5 * H)),
+            "df_in": find(disk_in, lambda c: near(c[1], -ym) and near(c[2], 0.5 * H)),
+            "df_ex": find(disk_ex, lambda c: near(c[1], ym) and near(c[2], 0.5 * H)),
+            "tip": find(blade, lambda c: near(c[2], H)),
+            "clamp": [find(disk_ex, lambda c: near(c[1], w)), find(disk_in, lambda c: near(c[1], -w))]}
+
+
+def _flank_grids(p: TwoBlockParams, f: dict) -> None:
+    """Structured flank grids of ``nodes_along × nodes_across`` vertices on the
+    blade flanks, copied to the disk flanks (periodic: node-to-node pairs), and
+    the mesh sizes."""
+    import gmsh
+
+    flank_len = math.hypot(p.bottom_half - p.top_half, p.height)
+    for face in (f["bf_in"], f["bf_ex"]):
+        for _, curve in gmsh.model.getBoundary([(2, face)], oriented=False):
+            lo, hi = gmsh.model.getBoundingBox(1, curve)[0::3], gmsh.model.getBoundingBox(1, curve)[3::3]
+            along = abs(hi[0] - lo[0]) > 0.5 * p.length
+            gmsh.model.mesh.setTransfiniteCurve(curve, p.nodes_along if along else p.nodes_across)
+        gmsh.model.mesh.setTransfiniteSurface(face)
+    identity = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+    gmsh.model.mesh.setPeriodic(2, [f["df_in"], f["df_ex"]], [f["bf_in"], f["bf_ex"]], identity)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", p.h)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.25 * min(p.h, flank_len / max(p.nodes_across - 1, 1)))
 
 
 def _group(dim, tags, tag, name):

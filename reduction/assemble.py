@@ -257,22 +257,7 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
     t0 = time.perf_counter()
     alpha, beta = float(_get(damping, "alpha", 0.0)), float(_get(damping, "beta", 0.0))
     ratio = float(_get(damping, "modal_ratio", 0.0))
-    f1 = None
-    if ratio > 0:
-        if comm.Get_size() > 1:
-            from reduction.parallel import frequencies_mpi    # collective: SLEPc + MUMPS on every rank
-
-            f1 = float(frequencies_mpi(bundle, 1, tied=True, comm=comm)[0])
-        else:
-            from reduction.modes import frequencies
-
-            f1 = float(frequencies(bundle, 1, tied=True)[0])
-        if f1 <= 0:
-            rpm = float(_get(rotation, "speed_rpm", 0.0))
-            raise BundleError(f"the first tied frequency is not positive (f1 = {f1:.4g} Hz): K(Ω) is not positive "
-                              "definite" + (f" — rotation.speed_rpm = {rpm:g} softens the sector past zero "
-                                            "(spin softening); lower it" if rpm > 0 else
-                                            " (is the disk clamped?)") + "; damping.modal_ratio needs it")
+    f1 = _first_tied_hz(bundle, comm, rotation) if ratio > 0 else None
     if not root:
         return None, {}
     b_modal = modal_beta(ratio, 2 * math.pi * f1) if f1 else 0.0
@@ -294,6 +279,27 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
         material=dict(young=_material(material)[0], poisson=_material(material)[1], density=_material(material)[2]),
         speed_rpm=float(_get(rotation, "speed_rpm", 0.0)), **info, geometry=geometry_info)
     return bundle, info
+
+
+def _first_tied_hz(bundle, comm, rotation) -> float:
+    """First tied frequency [Hz] of ``bundle`` for ``damping.modal_ratio``
+    (collective under MPI: SLEPc + MUMPS on every rank); :class:`BundleError`
+    if it is not positive."""
+    if comm.Get_size() > 1:
+        from reduction.parallel import frequencies_mpi
+
+        f1 = float(frequencies_mpi(bundle, 1, tied=True, comm=comm)[0])
+    else:
+        from reduction.modes import frequencies
+
+        f1 = float(frequencies(bundle, 1, tied=True)[0])
+    if f1 <= 0:
+        rpm = float(_get(rotation, "speed_rpm", 0.0))
+        raise BundleError(f"the first tied frequency is not positive (f1 = {f1:.4g} Hz): K(Ω) is not positive "
+                          "definite" + (f" — rotation.speed_rpm = {rpm:g} softens the sector past zero "
+                                        "(spin softening); lower it" if rpm > 0 else
+                                        " (is the disk clamped?)") + "; damping.modal_ratio needs it")
+    return f1
 
 
 def assemble_bundle(msh_path, geometry_info: dict, material, rotation=None, damping=None, excitation=None,

@@ -143,25 +143,60 @@ def reduce_bundle_mpi(folder: str | Path, n_modes: int | None = 30, cutoff_hz: f
     """:func:`reduction.reduce.reduce_bundle` of the bundle folder ``folder`` on every rank of ``comm``.
 
     Collective. Returns the :class:`ReducedModel` on rank 0, None elsewhere.
-    ``info["mpi_ranks"]`` records the number of ranks.
+    ``info["mpi_ranks"]`` records the number of ranks. The steps of the
+    module docstring: :func:`_read_rows` (1), :func:`_basis` (2–4),
+    :func:`_project` (5), :func:`_model` (rank 0).
     """
     from mpi4py import MPI
     from petsc4py import PETSc
 
     comm = comm or MPI.COMM_WORLD
     pcomm = PETSc.Comm(comm)
-    rank, size = comm.Get_rank(), comm.Get_size()
     if not n_modes:
         n_modes = None
         if not cutoff_hz:
             raise BundleError("reduction needs modes > 0 or cutoff_hz > 0")
-    gsum = summer(comm)
     t_all = time.perf_counter()
     timings: dict = {}
-
-    # 1. rows of the free DOFs, interior/boundary split (same as reduce_with_basis)
     t0 = time.perf_counter()
-    folder = Path(folder)
+    r = _read_rows(Path(folder), comm, pcomm, max_load_dofs)
+    timings["read"] = time.perf_counter() - t0
+    omega2, Psi, Phi, X = _basis(r, comm, n_modes, cutoff_hz, eigensolver, tol, timings)
+    t0 = time.perf_counter()
+    red = _project(r, comm, Psi, Phi, X)
+    timings["projection"] = time.perf_counter() - t0
+    for op in (r.Mf, r.Kf, r.Cf, r.Kop, r.Mop):
+        if op is not None:
+            op.destroy()
+    if comm.Get_rank() != ROOT:
+        return None
+    seconds = {k: float(v) for k, v in timings.items() if not k.startswith("lanczos_")}
+    seconds["total"] = time.perf_counter() - t_all
+    info = {
+        "method": "craig-bampton", "modes": int(Phi.shape[1]), "load_vectors": int(X.shape[1]),
+        "boundary_dofs": int(r.nb), "size": int(red["m"]), "n_dofs": int(r.n), "free_dofs": int(r.nf),
+        "pairs": int(r.sk.contact.n_pairs),
+        "modes_requested": None if n_modes is None else int(n_modes), "cutoff_hz": float(cutoff_hz or 0.0),
+        "fixed_interface_hz": (np.sqrt(np.clip(omega2, 0.0, None)) / (2 * np.pi)).tolist(), "solver": "mumps",
+        "eigensolver": eigensolver, "eigen_stats": {k[8:]: v for k, v in timings.items() if k.startswith("lanczos_")},
+        "seconds": seconds, "bundle": str(Path(folder)), "mpi_ranks": int(comm.Get_size()),
+    }
+    return _model(r.sk, red, info)
+
+
+def _read_rows(folder: Path, comm, pcomm, max_load_dofs: int):
+    """Step 1: this rank's rows of the free DOFs, the interior/boundary split
+    (same as :func:`reduction.reduce.reduce_with_basis`) and the distributed
+    operators. Returns a namespace: ``sk`` (bundle without matrices), sizes
+    ``n``, ``nf``, ``nb``, ``ni``; index maps ``free``, ``fpos``, ``bnd``,
+    ``is_b``, ``interior``; this rank's ranges ``f0:f1`` (free) and ``i0:i1``
+    (interior), ``own`` (global DOFs), ``own_int``/``own_bnd`` (local rows);
+    ``mats`` (local free-numbered rows of M, K, C), ``Kii``, ``Mii`` (MPIAIJ),
+    ``Kib`` (local rows), ``Mf``, ``Kf``, ``Cf`` (:class:`RowOperator`, Cf
+    None without damping), ``loads`` (nf, 2)."""
+    from types import SimpleNamespace
+
+    rank, size = comm.Get_rank(), comm.Get_size()
     sk = read_bundle(folder, matrices=False)
     n = sk.n_dofs
     free = sk.free_dofs
@@ -171,13 +206,10 @@ def reduce_bundle_mpi(folder: str | Path, n_modes: int | None = 30, cutoff_hz: f
     bnd = boundary_dofs(sk, max_load_dofs)
     if bnd.size == 0:
         raise BundleError("bundle has no unclamped contact, loaded or observed DOF to keep")
-    nb = bnd.size
     is_b = np.zeros(nf, dtype=bool)
     is_b[fpos[bnd]] = True
     interior = np.flatnonzero(~is_b)  # free-local indices
     ni = interior.size
-    ipos = -np.ones(nf, dtype=np.int64)
-    ipos[interior] = np.arange(ni)
     cuts = split(nf, size)
     f0, f1 = int(cuts[rank]), int(cuts[rank + 1])
     own = free[f0:f1]
@@ -199,14 +231,22 @@ def reduce_bundle_mpi(folder: str | Path, n_modes: int | None = 30, cutoff_hz: f
     c_nnz = comm.allreduce(mats["C"].nnz)
     Cf = RowOperator(aij(mats["C"], (nf, nf), pcomm)) if c_nnz else None
     loads = np.column_stack([sk.loads.static[free], sk.loads.harmonic[free]])
-    timings["read"] = time.perf_counter() - t0
+    return SimpleNamespace(sk=sk, n=n, free=free, nf=nf, fpos=fpos, bnd=bnd, nb=bnd.size, is_b=is_b,
+                           interior=interior, ni=ni, f0=f0, f1=f1, own=own, i0=i0, i1=i1, mats=mats,
+                           own_int=own_int, own_bnd=own_bnd, Kii=Kii, Mii=Mii, Kib=Kib, Mf=Mf, Kf=Kf, Cf=Cf,
+                           loads=loads, Kop=None, Mop=None)
 
-    # 2–4. factor, constraint modes, fixed-interface modes, load vectors
+
+def _basis(r, comm, n_modes, cutoff_hz, eigensolver: str, tol: float, timings: dict):
+    """Steps 2–4 on the rows ``r`` of :func:`_read_rows`: MUMPS factor of
+    K_ii, constraint modes Ψ, fixed-interface modes (ω² [rad²/s²], Φ) and
+    load vectors X, this rank's interior rows of each; sets ``r.Kop``,
+    ``r.Mop`` and fills ``timings`` [s]."""
     t0 = time.perf_counter()
-    factor = SparseFactor(Kii, "mumps")
+    factor = SparseFactor(r.Kii, "mumps")
     timings["factor"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    Psi = -factor.solve_sparse(Kib)
+    Psi = -factor.solve_sparse(r.Kib)
     bad = comm.allreduce(int(not np.all(np.isfinite(Psi))))
     if bad:
         raise SolverError("constraint modes are not finite: K_ii is singular — a body is held by no boundary DOF")
@@ -214,81 +254,76 @@ def reduce_bundle_mpi(folder: str | Path, n_modes: int | None = 30, cutoff_hz: f
     t0 = time.perf_counter()
     use_count = n_modes is not None and (n_modes > 0 or not cutoff_hz)
     cutoff = None if use_count else 2.0 * np.pi * cutoff_hz
-    Kop, Mop = RowOperator(Kii), RowOperator(Mii)
+    r.Kop, r.Mop = RowOperator(r.Kii), RowOperator(r.Mii)
+    gsum = summer(comm)
     if eigensolver == "lanczos":
         stats: dict = {}
-        omega2, Phi = fixed_interface_modes(Kop, Mop, factor, n_modes if use_count else None, cutoff, tol=tol,
-                                            stats=stats, gsum=gsum, rows=slice(i0, i1))
+        omega2, Phi = fixed_interface_modes(r.Kop, r.Mop, factor, n_modes if use_count else None, cutoff, tol=tol,
+                                            stats=stats, gsum=gsum, rows=slice(r.i0, r.i1))
         timings.update({f"lanczos_{k}": v for k, v in stats.items()})
     elif eigensolver == "slepc":
-        omega2, Phi = _slepc_modes(Kii, Mii, n_modes if use_count else None, cutoff, slice(i0, i1))
+        omega2, Phi = _slepc_modes(r.Kii, r.Mii, n_modes if use_count else None, cutoff, slice(r.i0, r.i1))
     else:
         raise ValueError(f"unknown eigensolver {eigensolver!r} (lanczos or slepc)")
     timings["eigen"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    X = _load_vectors(loads[f0:f1][own_int], Kop, Mop, factor, Phi, gsum=gsum)
+    X = _load_vectors(r.loads[r.f0:r.f1][r.own_int], r.Kop, r.Mop, factor, Phi, gsum=gsum)
     timings["load_vectors"] = time.perf_counter() - t0
     factor.destroy()
+    return omega2, Psi, Phi, X
 
-    # 5. this rank's rows of V, projection summed on rank 0
-    t0 = time.perf_counter()
+
+def _project(r, comm, Psi, Phi, X) -> dict:
+    """Step 5: this rank's rows of V = [boundary | Ψ | Φ | X], the projections
+    summed on rank 0 (None elsewhere): ``Mr``, ``Kr_bb`` (boundary block as
+    the exact Schur complement K_bb + K_bi Ψ), ``Kr_xn`` (columns nb: of
+    VᵀKV), ``Cr``, ``B``, ``O``, ``fr``; and the sizes ``m``, ``nb``."""
+    f0, f1, nb, fpos, bnd = r.f0, r.f1, r.nb, r.fpos, r.bnd
     nm, nl = Phi.shape[1], X.shape[1]
     m = nb + nm + nl
     V = np.zeros((f1 - f0, m))
-    V[own_bnd, np.searchsorted(fpos[bnd], f0 + own_bnd)] = 1.0
-    V[own_int, :nb] = Psi
-    V[own_int, nb:nb + nm] = Phi
-    V[own_int, nb + nm:] = X
-    MV = Mf @ V
-    Mr = reduce_root(comm, V.T @ MV)
+    V[r.own_bnd, np.searchsorted(fpos[bnd], f0 + r.own_bnd)] = 1.0
+    V[r.own_int, :nb] = Psi
+    V[r.own_int, nb:nb + nm] = Phi
+    V[r.own_int, nb + nm:] = X
+    MV = r.Mf @ V
+    out = {"m": m, "nb": nb, "Mr": reduce_root(comm, V.T @ MV)}
     del MV
-    # VᵀKV: boundary block as K_bb + K_bi Ψ (exact Schur complement, as in the serial projection)
     Kbb = np.zeros((nb, nb))
-    Kb_rows = mats["K"][own_bnd][:, fpos[bnd]]
-    Kbb[np.searchsorted(fpos[bnd], f0 + own_bnd)] = Kb_rows.toarray()
-    Kr_bb = reduce_root(comm, Kbb + Kib.T @ Psi)
-    KV = Kf @ V[:, nb:]
-    Kr_xn = reduce_root(comm, V.T @ KV)  # columns nb: of VᵀKV
+    Kb_rows = r.mats["K"][r.own_bnd][:, fpos[bnd]]
+    Kbb[np.searchsorted(fpos[bnd], f0 + r.own_bnd)] = Kb_rows.toarray()
+    out["Kr_bb"] = reduce_root(comm, Kbb + r.Kib.T @ Psi)
+    KV = r.Kf @ V[:, nb:]
+    out["Kr_xn"] = reduce_root(comm, V.T @ KV)
     del KV
-    Cr = reduce_root(comm, V.T @ (Cf @ V)) if Cf is not None else None
-    Cm = contact_map(sk).tocsc()[:, own]
-    B = reduce_root(comm, Cm @ V)
-    obs = np.asarray(sk.loads.observe, dtype=np.int64)
+    out["Cr"] = reduce_root(comm, V.T @ (r.Cf @ V)) if r.Cf is not None else None
+    Cm = contact_map(r.sk).tocsc()[:, r.own]
+    out["B"] = reduce_root(comm, Cm @ V)
+    obs = np.asarray(r.sk.loads.observe, dtype=np.int64)
     O = np.zeros((obs.size, m))
     fo = fpos[obs]
     mine = (fo >= f0) & (fo < f1)
     O[mine] = V[fo[mine] - f0]
-    O = reduce_root(comm, O)
-    f_loc = np.column_stack([sk.loads.static[own], sk.loads.harmonic[own]])
-    fr = reduce_root(comm, V.T @ f_loc)
-    timings["projection"] = time.perf_counter() - t0
-    for op in (Mf, Kf, Cf, Kop, Mop):
-        if op is not None:
-            op.destroy()
-    if rank != ROOT:
-        return None
+    out["O"] = reduce_root(comm, O)
+    f_loc = np.column_stack([r.sk.loads.static[r.own], r.sk.loads.harmonic[r.own]])
+    out["fr"] = reduce_root(comm, V.T @ f_loc)
+    return out
 
+
+def _model(sk, red: dict, info: dict) -> ReducedModel:
+    """Rank 0: the symmetric reduced matrices from :func:`_project`'s sums and the :class:`ReducedModel`."""
+    m, nb = red["m"], red["nb"]
     Kr = np.empty((m, m))
-    Kr[:nb, :nb] = Kr_bb
-    Kr[:, nb:] = Kr_xn
+    Kr[:nb, :nb] = red["Kr_bb"]
+    Kr[:, nb:] = red["Kr_xn"]
     Kr[nb:, :nb] = Kr[:nb, nb:].T
     Kr = 0.5 * (Kr + Kr.T)
-    Mr = 0.5 * (Mr + Mr.T)
-    Cr = 0.5 * (Cr + Cr.T) if Cr is not None else np.zeros_like(Mr)
+    Mr = 0.5 * (red["Mr"] + red["Mr"].T)
+    Cr = 0.5 * (red["Cr"] + red["Cr"].T) if red["Cr"] is not None else np.zeros_like(Mr)
     c = sk.contact
     flank, position = pair_labels(sk)
-    omega = np.sqrt(np.clip(omega2, 0.0, None))
-    seconds = {k: float(v) for k, v in timings.items() if not k.startswith("lanczos_")}
-    seconds["total"] = time.perf_counter() - t_all
-    info = {
-        "method": "craig-bampton", "modes": int(nm), "load_vectors": int(nl), "boundary_dofs": int(nb),
-        "size": int(m), "n_dofs": int(n), "free_dofs": int(nf), "pairs": int(c.n_pairs),
-        "modes_requested": None if n_modes is None else int(n_modes), "cutoff_hz": float(cutoff_hz or 0.0),
-        "fixed_interface_hz": (omega / (2 * np.pi)).tolist(), "solver": "mumps", "eigensolver": eigensolver,
-        "eigen_stats": {k[8:]: v for k, v in timings.items() if k.startswith("lanczos_")},
-        "seconds": seconds, "bundle": str(folder), "mpi_ranks": int(size),
-    }
-    model = ReducedModel(M=Mr, K=Kr, C=Cr, B=B, f_static=fr[:, 0], f_harmonic=fr[:, 1], O=O,
+    fr = red["fr"]
+    model = ReducedModel(M=Mr, K=Kr, C=Cr, B=red["B"], f_static=fr[:, 0], f_harmonic=fr[:, 1], O=red["O"],
                          area=np.asarray(c.area, float), gap=np.asarray(c.gap, float), flank=np.asarray(flank),
                          position=np.asarray(position, float), info=info,
                          mu=None if c.mu is None else np.asarray(c.mu, float))  # per-pair μ (#18)

@@ -168,53 +168,14 @@ def continuation(fun_jac_omega, x0, omega0: float, omega_end: float, *, ds: floa
         steps += 1
         ts = time.perf_counter()
         z = np.concatenate([x / xs, [w / ws]])
-        while True:
-            zp = z + ds * t
-
-            def aug(zz, with_jac):
-                xx, ww = zz[:n] * xs, zz[n] * ws
-                R, Jx, Rw_ = fx(xx, ww)
-                ra = np.concatenate([R, [t @ (zz - zp) * scale]])
-                if not with_jac:
-                    return ra
-                Ja = np.empty((n + 1, n + 1))
-                Ja[:n, :n] = Jx * xs
-                Ja[:n, n] = Rw_ * ws
-                Ja[n] = t * scale
-                return ra, Ja
-
-            res = _solve(lambda zz: aug(zz, False), lambda zz: aug(zz, True), zp, solver, tol, scale, maxiter)
-            if res.converged:
-                break
-            ds *= 0.5
-            if ds < ds_min:
-                out.append(dict(x=x, omega=w, iterations=res.iterations, seconds=time.perf_counter() - ts,
-                                converged=False, reason=f"step below ds_min: {res.reason}"))
-                return out
+        res, ds = _correct(fx, z, t, ds, (xs, ws), ds_min, solver, tol, scale, maxiter)
+        if not res.converged:
+            out.append(dict(x=x, omega=w, iterations=res.iterations, seconds=time.perf_counter() - ts,
+                            converged=False, reason=f"step below ds_min: {res.reason}"))
+            return out
         znew = res.x
         x, w = znew[:n] * xs, znew[n] * ws
-        _, J, Rw = fx(x, w)
-        A = np.zeros((n + 1, n + 1))
-        A[:n, :n] = J * xs
-        A[:n, n] = Rw * ws
-        A[n] = t
-        rhs = np.zeros(n + 1)
-        rhs[n] = 1.0
-        sec = znew - z
-        try:
-            tn = np.linalg.solve(A, rhs)
-        except np.linalg.LinAlgError:
-            tn = sec
-        if not np.all(np.isfinite(tn)):
-            tn = sec
-        # Orientation from the path actually travelled: at the stick/slip kinks
-        # of the friction residual the bordered tangent can come out reversed
-        # (measured on the sector: HBM-1 turned back at the resonance peak and
-        # walked to −192 Hz). A secant predictor alone does not do either: at
-        # the top of a sharp peak its hyperplane cuts the curve on both sides.
-        if tn @ sec < 0:
-            tn = -tn
-        t = tn / np.linalg.norm(tn)
+        t = _tangent(fx, x, w, znew - z, t, (xs, ws))
         rec = dict(x=x, omega=w, iterations=res.iterations, seconds=time.perf_counter() - ts,
                    converged=True, reason=res.reason)
         out.append(rec)
@@ -227,6 +188,66 @@ def continuation(fun_jac_omega, x0, omega0: float, omega_end: float, *, ds: floa
         if (w - omega_end) * direction >= 0:
             break
     return out
+
+
+def _correct(fx, z, t, ds: float, scales, ds_min: float, solver, tol, scale, maxiter) -> tuple[SolveResult, float]:
+    """One arclength step from the scaled point ``z`` along the tangent ``t``:
+    predictor ``z + ds·t``, corrector on ``R = 0`` plus the hyperplane
+    ``tᵀ(z − z_pred) = 0``; ``ds`` halves on failure. Returns the solver's
+    result and the ``ds`` used (not converged: ds fell below ``ds_min``).
+    ``scales`` = (x_s, ω_s) of the scaled unknowns."""
+    xs, ws = scales
+    n = z.size - 1
+    while True:
+        zp = z + ds * t
+
+        def aug(zz, with_jac):
+            xx, ww = zz[:n] * xs, zz[n] * ws
+            R, Jx, Rw_ = fx(xx, ww)
+            ra = np.concatenate([R, [t @ (zz - zp) * scale]])
+            if not with_jac:
+                return ra
+            Ja = np.empty((n + 1, n + 1))
+            Ja[:n, :n] = Jx * xs
+            Ja[:n, n] = Rw_ * ws
+            Ja[n] = t * scale
+            return ra, Ja
+
+        res = _solve(lambda zz: aug(zz, False), lambda zz: aug(zz, True), zp, solver, tol, scale, maxiter)
+        if res.converged:
+            return res, ds
+        ds *= 0.5
+        if ds < ds_min:
+            return res, ds
+
+
+def _tangent(fx, x, w, sec, t, scales) -> np.ndarray:
+    """Unit tangent at the converged (x, ω) from ``[J  R_ω; tᵀ] t_new = [0; 1]``
+    (scaled by ``scales`` = (x_s, ω_s)), oriented along the secant ``sec`` of
+    the last step; the secant itself when the bordered system is singular."""
+    xs, ws = scales
+    n = x.size
+    _, J, Rw = fx(x, w)
+    A = np.zeros((n + 1, n + 1))
+    A[:n, :n] = J * xs
+    A[:n, n] = Rw * ws
+    A[n] = t
+    rhs = np.zeros(n + 1)
+    rhs[n] = 1.0
+    try:
+        tn = np.linalg.solve(A, rhs)
+    except np.linalg.LinAlgError:
+        tn = sec
+    if not np.all(np.isfinite(tn)):
+        tn = sec
+    # Orientation from the path actually travelled: at the stick/slip kinks
+    # of the friction residual the bordered tangent can come out reversed
+    # (measured on the sector: HBM-1 turned back at the resonance peak and
+    # walked to −192 Hz). A secant predictor alone does not do either: at
+    # the top of a sharp peak its hyperplane cuts the curve on both sides.
+    if tn @ sec < 0:
+        tn = -tn
+    return tn / np.linalg.norm(tn)
 
 
 def arclength_sweep(f_start_hz: float, f_end_hz: float, linear, make_problem, observe, *, x0=None,

@@ -357,14 +357,7 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     hist = WearHistory(method=f"reference-{scheme}", W=W, x=x, steady=False, seconds=0.0, iterations=0,
                        hb_solves=0, jacobian_evaluations=0)
     cyc = 0.0
-
-    def record():
-        hist.cycles.append(cyc)
-        hist.max_wear.append(float(W.max()))
-        hist.harmonic1.append(_h1(wp, x, track))
-        hist.W_history.append(W.copy())
-
-    record()
+    _record(hist, wp, cyc, x, W, track)
     reason = f"max blocks ({max_blocks})"
     steady = False
     k = 0
@@ -391,7 +384,7 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
             break
         W, x, st = np.maximum(Wn, W), res.x, stn
         cyc += N
-        record()
+        _record(hist, wp, cyc, x, W, track)
     hist.W, hist.x, hist.steady = W, x, steady
     hist.final_rate = st.rate
     hist.iterations = len(hist.cycles) - 1
@@ -472,8 +465,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     pen = penetration_scale(wp, st)
     hist = WearHistory(method="pseudo-time-ser", W=W, x=x, steady=False, seconds=0.0, iterations=0,
                        hb_solves=1, jacobian_evaluations=res0.jacobian_evaluations + 1)
-    hist.cycles, hist.max_wear, hist.harmonic1, hist.W_history = [0.0], [float(W.max())], [_h1(wp, x, track)], \
-        [W.copy()]
+    _record(hist, wp, 0.0, x, W, track)
     rmax = float(st.rate.max())
     if rmax == 0.0:
         hist.steady, hist.reason, hist.final_rate = True, "steady (no wear at W0)", st.rate
@@ -497,15 +489,25 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             x, W, st = xn, Wn, stn
             t += h
             steps += 1
-            hist.cycles.append(t)
-            hist.max_wear.append(float(W.max()))
-            hist.harmonic1.append(_h1(wp, x, track))
-            hist.W_history.append(W.copy())
+            _record(hist, wp, t, x, W, track)
             h = min(h * min(4.0, max(0.3, fac)), hmax)
         else:
             rejected += 1
             h *= min(0.5, max(0.1, fac)) if ok else 0.25
-    # final vibration solve at the reached W (the profile is W; x to full tolerance for the outputs)
+    _finish(hist, wp, x, W, st, steady, reason, count, (N, steady_tol, tol))
+    hist.reason += f" ({steps} steps, {rejected} rejected, {count['corrections']} vibration corrections)"
+    hist.iterations = steps
+    hist.seconds = time.perf_counter() - t0
+    return hist
+
+
+def _finish(hist: WearHistory, wp: WearProblem, x, W, st: WearState, steady: bool, reason: str, count: dict,
+            tols) -> None:
+    """Final vibration solve of :func:`pseudo_time_wear` at the reached W (the
+    profile is W; x to full tolerance for the outputs), then ``hist``'s end
+    state; ``tols`` = (cycles per block, steady_tol, HB tol). A steady march
+    whose final solve is no longer steady is reported so."""
+    N, steady_tol, tol = tols
     res, stf = wp.solve_hb(x, W, tol=tol)
     count["nje"] += res.jacobian_evaluations + 1
     if res.converged:
@@ -514,12 +516,17 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             steady, reason = False, "not steady after the final vibration solve"
     hist.W, hist.x, hist.steady = W, x, steady
     hist.final_rate = st.rate
-    hist.reason = f"{reason} ({steps} steps, {rejected} rejected, {count['corrections']} vibration corrections)"
-    hist.iterations = steps
+    hist.reason = reason
     hist.hb_solves = 2
     hist.jacobian_evaluations += count["nje"]
-    hist.seconds = time.perf_counter() - t0
-    return hist
+
+
+def _record(hist: WearHistory, wp: WearProblem, cycles: float, x, W, track: int) -> None:
+    """Append one point of the wear path to ``hist``: cycles, max W [m], tracked first harmonic [m], W."""
+    hist.cycles.append(cycles)
+    hist.max_wear.append(float(W.max()))
+    hist.harmonic1.append(_h1(wp, x, track))
+    hist.W_history.append(W.copy())
 
 
 def _wear_step(wp: WearProblem, x, W, st: WearState, h: float, x_tol: float, x_corrections: int, count: dict):

@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 
 from workflow.errors import SceneError
+from geometry.flankmap import common_points, profile_at
+from workflow.engine.meshstudy import observed_order, rel_change, summarise
 from workflow.stages import contact_convergence as cc
 
 
@@ -17,11 +19,11 @@ def test_observed_order_recovers_the_exponent_for_uneven_ratios():
     h = np.array([1.0, 0.5, 1 / 3, 0.25])
     for p in (1.0, 2.0, 0.5):
         q = 3.0 + 0.7 * h ** p
-        assert cc.observed_order(h, q) == pytest.approx(p, rel=1e-9)
-    assert cc.observed_order(h, [1.0, 2.0, 1.5, 1.7]) is None     # oscillating: no asymptotic range
-    assert cc.observed_order(h[:2], [1.0, 2.0]) is None
-    assert cc.rel_change(1.0, 1.25) == pytest.approx(0.2)
-    assert cc.rel_change(None, 1.0) is None
+        assert observed_order(h, q) == pytest.approx(p, rel=1e-9)
+    assert observed_order(h, [1.0, 2.0, 1.5, 1.7]) is None     # oscillating: no asymptotic range
+    assert observed_order(h[:2], [1.0, 2.0]) is None
+    assert rel_change(1.0, 1.25) == pytest.approx(0.2)
+    assert rel_change(None, 1.0) is None
 
 
 def test_summarise_reports_the_two_finest_meshes():
@@ -29,7 +31,7 @@ def test_summarise_reports_the_two_finest_meshes():
     rows = [dict(h_contact_m=x, peak_hz=100 + x, peak_amplitude_m=1e-3 * (1 + x ** 2), energy_J=1e-4 * (1 + x),
                  max_wear_m=1e-6 * (1 + 10 * x)) for x in h]
     W = np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 2.1]])
-    s = cc.summarise(rows, W)
+    s = summarise(rows, W)
     assert s["peak_change_last"] == pytest.approx(abs(h[1] ** 2 - h[2] ** 2) / (1 + h[2] ** 2))
     assert s["observed_order"]["peak_amplitude_m"] == pytest.approx(2.0, rel=1e-9)
     assert s["observed_order"]["energy_J"] == pytest.approx(1.0, rel=1e-9)
@@ -50,11 +52,11 @@ def test_profiles_of_a_linear_field_agree_on_the_common_points():
     """A wear field linear on the flank is carried exactly from any contact mesh to the common points."""
     coarse, fc = _flank_grid(4, 2)
     fine, ff = _flank_grid(13, 5)
-    pts, pf = cc.common_points(coarse, fc, (11, 4))
+    pts, pf = common_points(coarse, fc, (11, 4))
     assert len(pts) == 2 * 11 * 4
     field = lambda x, f: 1e-6 * (1 + 20 * x[:, 0] + 100 * (x[:, 2] - 0.2)) * (1 + f)  # noqa: E731
-    a = cc.profile_at(pts, pf, coarse, fc, field(coarse, fc))
-    b = cc.profile_at(pts, pf, fine, ff, field(fine, ff))
+    a = profile_at(pts, pf, coarse, fc, field(coarse, fc))
+    b = profile_at(pts, pf, fine, ff, field(fine, ff))
     np.testing.assert_allclose(a, field(pts, pf), rtol=1e-10)
     np.testing.assert_allclose(b, a, rtol=1e-10)
 

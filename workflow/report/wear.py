@@ -29,6 +29,38 @@ def write_wear_csv(path, position, flank, histories: dict, share: float) -> Path
     return write_text(path, buf.getvalue())
 
 
+def read_wear_csv(path: Path, methods=()) -> dict:
+    """Columns of :func:`write_wear_csv`'s table: ``pair`` (int), ``position``
+    (p, 3) [m], ``W``, ``W_blade``, ``W_disk`` (p,) [m] (shares None if
+    absent) and the ``method`` chosen: the first of ``methods`` with a
+    ``W_<method>_m`` column, else the first W column."""
+    from workflow.errors import GeometryError
+
+    path = Path(path)
+    if not path.is_file():
+        raise GeometryError(f"wear output {path} is missing (run the wear stage)")
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        raise GeometryError(f"wear output {path} has no rows")
+    cols = list(rows[0])
+    w_cols = [c for c in cols if c.startswith("W_") and not c.startswith(("W_blade_", "W_disk_"))] or \
+             [c for c in cols if c == "W" or c.startswith("W")]
+    if not w_cols:
+        raise GeometryError(f"wear output {path} has no wear-depth column (W_<method>_m)")
+    chosen = next((f"W_{m}_m" for m in methods if f"W_{m}_m" in cols), w_cols[0])
+    method = chosen[2:-2] if chosen.startswith("W_") and chosen.endswith("_m") else chosen
+
+    def col(name):
+        return np.array([float(r[name]) for r in rows]) if name in cols else None
+
+    pos_cols = next(((a, b, c) for a, b, c in (("x_m", "y_m", "z_m"), ("x", "y", "z")) if a in cols), None)
+    return dict(pair=np.array([int(float(r["pair"])) for r in rows]) if "pair" in cols else np.arange(len(rows)),
+                position=np.column_stack([col(c) for c in pos_cols]) if pos_cols else None,
+                W=col(chosen), W_blade=col(f"W_blade_{method}_m"), W_disk=col(f"W_disk_{method}_m"),
+                method=method)
+
+
 def plot_wear(out: Path, histories: dict, *, tip_before=None, tip_after=None, track_label="") -> list[str]:
     """Figures 9–12 of the paper; returns the file names written under ``out``.
 

@@ -1,0 +1,199 @@
+"""One reduced model of a contact-mesh study (issue 17) and the study's convergence arithmetic.
+
+Per mesh: the friction-damped FRF peak and its dissipated energy
+(:func:`friction_peak`), the static preload gaps at the midside nodes
+(:func:`static_gaps`), the pseudo-time worn profile (:func:`worn_profile`);
+over the meshes: relative changes and observed orders (:func:`summarise`).
+Arrays and result dicts in and out; the contact-convergence stage reads the
+scene and writes the files.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from workflow.errors import SolverError
+
+#: Gap added to switched-off pairs [m]: far beyond any vibration, so they never close.
+OPEN_GAP = 1.0
+
+
+def area_penalty(law, area: np.ndarray, per_area: float):
+    """``law`` with ε_N,i = ε_T,i = ``per_area`` · A_i [N/m] when ``per_area``
+    [N/m³] is > 0: an interface stiffness per unit area that does not change
+    with the mesh (the automatic ε is a per-pair stiffness, so it does).
+    Unchanged otherwise."""
+    k = float(per_area)
+    if k <= 0:
+        return law
+    eps = k * np.asarray(area, dtype=float)
+    return law.with_penalty(eps, eps.copy())
+
+
+def mesh_law(model, *, mu, eps_n: float, eps_t: float, gap: float, factor: float, per_area: float = 0.0,
+             rc=None):
+    """The DLFT law on ``model`` (the engine's penalty decision,
+    :func:`workflow.engine.contact_law`, or :func:`area_penalty` when
+    ``per_area`` > 0) and its ε-path (:func:`workflow.engine.penalty.path`)."""
+    from workflow.engine import penalty
+    from workflow.engine.study import contact_law
+
+    law = contact_law(model, mu=model.friction(mu)[0], eps_n=eps_n, eps_t=eps_t, gap=gap, factor=factor, rc=rc)
+    given = eps_n > 0 and eps_t > 0
+    if per_area > 0:
+        law, given = area_penalty(law, model.area, per_area), True
+    return law, penalty.path(factor, user_given=given)
+
+
+def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xtol: float, solver_kw: dict,
+                  rc=None) -> dict:
+    """Friction-damped peak of ``model``: ``peak_hz``, ``peak_amplitude_m`` (first
+    harmonic at the observed DOFs), ``energy_J`` (friction, per cycle, at the
+    peak, :func:`workflow.dissipation.energy_per_cycle` on the DLFT slip path),
+    ``grid_hz``/``grid_m`` (the coarse sweep), ``evaluations``, ``tied_hz``,
+    the mean penalties and whether the coarse maximum sat at the band's edge.
+
+    A coarse grid of ``points`` frequencies over ± ``band`` (fraction) of the
+    first excited tied frequency brackets the maximum, a bounded scalar
+    search (:func:`scipy.optimize.minimize_scalar`, ``xtol`` × f_tied) refines
+    it; ``variant`` (HBM, Nh, nit) with ``law`` and its ``eps_path`` and the
+    engine's static state at every frequency. ``solver_kw``: ``solver``,
+    ``tol``, ``maxiter``, ``max_passes`` of :func:`workflow.engine.frf.sweep_variant`.
+    """
+    from scipy.optimize import minimize_scalar
+
+    from reduction.condense import condense, relative_coordinates
+    from workflow.engine.frf import sweep_variant
+    from workflow.engine.linear import first_excited_mode
+    from workflow.engine.study import static_state
+
+    rc = relative_coordinates(model) if rc is None else rc
+    f_tied, _ = first_excited_mode(rc)
+    grid = np.linspace((1 - band) * f_tied, (1 + band) * f_tied, int(points))
+    cond = [condense(rc, 2 * np.pi * f, variant.nh) for f in grid]
+    static = static_state(cond[0].Zr, cond[0].Fr, law, solver_kw["max_passes"])
+    kw = dict(solver_kw, eps_path=eps_path)
+    sw = sweep_variant(rc, cond, law, static, variant, **kw)
+    if not sw.converged.any():
+        raise SolverError(f"contact_convergence: no frequency of the peak bracket converged ({sw.reasons[0]})")
+    solved = {float(f): (a, U, c) for f, a, U, c, ok in zip(grid, sw.amplitude, sw.Ur, cond, sw.converged) if ok}
+
+    def minus_amplitude(f):
+        c = condense(rc, 2 * np.pi * f, variant.nh)
+        seed = solved[min(solved, key=lambda g: abs(g - f))][1]
+        r = sweep_variant(rc, [c], law, static, variant, seeds=[seed], **kw)
+        if not r.converged[0]:
+            return 0.0  # an unconverged point cannot be the peak
+        solved[float(f)] = (float(r.amplitude[0]), r.Ur[0], c)
+        return -float(r.amplitude[0])
+
+    i = int(np.argmax(np.where(sw.converged, sw.amplitude, -np.inf)))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    minimize_scalar(minus_amplitude, bounds=(lo, hi), method="bounded", options={"xatol": xtol * f_tied})
+    f_pk = max(solved, key=lambda g: solved[g][0])
+    a_pk, U_pk, c_pk = solved[f_pk]
+    energy = _energy(model, law, variant, c_pk, U_pk, static, solver_kw["max_passes"])
+    return {"peak_hz": float(f_pk), "peak_amplitude_m": float(a_pk), "energy_J": energy,
+            "grid_hz": grid, "grid_m": sw.amplitude, "evaluations": len(solved), "tied_hz": float(f_tied),
+            "eps_n": float(np.mean(law.eps_n)), "eps_t": float(np.mean(law.eps_t)),
+            "at_band_edge": bool(i in (0, len(grid) - 1))}
+
+
+def _energy(model, law, variant, c, U, static, max_passes: int) -> float:
+    """Friction energy per cycle [J] at the harmonics ``U`` of the condensed point ``c``."""
+    from workflow.dissipation import energy_per_cycle
+    from workflow.hb import HBProblem
+    from workflow.wear import WearProblem
+
+    prob = HBProblem(c.Zr, c.Fr, law, variant.nh, variant.nit, "hbm", max_passes=max_passes, static=static)
+    st = WearProblem(prob, model.area, 0.0).evaluate(prob.unknowns_from_harmonics(U))
+    return float(energy_per_cycle(st.lam[..., 1:], st.slip).sum())
+
+
+def static_gaps(model, law, vertex: np.ndarray, max_passes: int, rc=None) -> dict:
+    """Static preload state of ``model``: normal gap ``u_N + gap`` [m] at the
+    midside pairs (``~vertex``) — negative is interpenetration — with every
+    pair active and with only the vertex pairs active (midside pairs opened
+    by :data:`OPEN_GAP`); the vertex pairs' share of the normal load; pairs
+    in contact."""
+    from reduction.condense import condense, relative_coordinates
+    from workflow.engine.study import static_state
+
+    rc = relative_coordinates(model) if rc is None else rc
+    c = condense(rc, 0.0, 0)
+    gap = np.asarray(law.gap, dtype=float)
+    out = {"pairs_in_contact": None, "midside_gap_min_m": None, "vertex_only_midside_gap_min_m": None,
+           "vertex_load_share": None}
+    st = static_state(c.Zr, c.Fr, law, max_passes)
+    out["pairs_in_contact"] = int(np.count_nonzero(st.state))
+    lam_n = np.maximum(-st.lam[:, 0], 0.0)
+    out["vertex_load_share"] = float(lam_n[vertex].sum() / max(lam_n.sum(), 1e-300))
+    mids = ~np.asarray(vertex, bool)
+    if mids.any():
+        out["midside_gap_min_m"] = float((st.u[mids, 0] + gap[mids]).min())
+        off = replace(law, gap=gap + np.where(mids, OPEN_GAP, 0.0))
+        st2 = static_state(c.Zr, c.Fr, off, max_passes)
+        out["vertex_only_midside_gap_min_m"] = float((st2.u[mids, 0] + gap[mids]).min())
+    return out
+
+
+def worn_profile(model, law, eps_path, options) -> dict:
+    """Worn steady state of ``model`` by pseudo-time wear (eq. 22,
+    :func:`workflow.engine.worn_steady_state` with ``options``, a
+    :class:`~workflow.engine.WearOptions` whose methods include
+    ``"pseudo-time"``): ``W`` (p,) [m], ``steady``, ``steps``, ``frequency_hz``."""
+    from workflow.engine.wearstudy import worn_steady_state
+
+    study = worn_steady_state(model, law, options, eps_path=eps_path)
+    h = study.histories["pseudo-time"]
+    return {"W": np.asarray(h.W, dtype=float), "steady": bool(h.steady), "steps": int(h.iterations),
+            "frequency_hz": float(study.omega / 2 / np.pi)}
+
+
+# ------------------------------------------------------------------ convergence over the meshes
+
+def observed_order(h, q) -> float | None:
+    """Order p of ``q(h) = q* + C h^p`` from the last three meshes (sizes ``h``,
+    any ratios): solves ``(h₁^p − h₂^p)/(h₂^p − h₃^p) = (q₁ − q₂)/(q₂ − q₃)``.
+    None when the changes are not monotone (no asymptotic range yet)."""
+    from scipy.optimize import brentq
+
+    if len(q) < 3 or q[-1] is None or q[-2] is None or q[-3] is None:
+        return None
+    (h1, h2, h3), (q1, q2, q3) = h[-3:], q[-3:]
+    if q2 == q3 or (q1 - q2) / (q2 - q3) <= 0:
+        return None
+    r = (q1 - q2) / (q2 - q3)
+    g = lambda p: (h1 ** p - h2 ** p) / (h2 ** p - h3 ** p) - r  # noqa: E731
+    lo, hi = 0.05, 12.0
+    if g(lo) * g(hi) > 0:
+        return None
+    return float(brentq(g, lo, hi))
+
+
+def rel_change(a, b) -> float | None:
+    """|b − a| / |b| (None if either is missing)."""
+    if a is None or b is None or b == 0:
+        return None
+    return float(abs(b - a) / abs(b))
+
+
+def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
+    """Relative changes between the two finest meshes and observed orders."""
+    h = [r["h_contact_m"] for r in rows]
+    out = {"peak_change_last": rel_change(rows[-2]["peak_amplitude_m"], rows[-1]["peak_amplitude_m"]),
+           "peak_hz_change_last": rel_change(rows[-2]["peak_hz"], rows[-1]["peak_hz"]),
+           "energy_change_last": rel_change(rows[-2]["energy_J"], rows[-1]["energy_J"]),
+           "max_wear_change_last": rel_change(rows[-2]["max_wear_m"], rows[-1]["max_wear_m"]),
+           "observed_order": {k: observed_order(h, [r[k] for r in rows])
+                              for k in ("peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m")}}
+    for k in ("midside_gap_min_m", "vertex_only_midside_gap_min_m"):
+        vals = [r[k] for r in rows if r.get(k) is not None]
+        out[f"worst_{k}"] = min(vals) if vals else None  # < 0: the flank meshes interpenetrate
+    if profiles is not None and len(profiles) >= 2:
+        top = max(float(np.abs(profiles[-1]).max()), 1e-300)
+        out["profile_change_last"] = float(np.abs(profiles[-1] - profiles[-2]).max() / top)
+        out["profile_changes"] = [float(np.abs(profiles[i + 1] - profiles[i]).max() / top)
+                                  for i in range(len(profiles) - 1)]
+    return out

@@ -1,0 +1,34 @@
+"""One way to write a matplotlib figure: a PNG at 110 dpi, atomically (``workflow.io``)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def save_png(fig, path: Path) -> Path:
+    """Write ``fig`` to ``path`` (.png), creating its folder; the caller closes ``fig``."""
+    from workflow.io import atomic_path
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    return path
+
+
+def write_figure(fig, path: Path) -> Path:
+    """Lay out ``fig``, write it (:func:`save_png`) and close it."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path = save_png(fig, path)
+    plt.close(fig)
+    return path
+
+
+def finish_axes(ax, xlabel: str, ylabel: str, title: str, title_size: float | None = None) -> None:
+    """Labels, title, a light grid and a small legend: the look of every line plot of the report."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, **({"fontsize": title_size} if title_size else {}))
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
