@@ -156,6 +156,9 @@ class FRFStudy:
     def warnings(self) -> list[str]:
         """Converged results whose convergence checks exceed their tolerance."""
         out = []
+        if self.eps_check and self.eps_check.get("max_rel_change") is None:
+            out.append(f"ε-check: the peak could not be re-solved at {self.eps_check['factor']:g}× ε "
+                       "(how converged the answer is in ε is unknown)")
         if self.eps_check.get("max_rel_change") is not None and \
                 self.eps_check["max_rel_change"] > penalty.CHECK_TOL:
             out.append(f"ε-check: the peak moves by {self.eps_check['max_rel_change']:.2e} (> {penalty.CHECK_TOL:g}) "

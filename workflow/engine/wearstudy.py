@@ -81,7 +81,11 @@ class WearStudy:
                 for m, h in self.histories.items() if not h.steady]
 
     def warnings(self) -> list[str]:
+        """Converged results whose ε-check exceeds its tolerance or could not be made."""
         ch = self.eps_check.get("max_rel_change")
+        if self.eps_check and ch is None:
+            return [f"wear ε-check: the unworn point could not be re-solved at {self.eps_check['factor']:g}× ε "
+                    "(how converged the wear rates are in ε is unknown)"]
         if ch is not None and ch > penalty.CHECK_TOL:
             return [f"wear ε-check: the unworn wear rates move by {ch:.2e} (> {penalty.CHECK_TOL:g}) when ε is "
                     f"multiplied by {self.eps_check['factor']:g}; raise contact.penalty_factor"]
