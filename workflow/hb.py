@@ -131,6 +131,7 @@ class HBProblem:
         self._anchor_set = stick_anchor is not None or static is not None
         self._static: StaticState | None = static
         self.last_dlft: DLFTResult | None = None
+        self.linsolver = None          # a StructuredSolve kept by the cascade for this frequency
         self.stats = {"evaluations": 0, "jacobians": 0, "max_passes": 0, "unconverged_passes": 0}
         self._set_linear(Zr[: nh + 1], Fr[: nh + 1])
 
