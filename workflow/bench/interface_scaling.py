@@ -4,7 +4,7 @@
 [--methods hbm,hdhb] [--nh 7] [--solvers newton] [--points 9] [--max-gb 8]
 [--out results/bench/interface-scaling]``
 
-For each pair count the dovetail sector of the ``quick`` scene is meshed with
+For each pair count the dovetail sector of the ``interface-scaling`` scene (the quick one's) is meshed with
 ``geometry.nodes_along × nodes_across`` contact vertices per flank
 (:func:`grid`; two flanks), assembled and reduced (the pipeline, cached), and
 each (method, solver) sweeps a fixed band through the first tied resonance
@@ -39,14 +39,16 @@ FIT_MIN_PAIRS = 64
 
 def grid(pairs: int) -> tuple[int, int]:
     """(nodes_along, nodes_across) per flank for ``pairs`` pairs over the two flanks:
-    the most nearly square factorisation, along ≥ across (16 → 4×2, 512 → 16×16)."""
+    the most nearly square factorisation with both ≥ 2 (the geometry's minimum),
+    along ≥ across (16 → 4×2, 512 → 16×16)."""
     from workflow.errors import SceneError
 
-    if int(pairs) != pairs or pairs < 2 or pairs % 2:
-        raise SceneError(f"interface_scaling.pairs: {pairs} must be an even integer ≥ 2 (two flanks)")
-    m = int(pairs) // 2
-    b = max(d for d in range(1, int(math.isqrt(m)) + 1) if m % d == 0)
-    return m // b, b
+    m = int(pairs) // 2 if int(pairs) == pairs and pairs % 2 == 0 else 0
+    div = [d for d in range(2, int(math.isqrt(max(m, 0))) + 1) if m % d == 0]
+    if not div:
+        raise SceneError(f"interface_scaling.pairs: {pairs} is not 2·a·b with a, b ≥ 2 "
+                         "(two flanks of nodes_along × nodes_across ≥ 2 × 2)")
+    return m // div[-1], div[-1]
 
 
 def reduced_model(scene, pairs: int, work: Path, cache: Path | None, log=print) -> Path:
@@ -63,8 +65,8 @@ def reduced_model(scene, pairs: int, work: Path, cache: Path | None, log=print) 
     sc["run"] = replace(scene["run"], outputs=["reduced"])
     out = Path(work) / f"pairs{pairs}"
     run_scene(sc, out, cache=cache, quiet=True)
-    path = next(out.rglob("reduced.npz"), None)
-    if path is None:
+    path = out / "reduction" / "reduced.npz"       # the run folder links each stage's product
+    if not path.is_file():
         from workflow.errors import BundleError
 
         raise BundleError(f"interface scaling: no reduced.npz under {out} for {pairs} pairs")
@@ -72,7 +74,8 @@ def reduced_model(scene, pairs: int, work: Path, cache: Path | None, log=print) 
     return path
 
 
-def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: int, linear: str = "auto") -> dict:
+def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: int, linear: str = "auto",
+           mu: float = 0.5) -> dict:
     """One sweep (in this process): the table row without ``pairs`` bookkeeping.
     ``linear``: "auto" (the cascade's switch), or "dense"/"structured" forced."""
     import numpy as np
@@ -84,7 +87,7 @@ def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: i
     if linear != "auto":
         cascade.STRUCTURED_MIN_UNKNOWNS = 0 if linear == "structured" else 10 ** 12
     model = ReducedModel.load(reduced)
-    law = contact_law(model, mu=0.5)
+    law = contact_law(model, mu=mu)
     v = Variant(method, nh, nit)
     with blas_threads(1):
         st = frf(model, law, [v], points=points, options=FRFOptions(solver=solver, eps_check_factor=0.0,
@@ -101,13 +104,14 @@ def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: i
 
 
 def _launch(reduced: Path, method: str, nh: int, nit: int, solver: str, points: int, out_json: Path,
-            linear: str = "auto") -> dict:
+            linear: str = "auto", mu: float = 0.5) -> dict:
     import os
 
-    from workflow.bench.scaling import launch_env, single_thread_env
+    from workflow.bench.scaling import launch_env
+    from workflow.mpi import single_thread_env
 
     cmd = [sys.executable, "-m", "workflow.bench.interface_scaling", "--worker", str(reduced), method, str(nh),
-           str(nit), solver, str(points), str(out_json), linear]
+           str(nit), solver, str(points), str(out_json), linear, repr(float(mu))]
     env = launch_env(single_thread_env())
     env["PYTHONPATH"] = os.environ.get("PYTHONPATH", "")
     r = subprocess.run(cmd, capture_output=True, text=True, env=env)
@@ -127,8 +131,8 @@ def predicted_gb(rows, pairs: int) -> float | None:
 
 
 def study(reduced_for, pairs, methods, solvers, nh: int, nit: int, points: int, work: Path,
-          max_gb: float | None = None, log=print, on_row=None) -> list[dict]:
-    """The rows, pair count by pair count; ``reduced_for(pairs) -> Path``.
+          max_gb: float | None = None, log=print, on_row=None, mu: float = 0.5) -> list[dict]:
+    """The rows, pair count by pair count; ``reduced_for(pairs) -> Path``; ``mu`` friction coefficient.
     Stops before a count whose extrapolated memory exceeds ``max_gb``."""
     rows: list[dict] = []
     for p in sorted(pairs):
@@ -140,7 +144,7 @@ def study(reduced_for, pairs, methods, solvers, nh: int, nit: int, points: int, 
         for m in methods:
             for s in solvers:
                 nit_m = 2 * nh + 1 if m == "hdhb" else nit
-                row = _launch(path, m, nh, nit_m, s, points, Path(work) / f"row-{p}-{m}-{s}.json")
+                row = _launch(path, m, nh, nit_m, s, points, Path(work) / f"row-{p}-{m}-{s}.json", mu=mu)
                 rows.append(row)
                 log(f"{p} pairs, {m}-{nh} {s} ({row['linear_solver']}): {row['unknowns']} unknowns, "
                     f"{row['s_per_point']:.2f} s/point, {row['converged']}/{row['points']} converged, "
@@ -207,10 +211,10 @@ def _plot(rows, fit, path: Path) -> Path:
 
 
 def _worker(argv) -> int:
-    reduced, method, nh, nit, solver, points, out_json, linear = argv
+    reduced, method, nh, nit, solver, points, out_json, linear, mu = argv
     from workflow.io import write_json
 
-    row = worker(Path(reduced), method, int(nh), int(nit), solver, int(points), linear)
+    row = worker(Path(reduced), method, int(nh), int(nit), solver, int(points), linear, float(mu))
     write_json(Path(out_json), row)
     return 0
 
@@ -232,12 +236,12 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     from workflow.scene import load_scene
 
-    scene = load_scene("quick")
+    scene = load_scene("interface-scaling")
     work = a.out / "work"
     work.mkdir(parents=True, exist_ok=True)
     rows = study(lambda p: reduced_model(scene, p, work, a.cache), [int(v) for v in a.pairs.split(",")],
                  a.methods.split(","), a.solvers.split(","), a.nh, a.nit, a.points, work, a.max_gb,
-                 on_row=lambda rows: write(rows, fits(rows), a.out))
+                 on_row=lambda rows: write(rows, fits(rows), a.out), mu=scene["contact"].mu)
     for p in write(rows, fits(rows), a.out):
         print(p)
     return 0

@@ -38,6 +38,7 @@ PRODUCERS: dict[str, str] = {
     "extreme": "extreme",
     "report": "report",
     "scaling": "scaling",
+    "interface_scaling": "interface_scaling",
 }
 
 #: stage name → module path. Tests and plug-ins may register others here.
