@@ -133,3 +133,30 @@ def test_bad_linear_solver_name():
     prob = _problem("hbm")
     with pytest.raises(SceneError, match="linear_solver"):
         prob.solve(prob.x0(), linear="cholesky")
+
+
+@pytest.mark.parametrize("method", ["hbm", "hdhb"])
+@pytest.mark.parametrize("omega_hz", [20.0, 29.0])
+def test_block_jacobi_pseudo_time_reaches_the_newton_root(method, omega_hz):
+    from workflow.pseudotime_blocks import integrate_pairs
+
+    prob = _problem(method, omega_hz)
+    tol = 1e-9
+    ref = cascade.solve_point(prob, [_slipping_state(prob)], solver="newton", tol=tol, maxiter=60)
+    assert ref.converged
+    r = integrate_pairs(prob.residual, prob.residual_operator, ref.result.x * 1.03, tol=tol,
+                        scale=prob.residual_scale(), max_steps=300, blocks="pairs+harmonics")
+    assert r.converged and r.steps > 1          # a march, not one Newton step
+    assert np.linalg.norm(r.x - ref.result.x) <= 1e-6 * np.linalg.norm(ref.result.x)
+    with pytest.raises(ValueError, match="pseudotime.blocks"):
+        integrate_pairs(prob.residual, prob.residual_operator, ref.result.x, blocks="instants")
+
+
+def test_cascade_pseudo_time_is_matrix_free_when_structured(monkeypatch):
+    monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
+    prob = _problem("hbm", 29.0)
+    ref = prob.solve(_slipping_state(prob), tol=1e-9, maxiter=80)
+    fresh = _problem("hbm", 29.0)
+    res = cascade.run_solver(fresh, ref.x * 1.03, "pseudo-time", 1e-9, 300)
+    assert res.scheme == "block-jacobi-pairs" and res.converged
+    assert fresh._dense is None

@@ -123,7 +123,10 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
     ``pseudo``: keyword arguments of :func:`workflow.pseudotime.integrate`
     for ``solver = "pseudo-time"`` (the scene's ``[pseudotime]``); default
     SER with the Jacobian mass — pseudo-transient continuation, a damped
-    Newton — while ``precond = "none"`` is eq. 18 as printed."""
+    Newton — while ``precond = "none"`` is eq. 18 as printed. From
+    :data:`STRUCTURED_MIN_UNKNOWNS` up, Newton's linear solve is the structured
+    one and pseudo-time the matrix-free pair/harmonic block-Jacobi of
+    :mod:`workflow.pseudotime_blocks` (``pseudo`` is then not used)."""
     if solver == "newton" and linear_solver(prob.n) == "structured":
         # no chord steps: J costs no factorisation here, the blocks are lagged instead
         return prob.solve(x0, solver="newton", tol=tol, maxiter=maxiter, max_backtracks=10,
@@ -139,6 +142,12 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
                            reason=f"powell skipped: {prob.n} unknowns > {POWELL_MAX_UNKNOWNS}")
     if solver == "powell":
         return prob.solve(x0, solver="powell", tol=tol, maxiter=maxiter, maxfev=4 * maxiter)
+    if solver == "pseudo-time" and linear_solver(prob.n) == "structured":
+        # the dense schemes would form the (n × n) J: the matrix-free block-Jacobi instead
+        from workflow.pseudotime_blocks import integrate_pairs
+
+        return integrate_pairs(prob.residual, prob.residual_operator, x0, tol=tol, scale=prob.residual_scale(),
+                               max_steps=max(maxiter, 200), blocks="pairs+harmonics")
     if solver == "pseudo-time":
         from workflow.pseudotime import integrate
 

@@ -90,7 +90,9 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     n_unknowns = (2 * v.nh + 1) * 3 * law.p
     out.linear_solver = linear_solver(n_unknowns)
     if log is not None:
-        log.info(f"{v.label}: {n_unknowns} unknowns, Newton linear solve {out.linear_solver}")
+        log.info(f"{v.label}: {n_unknowns} unknowns, Newton linear solve {out.linear_solver}"
+                 + (", pseudo-time: matrix-free pair/harmonic block-Jacobi" if out.linear_solver == "structured"
+                    and solver == "pseudo-time" else ""))
     t_all = time.perf_counter()
     c_all = time.process_time()
     prev: list[tuple[float, np.ndarray]] = []   # (ω, x) of the last converged points
