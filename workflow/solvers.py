@@ -226,19 +226,22 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     x = np.array(x0, dtype=float)
     fun = fun if fun is not None else (lambda z: fun_jac(z)[0])
     lin = DenseLU() if linear is None else linear
-    nfev, nje = [0], 0
+    nfev, nje = [0], [0]
     history: list[float] = []
     target = tol * scale
+
+    def jac(z):
+        nfev[0] += 1
+        nje[0] += 1
+        return fun_jac(z)
 
     def done(reason, conv, R, it):
         norm = float(np.linalg.norm(R)) if R is not None and _finite(R) else float("nan")
         return SolveResult(x=x, converged=conv, iterations=it, residual_norm=norm, reason=reason,
                            history=history, seconds=time.perf_counter() - t0,
-                           jacobian_evaluations=nje, function_evaluations=nfev[0])
+                           jacobian_evaluations=nje[0], function_evaluations=nfev[0])
 
-    R, J = fun_jac(x)
-    nfev[0] += 1
-    nje += 1
+    R, J = jac(x)
     if not _finite(R):
         return done("non-finite residual", False, None, 0)
     norm = float(np.linalg.norm(R))
@@ -252,35 +255,23 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
         if J is not None and not lin.factor(J):
             return done("non-finite Jacobian", False, R, it)
         dx = lin.solve(R)
-        if dx is None and not fresh:         # stale factor went bad: fresh Jacobian
-            R, J = fun_jac(x)
-            nfev[0] += 1
-            nje += 1
-            fresh = True
+        accepted, xt, Rt = (False, None, None) if dx is None else \
+            _line_search(fun, x, dx, norm, armijo, max_backtracks, nfev)
+        if not accepted and not fresh:
+            # a chord direction from a stale Jacobian failed: refresh it and try again
+            (R, J), fresh = jac(x), True
             continue
         if dx is None:
             return done("singular Jacobian", False, R, it)
-        accepted, xt, Rt = _line_search(fun, x, dx, norm, armijo, max_backtracks, nfev)
-        if not accepted and not fresh:
-            # a chord direction from a stale Jacobian: refresh it and try again
-            R, J = fun_jac(x)
-            nfev[0] += 1
-            nje += 1
-            fresh = True
-            continue
         if not accepted and lm_fallback:
             accepted, xt, Rt = _lm_search(fun, lin, x, R, norm, armijo, max_backtracks, nfev)
         if not accepted:
             return done("line search failed", False, R, it)
         x = xt
-        norm_t = float(np.linalg.norm(Rt))
-        if reuse_ratio > 0.0 and lin.reusable and norm_t <= reuse_ratio * norm:
+        if reuse_ratio > 0.0 and lin.reusable and float(np.linalg.norm(Rt)) <= reuse_ratio * norm:
             R, J, fresh = Rt, None, False            # chord step next: keep the factor
         else:
-            R, J = fun_jac(x)
-            nfev[0] += 1
-            nje += 1
-            fresh = True
+            (R, J), fresh = jac(x), True
         if not _finite(R):  # cannot happen after a finite trial, kept as a guard
             return done("non-finite residual", False, None, it + 1)
         norm = float(np.linalg.norm(R))
