@@ -100,3 +100,30 @@ def test_stage_end_to_end(tmp_path):
         assert math.isfinite(r["s_per_point"]) and r["peak_gb"] > 0
     for f in ("interface_scaling.csv", "interface_scaling.json", "interface_scaling.png"):
         assert (tmp_path / "run" / "interface_scaling" / f).is_file()
+
+
+@pytest.mark.slow
+def test_structured_equals_dense_on_the_quick_sector(tmp_path, monkeypatch):
+    """The quick sector (16 pairs), HBM Nh = 3: the sweep's points with the
+    structured Newton equal the dense ones within the solver tolerance."""
+    import numpy as np
+
+    from reduction.reduced import ReducedModel
+    from workflow.engine import FRFOptions, Variant, cascade, contact_law, frf
+    from workflow.scene import load_scene
+
+    path = bench.reduced_model(load_scene("interface-scaling"), 16, tmp_path, tmp_path / "cache", log=lambda s: None)
+    model = ReducedModel.load(path)
+    law = contact_law(model, mu=0.5)
+    opt = FRFOptions(solver="newton", eps_check_factor=0.0, reference=None)
+    runs = {}
+    for name, threshold in (("dense", 10 ** 9), ("structured", 0)):
+        monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", threshold)
+        runs[name] = frf(model, law, [Variant("hbm", 3, 32)], points=5, options=opt).runs[0]
+    d, s = runs["dense"], runs["structured"]
+    assert s.linear_solver == "structured" and d.linear_solver == "dense"
+    both = d.converged & s.converged
+    assert both.sum() >= 4
+    for i in np.flatnonzero(both):
+        # roots to ‖R‖ ≤ 1e-8‖F‖ each: the amplitudes agree far below the FRF's accuracy
+        assert abs(s.amplitude[i] - d.amplitude[i]) <= 1e-5 * d.amplitude[i]
