@@ -250,10 +250,14 @@ class HBProblem:
         return v if L is None else L @ v
 
     def with_linear(self, Zr, Fr) -> "HBProblem":
-        """A new problem at another frequency: same law, method, Nh, nit, anchor."""
+        """A new problem at another frequency: same law, method, Nh, nit, anchor
+        (and the same :class:`~workflow.linsolve.StructuredSolve`, if any)."""
         new = HBProblem(Zr, Fr, self.law, self.nh, self.nit, self.method, max_passes=self.max_passes,
                         pass_tol=self.pass_tol, stick_anchor=self.stick_anchor, static=self._static)
         new._anchor_set = True
+        # the structured solve's blocks are lagged anyway: a neighbouring frequency's are a
+        # good preconditioner (GMRES always solves with the new K), refactored when GMRES slows
+        new.linsolver = self.linsolver
         return new
 
     @property
