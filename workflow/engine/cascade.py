@@ -70,9 +70,6 @@ SOLVERS = ("newton", "powell", "newton-powell", "pseudo-time")
 #: The switch sits above 1680 so that the paper's 16-pair scenes (Nh ≤ 17)
 #: keep the dense path they were tuned with.
 STRUCTURED_MIN_UNKNOWNS = 2000
-#: Above this many unknowns MINPACK's Powell (dense n × n QR, unblocked) is not
-#: tried: at n = 5760 one call already costs minutes and 0.5 GB.
-POWELL_MAX_UNKNOWNS = 6000
 
 
 def linear_solver(n: int) -> str:
@@ -134,12 +131,15 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
     if solver == "newton":
         return prob.solve(x0, solver="newton", tol=tol, maxiter=maxiter, max_backtracks=10,
                           reuse_ratio=CHORD_RATIO if prob.n >= CHORD_MIN_UNKNOWNS else 0.0)
-    if solver == "powell" and prob.n > POWELL_MAX_UNKNOWNS:
+    if solver == "powell" and linear_solver(prob.n) == "structured":
+        # MINPACK's Powell needs the dense J and factors it by an unblocked QR: at
+        # 64 pairs, Nh = 7 (n = 2880) one call ran for minutes — and the structured
+        # size promises no (n × n) array. Not tried there.
         from workflow.solvers import SolveResult
 
         return SolveResult(x=np.asarray(x0, float), converged=False, iterations=0,
                            residual_norm=float(np.linalg.norm(prob.residual(x0))),
-                           reason=f"powell skipped: {prob.n} unknowns > {POWELL_MAX_UNKNOWNS}")
+                           reason=f"powell skipped: {prob.n} unknowns (structured size)")
     if solver == "powell":
         return prob.solve(x0, solver="powell", tol=tol, maxiter=maxiter, maxfev=4 * maxiter)
     if solver == "pseudo-time" and linear_solver(prob.n) == "structured":
