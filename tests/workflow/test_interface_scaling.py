@@ -56,7 +56,7 @@ def test_study_stops_before_a_case_over_the_memory_limit(tmp_path):
     # two cases measured (1 → 2 GB for 16 → 32 pairs): 64 pairs extrapolate to 4 GB > 3 GB
     orig = mod._launch
     try:
-        mod._launch = lambda path, m, nh, nit, s, pts, out, mu=0.5: rows_in.pop(0) | dict(
+        mod._launch = lambda path, m, nh, nit, s, pts, out, mu=0.5, maxiter=100: rows_in.pop(0) | dict(
             method=m, solver=s, linear_solver="dense", unknowns=0, s_per_point=1.0, converged=1, points=1,
             iterations=1)
         rows = bench.study(lambda p: tmp_path, [16, 32, 64], ["hbm"], ["newton"], 7, 64, 1, tmp_path,

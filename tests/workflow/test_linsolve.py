@@ -162,9 +162,9 @@ def test_cascade_pseudo_time_is_matrix_free_when_structured(monkeypatch):
     assert fresh._dense is None
 
 
-def test_powell_is_not_tried_at_the_structured_size(monkeypatch):
+def test_powell_is_replaced_by_matrix_free_pseudo_time_at_the_structured_size(monkeypatch):
     monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
     prob = _problem("hbm", 25.0)
     res = cascade.run_solver(prob, prob.x0(), "powell", 1e-9, 50)
-    assert not res.converged and "powell skipped" in res.reason
+    assert res.scheme == "block-jacobi-pairs"
     assert prob._dense is None

@@ -75,7 +75,7 @@ def reduced_model(scene, pairs: int, work: Path, cache: Path | None, log=print) 
 
 
 def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: int, linear: str = "auto",
-           mu: float = 0.5) -> dict:
+           mu: float = 0.5, maxiter: int = 100) -> dict:
     """One sweep (in this process): the table row without ``pairs`` bookkeeping.
     ``linear``: "auto" (the cascade's switch), or "dense"/"structured" forced."""
     import numpy as np
@@ -91,7 +91,7 @@ def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: i
     v = Variant(method, nh, nit)
     with blas_threads(1):
         st = frf(model, law, [v], points=points, options=FRFOptions(solver=solver, eps_check_factor=0.0,
-                                                                    reference=None))
+                                                                    reference=None, max_iterations=maxiter))
     r = st.runs[0]
     conv = r.converged_points
     return dict(pairs=int(model.n_pairs), unknowns=(2 * nh + 1) * 3 * int(model.n_pairs), method=method, nh=nh,
@@ -104,14 +104,14 @@ def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: i
 
 
 def _launch(reduced: Path, method: str, nh: int, nit: int, solver: str, points: int, out_json: Path,
-            linear: str = "auto", mu: float = 0.5) -> dict:
+            linear: str = "auto", mu: float = 0.5, maxiter: int = 100) -> dict:
     import os
 
     from workflow.bench.scaling import launch_env
     from workflow.mpi import single_thread_env
 
     cmd = [sys.executable, "-m", "workflow.bench.interface_scaling", "--worker", str(reduced), method, str(nh),
-           str(nit), solver, str(points), str(out_json), linear, repr(float(mu))]
+           str(nit), solver, str(points), str(out_json), linear, repr(float(mu)), str(int(maxiter))]
     env = launch_env(single_thread_env())
     env["PYTHONPATH"] = os.environ.get("PYTHONPATH", "")
     r = subprocess.run(cmd, capture_output=True, text=True, env=env)
@@ -131,8 +131,9 @@ def predicted_gb(rows, pairs: int) -> float | None:
 
 
 def study(reduced_for, pairs, methods, solvers, nh: int, nit: int, points: int, work: Path,
-          max_gb: float | None = None, log=print, on_row=None, mu: float = 0.5) -> list[dict]:
-    """The rows, pair count by pair count; ``reduced_for(pairs) -> Path``; ``mu`` friction coefficient.
+          max_gb: float | None = None, log=print, on_row=None, mu: float = 0.5, maxiter: int = 100) -> list[dict]:
+    """The rows, pair count by pair count; ``reduced_for(pairs) -> Path``; ``mu`` friction
+    coefficient, ``maxiter`` the cascade's iterations per attempt (``hb.max_iterations``).
     Stops before a count whose extrapolated memory exceeds ``max_gb``."""
     rows: list[dict] = []
     for p in sorted(pairs):
@@ -144,7 +145,8 @@ def study(reduced_for, pairs, methods, solvers, nh: int, nit: int, points: int, 
         for m in methods:
             for s in solvers:
                 nit_m = 2 * nh + 1 if m == "hdhb" else nit
-                row = _launch(path, m, nh, nit_m, s, points, Path(work) / f"row-{p}-{m}-{s}.json", mu=mu)
+                row = _launch(path, m, nh, nit_m, s, points, Path(work) / f"row-{p}-{m}-{s}.json", mu=mu,
+                              maxiter=maxiter)
                 rows.append(row)
                 log(f"{p} pairs, {m}-{nh} {s} ({row['linear_solver']}): {row['unknowns']} unknowns, "
                     f"{row['s_per_point']:.2f} s/point, {row['converged']}/{row['points']} converged, "
@@ -211,10 +213,10 @@ def _plot(rows, fit, path: Path) -> Path:
 
 
 def _worker(argv) -> int:
-    reduced, method, nh, nit, solver, points, out_json, linear, mu = argv
+    reduced, method, nh, nit, solver, points, out_json, linear, mu, maxiter = argv
     from workflow.io import write_json
 
-    row = worker(Path(reduced), method, int(nh), int(nit), solver, int(points), linear, float(mu))
+    row = worker(Path(reduced), method, int(nh), int(nit), solver, int(points), linear, float(mu), int(maxiter))
     write_json(Path(out_json), row)
     return 0
 
@@ -241,7 +243,8 @@ def main(argv=None) -> int:
     work.mkdir(parents=True, exist_ok=True)
     rows = study(lambda p: reduced_model(scene, p, work, a.cache), [int(v) for v in a.pairs.split(",")],
                  a.methods.split(","), a.solvers.split(","), a.nh, a.nit, a.points, work, a.max_gb,
-                 on_row=lambda rows: write(rows, fits(rows), a.out), mu=scene["contact"].mu)
+                 on_row=lambda rows: write(rows, fits(rows), a.out), mu=scene["contact"].mu,
+                 maxiter=scene["hb"].max_iterations)
     for p in write(rows, fits(rows), a.out):
         print(p)
     return 0

@@ -134,12 +134,12 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
     if solver == "powell" and linear_solver(prob.n) == "structured":
         # MINPACK's Powell needs the dense J and factors it by an unblocked QR: at
         # 64 pairs, Nh = 7 (n = 2880) one call ran for minutes — and the structured
-        # size promises no (n × n) array. Not tried there.
-        from workflow.solvers import SolveResult
+        # size promises no (n × n) array. The matrix-free pseudo-time takes its
+        # place as the last resort (the paper's method for large systems).
+        from workflow.pseudotime_blocks import integrate_pairs
 
-        return SolveResult(x=np.asarray(x0, float), converged=False, iterations=0,
-                           residual_norm=float(np.linalg.norm(prob.residual(x0))),
-                           reason=f"powell skipped: {prob.n} unknowns (structured size)")
+        return integrate_pairs(prob.residual, prob.residual_operator, x0, tol=tol, scale=prob.residual_scale(),
+                               max_steps=max(maxiter, 200), blocks="pairs+harmonics")
     if solver == "powell":
         return prob.solve(x0, solver="powell", tol=tol, maxiter=maxiter, maxfev=4 * maxiter)
     if solver == "pseudo-time" and linear_solver(prob.n) == "structured":

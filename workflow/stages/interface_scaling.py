@@ -20,7 +20,7 @@ from pathlib import Path
 
 NAME = "interface_scaling"
 SECTIONS = ("interface_scaling", "geometry", "material", "rotation", "damping", "excitation", "reduction",
-            "contact")
+            "contact", "hb")
 NEEDS = ()
 PRODUCES = ("interface_scaling",)
 
@@ -41,7 +41,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                            list(cfg.pairs), list(cfg.methods), list(cfg.solvers), cfg.harmonics, cfg.time_samples,
                            cfg.points, work, cfg.max_gb, log=log.info,
                            on_row=lambda rows: bench.write(rows, bench.fits(rows, cfg.fit_min_pairs), out),
-                           mu=scene["contact"].mu)
+                           mu=scene["contact"].mu, maxiter=scene["hb"].max_iterations)
     except RuntimeError as exc:
         raise SolverError(f"interface_scaling: a case failed ({str(exc).strip().splitlines()[0]})") from exc
     finally:
