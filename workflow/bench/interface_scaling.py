@@ -30,7 +30,6 @@ import math
 import resource
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 PAIRS = (16, 32, 64, 128, 256, 512)
