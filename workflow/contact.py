@@ -247,6 +247,9 @@ def _one_pass_loops(lam_u, mu, ref, dlu):
     Pure Python it is far too slow to use; compiled (``_one_pass_numba``) it
     removes the per-instant interpreter overhead that dominates the NumPy
     pass (~30 µs × nit). The NumPy version stays the fallback and the oracle.
+    One function on purpose (81 lines): it is the sequential physics of one
+    period, compiled whole by numba; splitting it would put a call per
+    instant and pair back into the hot loop.
     """
     nit, p, _ = lam_u.shape
     ncol = dlu.shape[2]
@@ -341,6 +344,67 @@ def _one_pass(lam_u, mu, ref, dlu):
     return _one_pass_numpy(lam_u, mu, ref, dlu)
 
 
+def _predictor_columns(basis, nit: int, jacobian: bool) -> np.ndarray:
+    """dλ_u/d(columns), (nit, 3, 3m + 2): the predictor basis per component, plus
+    two columns for the start reference (only those without ``jacobian``)."""
+    if not jacobian:
+        return np.zeros((nit, 3, 2))
+    if basis is None:
+        raise ValueError("jacobian=True needs the predictor basis")
+    basis = np.asarray(basis, dtype=float)
+    m = basis.shape[1]
+    dlu = np.zeros((nit, 3, m, 3))
+    for c in range(3):
+        dlu[:, c, :, c] = basis
+    return np.concatenate([dlu.reshape(nit, 3, 3 * m), np.zeros((nit, 3, 2))], axis=2)
+
+
+def _next_reference(ref, end, d, S, stuck, Dr, ncol: int, newton: bool):
+    """The start reference of the next pass and its carried derivative: Newton
+    on the fixed point ``r = Φ(r)`` per pair (2×2, ``newton``; not for stuck
+    pairs or a singular ``I − ∂Φ/∂r``), plain substitution otherwise."""
+    p = ref.shape[0]
+    A = S[:, :, ncol:]
+    ok = np.zeros(p, dtype=bool)
+    inv = None
+    if newton:
+        IA = np.eye(2)[None] - A
+        det = IA[:, 0, 0] * IA[:, 1, 1] - IA[:, 0, 1] * IA[:, 1, 0]
+        ok = ~stuck & (np.abs(det) > 1e-8)
+        inv = _inv2(IA, ok)
+        new = np.where(ok[:, None], ref + np.einsum("iab,ib->ia", inv, d), end)
+    else:
+        new = end.copy()
+    if Dr is not None:
+        # substitution r ← Φ(a, r): Dr ← ∂Φ/∂a + ∂Φ/∂r Dr; a Newton step on
+        # the fixed point has the implicit-function derivative (I − ∂Φ/∂r)⁻¹ ∂Φ/∂a
+        Dr_sub = S[:, :, :ncol] + np.einsum("iab,ibn->ian", A, Dr)
+        if ok.any():
+            Dr = np.where(ok[:, None, None], np.einsum("iab,ibn->ian", inv, S[:, :, :ncol]), Dr_sub)
+        else:
+            Dr = Dr_sub
+    return new, Dr
+
+
+def _periodic_jacobian(dlam, S, state, Dr, ncol: int, periodic: bool):
+    """dλ/da of the last pass including the start reference's dependence on a."""
+    dl = dlam[..., :ncol]
+    if not periodic:
+        return dl
+    # Isolated fixed point (I − ∂Φ/∂r regular): implicit-function
+    # derivative, independent of the passes' path. Neutral directions
+    # (a pair touching the cone at one instant after shakedown: any
+    # reference on a circle is periodic) are set by where the passes
+    # started, so there the derivative is the one carried along them.
+    stuck = np.all(state == STICK, axis=0)
+    IA = np.eye(2)[None] - S[:, :, ncol:]
+    sv = np.linalg.svd(IA, compute_uv=False)
+    iso = ~stuck & (sv[:, 1] > _ISOLATED * np.maximum(sv[:, 0], 1.0))
+    dr = np.einsum("iab,ibn->ian", _inv2(IA, iso), S[:, :, :ncol])
+    dr = np.where(iso[:, None, None], dr, Dr)
+    return dl + np.einsum("kicr,irn->kicn", dlam[..., ncol:], dr)
+
+
 def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray | None = None,
               periodic: bool = True, max_passes: int = 20, tol: float = 1e-10,
               accelerate: bool = True, jacobian: bool = False) -> DLFTResult:
@@ -396,28 +460,12 @@ def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray 
     ref = np.array(lam_x0_T, dtype=float).reshape(p, 2)
     if max_passes < 1:
         raise ValueError("max_passes must be ≥ 1")
-    if jacobian:
-        if basis is None:
-            raise ValueError("jacobian=True needs the predictor basis")
-        basis = np.asarray(basis, dtype=float)
-        m = basis.shape[1]
-        dlu = np.zeros((nit, 3, m, 3))
-        for c in range(3):
-            dlu[:, c, :, c] = basis
-        dlu = dlu.reshape(nit, 3, 3 * m)
-        dlu = np.concatenate([dlu, np.zeros((nit, 3, 2))], axis=2)
-    else:
-        m = 0
-        dlu = np.zeros((nit, 3, 2))
-    ncol = 3 * m
+    dlu = _predictor_columns(basis, nit, jacobian)
+    ncol = dlu.shape[2] - 2
     scale = max(float(np.abs(lam_u).max()), _TINY)
-    passes = 0
-    converged = not periodic
-    change = 0.0
-    prev_change = np.inf
-    # d(start reference)/da along the passes actually made (the start anchor is
-    # a parameter): the derivative of this algorithm's output where the fixed
-    # point is not isolated (see the Jacobian paragraph of the docstring)
+    passes, converged, change, prev_change = 0, not periodic, 0.0, np.inf
+    # d(start reference)/da along the passes made (the start anchor is a parameter):
+    # the derivative where the fixed point is not isolated (docstring, Jacobian)
     Dr = np.zeros((p, 2, ncol)) if (jacobian and periodic) else None
     while True:
         lam, lxT, state, dlam, S = _one_pass(lam_u, mu, ref, dlu)
@@ -426,50 +474,13 @@ def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray 
             break
         d = lxT[-1] - ref
         change = float(np.abs(d).max())
-        stuck = np.all(state == STICK, axis=0)
-        A = S[:, :, ncol:]
-        if change <= tol * scale:
-            converged = True
+        converged = change <= tol * scale
+        if converged or passes >= max_passes:
             break
-        if passes >= max_passes:
-            break
-        ok = np.zeros(p, dtype=bool)
-        if accelerate and passes >= 2 and change < prev_change:
-            IA = np.eye(2)[None] - A
-            det = IA[:, 0, 0] * IA[:, 1, 1] - IA[:, 0, 1] * IA[:, 1, 0]
-            ok = ~stuck & (np.abs(det) > 1e-8)
-            inv = _inv2(IA, ok)
-            step = np.einsum("iab,ib->ia", inv, d)
-            ref = np.where(ok[:, None], ref + step, lxT[-1])
-        else:
-            ref = lxT[-1].copy()
-        if Dr is not None:
-            # substitution r ← Φ(a, r): Dr ← ∂Φ/∂a + ∂Φ/∂r Dr; a Newton step on
-            # the fixed point has the implicit-function derivative (I − ∂Φ/∂r)⁻¹ ∂Φ/∂a
-            Dr_sub = S[:, :, :ncol] + np.einsum("iab,ibn->ian", A, Dr)
-            if ok.any():
-                Dr_new = np.einsum("iab,ibn->ian", inv, S[:, :, :ncol])
-                Dr = np.where(ok[:, None, None], Dr_new, Dr_sub)
-            else:
-                Dr = Dr_sub
+        ref, Dr = _next_reference(ref, lxT[-1], d, S, np.all(state == STICK, axis=0), Dr, ncol,
+                                  accelerate and passes >= 2 and change < prev_change)
         prev_change = change
-    out_dlam = None
-    if jacobian:
-        dl = dlam[..., :ncol]
-        if periodic:
-            # Isolated fixed point (I − ∂Φ/∂r regular): implicit-function
-            # derivative, independent of the passes' path. Neutral directions
-            # (a pair touching the cone at one instant after shakedown: any
-            # reference on a circle is periodic) are set by where the passes
-            # started, so there the derivative is the one carried along them.
-            stuck = np.all(state == STICK, axis=0)
-            IA = np.eye(2)[None] - S[:, :, ncol:]
-            sv = np.linalg.svd(IA, compute_uv=False)
-            iso = ~stuck & (sv[:, 1] > _ISOLATED * np.maximum(sv[:, 0], 1.0))
-            dr = np.einsum("iab,ibn->ian", _inv2(IA, iso), S[:, :, :ncol])
-            dr = np.where(iso[:, None, None], dr, Dr)
-            dl = dl + np.einsum("kicr,irn->kicn", dlam[..., ncol:], dr)
-        out_dlam = dl
+    out_dlam = _periodic_jacobian(dlam, S, state, Dr, ncol, periodic) if jacobian else None
     return DLFTResult(lam=lam, lam_x_T=lxT, state=state, passes=passes, converged=converged,
                       ref_T=ref, ref_change=change, dlam=out_dlam)
 

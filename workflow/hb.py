@@ -48,6 +48,7 @@ import numpy as np
 from workflow import fourier
 from workflow.contact import STICK, ContactLaw, DLFTResult, dlft
 from workflow.errors import SceneError
+from workflow.linsolve import ContactJacobian, StructuredSolve, zb_apply
 from workflow.solvers import SolveResult, newton, powell
 
 __all__ = ["METHODS", "HBProblem", "StaticState"]
@@ -130,24 +131,23 @@ class HBProblem:
         self._anchor_set = stick_anchor is not None or static is not None
         self._static: StaticState | None = static
         self.last_dlft: DLFTResult | None = None
+        self.linsolver = None          # a StructuredSolve kept by the cascade for this frequency
         self.stats = {"evaluations": 0, "jacobians": 0, "max_passes": 0, "unconverged_passes": 0}
         self._set_linear(Zr[: nh + 1], Fr[: nh + 1])
 
     # ------------------------------------------------------------------ set-up
     def _set_linear(self, Zr, Fr):
-        nh, nc, nr, nit = self.nh, self.nc, self.nr, self.nit
+        nh, nc, nit = self.nh, self.nc, self.nit
         self.Zr, self.Fr = Zr, Fr
-        Zb = fourier.real_block_diag(Zr)                          # (n, n)
         Fc = fourier.complex_to_real(Fr)                          # (nc, nr)
         self.F_coef = Fc
+        self._dense = None                                        # (n × n) forms, on demand only
         E = fourier.time_from_coef_matrix(nh, nit)                # (nit, nc)
         if self.method == "hbm":
             self.basis = E
             self._Lr = None                                       # identity
             self._Lp = None
             self.Q = fourier.coef_from_time_matrix(nh, nit)       # Galerkin projection
-            self.Rlin = Zb
-            self.A = Zb
             self._const = np.eye(nc)[0]                           # constant term = coef 0
         elif self.method == "tcm":
             self.kc = (np.arange(nc) * nit) // nc                 # collocation grid indices
@@ -156,8 +156,6 @@ class HBProblem:
             self._Lr = Ec
             self._Lp = None
             self.Q = None                                          # selection of rows kc
-            self.Rlin = (Ec @ Zb.reshape(nc, -1)).reshape(self.n, self.n)
-            self.A = Zb
             self._const = np.eye(nc)[0]
             self._Ec = Ec
         else:  # hdhb
@@ -167,27 +165,76 @@ class HBProblem:
             self._Lr = Tinv
             self._Lp = Tinv
             self.Q = None                                          # identity
-            # H = (T⁻¹ ⊗ I) Zb (T ⊗ I), as two BLAS products
-            H = (Tinv @ Zb.reshape(nc, -1)).reshape(self.n, nc, nr)
-            H = np.matmul(H.transpose(0, 2, 1), T).transpose(0, 2, 1).reshape(self.n, self.n)
-            self.Rlin = H
-            self.A = H
             self._const = np.ones(nc)                              # a constant in every sample
         self.r_F = self._apply_L(self._Lr, Fc)
         self.a_F = self._apply_L(self._Lp, Fc)
         self._refresh_penalty()
 
+    # The linear operators, applied without forming (n × n) matrices: Zb
+    # harmonic by harmonic (workflow.linsolve.zb_apply), HDHB's H = T⁻¹ Zb T
+    # with FFTs (T: samples → coefficients is an rfft, T⁻¹ an irfft).
+    def _to_coef(self, y):
+        return fourier.complex_to_real(fourier.to_freq(y, self.nh))
+
+    def _to_samples(self, c):
+        return fourier.to_time(fourier.real_to_complex(c), self.nit)
+
+    def _apply_A(self, y):
+        """A y for y (nc, nr): Zb y (HBM, TCM) or H y (HDHB)."""
+        if self.method == "hdhb":
+            return self._to_samples(zb_apply(self.Zr, self._to_coef(y)))
+        return zb_apply(self.Zr, y)
+
+    def _apply_Rlin(self, y):
+        """Rlin y for y (nc, nr): Zb y, Ec Zb y (TCM) or H y."""
+        if self.method == "tcm":
+            return self._Ec @ zb_apply(self.Zr, y)
+        return self._apply_A(y)
+
+    def _dense_parts(self):
+        """The dense (n × n) Rlin and A (N/m), formed on first use and kept —
+        for the dense Jacobian (:meth:`residual_jacobian`) of small problems."""
+        if self._dense is None:
+            nc, n, nr = self.nc, self.n, self.nr
+            Zb = fourier.real_block_diag(self.Zr)
+            if self.method == "hbm":
+                self._dense = (Zb, Zb)
+            elif self.method == "tcm":
+                self._dense = ((self._Ec @ Zb.reshape(nc, -1)).reshape(n, n), Zb)
+            else:
+                # H = (T⁻¹ ⊗ I) Zb (T ⊗ I), as two BLAS products
+                H = (self.Tinv @ Zb.reshape(nc, -1)).reshape(n, nc, nr)
+                H = np.matmul(H.transpose(0, 2, 1), self.T).transpose(0, 2, 1).reshape(n, n)
+                self._dense = (H, H)
+        return self._dense
+
+    @property
+    def Rlin(self) -> np.ndarray:
+        """Dense linear part of the Jacobian (n × n, N/m); formed on first access."""
+        return self._dense_parts()[0]
+
+    @property
+    def A(self) -> np.ndarray:
+        """Dense predictor matrix (n × n, N/m) of ``a = a_F − A y + …``; formed on first access."""
+        return self._dense_parts()[1]
+
     def _refresh_penalty(self):
         self._eps = self.law.eps().reshape(self.nr)
         self._shift = np.outer(self._const, self.law.offset().reshape(self.nr))   # (nc, nr)
-        self._M = np.diag(np.tile(self._eps, self.nc)) - self.A                  # diag ε − A
-        self._Mblocks = None
+        self._pen = None
+
+    def _penalty_parts(self):
+        """(diag ε − A, its per-harmonic blocks or None), dense, on first use."""
+        if self._pen is not None:
+            return self._pen
+        M = np.diag(np.tile(self._eps, self.nc)) - self.A                  # diag ε − A
+        blocks = None
         if self.method != "hdhb":
             # HBM/TCM: A = Z is block-diagonal in harmonics, so G·(diag ε − A) only
             # couples the cos/sin coefficients of one harmonic: keep those blocks,
             # per pair rows (j, c') → (p, 3s, s·3p), to multiply by G harmonic by harmonic.
             nc, p, nr = self.nc, self.p, self.nr
-            M5 = self._M.reshape(nc, p, 3, nc, nr)
+            M5 = M.reshape(nc, p, 3, nc, nr)
             blocks = []
             for h in range(self.nh + 1):
                 idx = [0] if h == 0 else [2 * h - 1, 2 * h]
@@ -195,17 +242,22 @@ class HBProblem:
                 Mh = M5[np.ix_(idx, range(p), range(3), idx, range(nr))]
                 Mh = np.ascontiguousarray(Mh.transpose(1, 0, 2, 3, 4)).reshape(p, 3 * s, s * nr)
                 blocks.append((idx, Mh))
-            self._Mblocks = blocks
+        self._pen = (M, blocks)
+        return self._pen
 
     @staticmethod
     def _apply_L(L, v):
         return v if L is None else L @ v
 
     def with_linear(self, Zr, Fr) -> "HBProblem":
-        """A new problem at another frequency: same law, method, Nh, nit, anchor."""
+        """A new problem at another frequency: same law, method, Nh, nit, anchor
+        (and the same :class:`~workflow.linsolve.StructuredSolve`, if any)."""
         new = HBProblem(Zr, Fr, self.law, self.nh, self.nit, self.method, max_passes=self.max_passes,
                         pass_tol=self.pass_tol, stick_anchor=self.stick_anchor, static=self._static)
         new._anchor_set = True
+        # the structured solve's blocks are lagged anyway: a neighbouring frequency's are a
+        # good preconditioner (GMRES always solves with the new K), refactored when GMRES slows
+        new.linsolver = self.linsolver
         return new
 
     @property
@@ -270,7 +322,7 @@ class HBProblem:
     # --------------------------------------------------------------- contact
     def _predictor(self, x):
         y = np.asarray(x, dtype=float).reshape(self.nc, self.nr)
-        a = self.a_F - (self.A @ y.ravel()).reshape(self.nc, self.nr) + self._eps * (y + self._shift)
+        a = self.a_F - self._apply_A(y) + self._eps * (y + self._shift)
         return a
 
     def _dlft(self, a, jacobian):
@@ -333,12 +385,13 @@ class HBProblem:
 
     def _GM(self, G):
         """G · (diag ε − A) (n × n): batched per pair, harmonic by harmonic for HBM/TCM."""
-        if self._Mblocks is None:
-            return self.apply_contact_blocks(G, self._M)
+        M, Mblocks = self._penalty_parts()
+        if Mblocks is None:
+            return self.apply_contact_blocks(G, M)
         nc, p, nr = self.nc, self.p, self.nr
         G4 = G.reshape(p, 3 * nc, nc, 3)
         out = np.empty((nc, p, 3, nc, nr))
-        for idx, Mh in self._Mblocks:
+        for idx, Mh in Mblocks:
             s = len(idx)
             Gh = G4[:, :, idx, :].reshape(p, 3 * nc, 3 * s)
             blk = np.matmul(Gh, Mh).reshape(p, nc, 3, s, nr)
@@ -352,7 +405,7 @@ class HBProblem:
             raise ValueError(f"x must have shape ({self.n},), got {x.shape}")
         a = self._predictor(x)
         res = self._dlft(a, jacobian)
-        R = self.Rlin @ x - self.r_F.ravel() + self._lam_rows(res.lam.reshape(self.nit, self.nr)).ravel()
+        R = self._apply_Rlin(x.reshape(self.nc, self.nr)).ravel() - self.r_F.ravel() + self._lam_rows(res.lam.reshape(self.nit, self.nr)).ravel()
         self.stats["evaluations"] += 1
         if not jacobian:
             return R, None, None
@@ -370,6 +423,39 @@ class HBProblem:
         converged DLFT pass away from stick/slip/separation switches."""
         R, J, _ = self._evaluate(x, True)
         return R, J
+
+    def coefficient_blocks(self, G) -> np.ndarray:
+        """The per-pair DLFT blocks G (:meth:`contact_blocks`) brought to harmonic
+        coefficients, G̃ (p, 3nc, 3nc), so that ``J = L_r K L_p⁻¹`` with
+        ``K = Zb + G̃ (diag ε − Zb)`` (:mod:`workflow.linsolve`): G itself for
+        HBM, ``Ec⁻¹ G`` for TCM, ``T G T⁻¹`` for HDHB (per pair, on the time
+        indices)."""
+        if self.method == "hbm":
+            return G
+        nc, p = self.nc, self.p
+        G5 = G.reshape(p, nc, 3, nc, 3)
+        if self.method == "tcm":
+            G5 = np.einsum("am,pmcjd->pacjd", np.linalg.inv(self._Ec), G5, optimize=True)
+        else:
+            G5 = np.einsum("am,pmcjd,jb->pacbd", self.T, G5, self.Tinv, optimize=True)
+        return np.ascontiguousarray(G5).reshape(p, 3 * nc, 3 * nc)
+
+    def residual_operator(self, x):
+        """(R, J) with J the matrix-free :class:`~workflow.linsolve.ContactJacobian`
+        (the same ∂R/∂x as :meth:`residual_jacobian`, never formed): for
+        :func:`workflow.solvers.newton` with ``linear=StructuredSolve()``."""
+        x = np.asarray(x, dtype=float)
+        if x.shape != (self.n,):
+            raise ValueError(f"x must have shape ({self.n},), got {x.shape}")
+        res = self._dlft(self._predictor(x), True)
+        R = self._apply_Rlin(x.reshape(self.nc, self.nr)).ravel() - self.r_F.ravel() \
+            + self._lam_rows(res.lam.reshape(self.nit, self.nr)).ravel()
+        self.stats["evaluations"] += 1
+        self.stats["jacobians"] += 1
+        Gt = self.coefficient_blocks(self.contact_blocks(res.dlam))
+        left, right = {"hbm": (None, None), "tcm": (self._Ec if self.method == "tcm" else None, None),
+                       "hdhb": (getattr(self, "Tinv", None), getattr(self, "T", None))}[self.method]
+        return R, ContactJacobian(self.Zr, self._eps, Gt, left=left, right=right)
 
     def residual_jacobian_omega(self, x, dZr, dFr):
         """(R, J, ∂R/∂ω) given the ω-derivatives of the linear part (contracts §5).
@@ -452,11 +538,18 @@ class HBProblem:
 
     # ----------------------------------------------------------------- solve
     def solve(self, x0=None, *, solver: str = "newton", tol: float = 1e-9, maxiter: int = 50,
-              **kw) -> SolveResult:
-        """Solve R(x) = 0 with ``newton`` or ``powell`` (tol relative to ‖F‖)."""
+              linear: str = "dense", **kw) -> SolveResult:
+        """Solve R(x) = 0 with ``newton`` or ``powell`` (tol relative to ‖F‖).
+        ``linear``: Newton's linear solve, "dense" (LU of the formed J) or
+        "structured" (GMRES on the matrix-free J, :mod:`workflow.linsolve`)."""
         x0 = self.x0() if x0 is None else np.asarray(x0, dtype=float)
         scale = self.residual_scale()
+        if solver == "newton" and linear == "structured":
+            return newton(self.residual_operator, x0, fun=self.residual, tol=tol, scale=scale,
+                          maxiter=maxiter, linear=kw.pop("linsolver", None) or StructuredSolve(), **kw)
         if solver == "newton":
+            if linear != "dense":
+                raise SceneError(f"hb.linear_solver: {linear!r} is not one of dense, structured")
             return newton(self.residual_jacobian, x0, fun=self.residual, tol=tol, scale=scale,
                           maxiter=maxiter, **kw)
         if solver == "powell":

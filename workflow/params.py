@@ -13,7 +13,7 @@ from workflow.errors import SceneError
 from workflow.schema import param
 
 PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report",
-            "scaling", "verification", "contact_convergence")
+            "scaling", "verification", "contact_convergence", "interface_scaling")
 
 
 @dataclass
@@ -287,9 +287,33 @@ class ContactConvergence:
             raise SceneError("contact_convergence.profile_points must be [along, across]")
 
 
+@dataclass
+class InterfaceScaling:
+    pairs: list = param([16, 32, 64, 128, 256, 512], "", "contact pair counts (even: two flanks of "
+                                                         "nodes_along × nodes_across ≥ 2 × 2 vertices each)", min=8)
+    methods: list = param(["hbm", "hdhb"], "", "HB formulations", item_choices=("hbm", "tcm", "hdhb"))
+    solvers: list = param(["newton"], "", "HB solvers (the cascade's)", item_choices=("newton", "pseudo-time"))
+    harmonics: int = param(7, "", "harmonics Nh of every case", min=1)
+    time_samples: int = param(64, "", "DLFT samples per period of HBM (HDHB uses 2·Nh+1)", min=3)
+    points: int = param(9, "", "frequencies of the fixed band through the first tied resonance (±10 %)", min=1)
+    max_gb: float = param(8.0, "GB", "stop before a pair count whose extrapolated peak memory exceeds this",
+                          min=0.0, min_exclusive=True)
+    fit_min_pairs: int = param(64, "", "power-law fits use the cases with at least this many pairs", min=2)
+
+    def check(self):
+        if self.time_samples < 2 * self.harmonics + 1:
+            raise SceneError(f"interface_scaling.time_samples = {self.time_samples} < 2·interface_scaling."
+                             f"harmonics+1 = {2 * self.harmonics + 1}")
+        from workflow.bench.interface_scaling import grid
+
+        for p in self.pairs:
+            grid(p)
+
+
 SECTIONS = {
     "run": Run, "model": Model, "material": Material, "rotation": Rotation, "damping": Damping,
     "excitation": Excitation, "modes": Modes, "reduction": Reduction, "contact": Contact, "hb": HB,
     "sweep": Sweep, "pseudotime": PseudoTime, "wear": Wear, "remap": Remap, "extreme": Extreme,
     "scaling": Scaling, "verification": Verification, "contact_convergence": ContactConvergence,
+    "interface_scaling": InterfaceScaling,
 }

@@ -361,6 +361,39 @@ def _initial_dt(J, dt0, cfl):
     return (cfl / rho if rho > 0 else 1.0), rho
 
 
+def _block_groups(blocks, n: int) -> list:
+    """Index arrays of the block-Jacobi blocks: ``blocks`` equal contiguous
+    blocks (an int) or a label per unknown."""
+    labels = np.asarray(blocks)
+    if labels.ndim == 0:
+        nb = int(labels)
+        if nb < 1 or n % nb:
+            raise ValueError(f"block-jacobi: {n} unknowns cannot be split in {nb} equal blocks")
+        labels = np.repeat(np.arange(nb), n // nb)
+    if labels.shape != (n,):
+        raise ValueError(f"block-jacobi: block labels must have shape ({n},)")
+    return [np.flatnonzero(labels == b) for b in np.unique(labels)]
+
+
+def _block_step(J, R, D, dt, groups, sweeps):
+    """Block-Jacobi step: ``(D_b/Δt* + J_bb) δ_b = −R_b − Σ_{c≠b} J_bc δ_c`` over
+    ``sweeps`` sweeps (None if a block cannot be factored)."""
+    n = R.size
+    dx = np.zeros(n)
+    for _ in range(max(1, sweeps)):
+        rhs = -R - J @ dx
+        new = np.empty(n)
+        for g in groups:
+            # the block's own coupling is implicit; the others are lagged (previous sweep)
+            rhs_g = rhs[g] + J[np.ix_(g, g)] @ dx[g]
+            sol = _lu_solve(np.diag(D[g] / dt) + J[np.ix_(g, g)], rhs_g)
+            if sol is None:
+                return None
+            new[g] = sol
+        dx = new
+    return dx
+
+
 def _ser(tr: _Tracker, x0, *, dt0, dt_max, cfl, max_steps, reject, growth, window, blocks=None,
          sweeps=1, dt_growth=1.0, mass=None, first=None):
     """Backward-Euler steps ``(D/Δt* + J) dx = −R`` (``mass/Δt*`` for a dense
@@ -378,17 +411,7 @@ def _ser(tr: _Tracker, x0, *, dt0, dt_max, cfl, max_steps, reject, growth, windo
     norm = tr.accept(x, R, None)
     if tr.converged(x, R, norm):
         return tr.result(x, norm, "converged", True)
-    groups = None
-    if blocks is not None:
-        labels = np.asarray(blocks)
-        if labels.ndim == 0:
-            nb = int(labels)
-            if nb < 1 or n % nb:
-                raise ValueError(f"block-jacobi: {n} unknowns cannot be split in {nb} equal blocks")
-            labels = np.repeat(np.arange(nb), n // nb)
-        if labels.shape != (n,):
-            raise ValueError(f"block-jacobi: block labels must have shape ({n},)")
-        groups = [np.flatnonzero(labels == b) for b in np.unique(labels)]
+    groups = None if blocks is None else _block_groups(blocks, n)
     watch = _Watch(growth, window)
     prev = norm
     k = 0
@@ -396,21 +419,7 @@ def _ser(tr: _Tracker, x0, *, dt0, dt_max, cfl, max_steps, reject, growth, windo
         if groups is None:
             dx = _lu_solve(_shifted(J, mass, D, dt), -R, overwrite=True)
         else:
-            dx = np.zeros(n)
-            for _ in range(max(1, sweeps)):
-                rhs = -R - J @ dx
-                new = np.empty(n)
-                for g in groups:
-                    # the block's own coupling is implicit; the others are lagged (previous sweep)
-                    rhs_g = rhs[g] + J[np.ix_(g, g)] @ dx[g]
-                    sol = _lu_solve(np.diag(D[g] / dt) + J[np.ix_(g, g)], rhs_g)
-                    if sol is None:
-                        new = None
-                        break
-                    new[g] = sol
-                dx = new
-                if dx is None:
-                    break
+            dx = _block_step(J, R, D, dt, groups, sweeps)
         if dx is None:
             tr.rejected += 1
             dt *= 0.25
@@ -599,6 +608,60 @@ PRECONDITIONERS = ("none", "jacobi", "jacobian")
 JACOBIAN_MASS_DT0 = 10.0
 
 
+def _set_mass(tr: _Tracker, fun, fun_jac, x0, precond):
+    """Make ``tr`` integrate ``ẋ = −M⁻¹R`` with the pseudo-time mass of
+    ``precond`` (``"jacobi"``, ``"jacobian"`` or an array); a failed result
+    if M cannot be built at x0, else None."""
+    if isinstance(precond, str):
+        R0, J0 = tr.fun_jac(x0)
+        if not (_finite(R0) and _finite(J0)):
+            return tr.result(x0, math.inf, "non-finite residual or Jacobian at x0", False)
+        if precond == "jacobi":
+            d = np.abs(np.diag(J0))
+            M = _Mass(d=np.maximum(d, 1e-12 * max(float(d.max()), 1e-300)))
+        else:
+            try:
+                M = _Mass(J=J0)
+            except (np.linalg.LinAlgError, scipy.linalg.LinAlgError, ValueError):
+                return tr.result(x0, math.inf, "singular: J(x0) cannot be factored as the "
+                                               "pseudo-time mass", False)
+    else:
+        M = _Mass(J=np.asarray(precond, dtype=float))
+    tr.M = M
+    tr._fun = lambda x, f=fun: M.solve(np.asarray(f(x), dtype=float))
+
+    def _fj(x, fj=fun_jac):
+        R, J = fj(x)
+        return M.solve(np.asarray(R, dtype=float)), M.solve(np.asarray(J, dtype=float))
+
+    tr._fun_jac = _fj
+    return None
+
+
+def _run_scheme(tr: _Tracker, x0, scheme: str, *, cfl, max_steps, growth, window, dt0, dt_max, reject, blocks,
+                sweeps, dt_growth, rtol, atol):
+    """The scheme's integrator on the (mass-preconditioned) tracker; the
+    options are :func:`integrate`'s."""
+    if scheme in ("rk4", "local"):
+        return _explicit(tr, x0, cfl=0.8 if cfl is None else cfl, max_steps=max_steps,
+                         growth=growth, window=window or max(200, max_steps // 10))
+    cfl_i = 1.0 if cfl is None else cfl
+    window = window or max(50, max_steps // 10)
+    if scheme in ("ser", "block-jacobi"):
+        return _ser(tr, x0, dt0=dt0, dt_max=dt_max, cfl=cfl_i, max_steps=max_steps,
+                    reject=reject, growth=growth, window=window,
+                    blocks=blocks if scheme == "block-jacobi" else None, sweeps=sweeps, dt_growth=dt_growth)
+    if atol is None:
+        atol = 1e-6 * max(float(np.abs(x0).max()) if x0.size else 0.0, 1e-300)
+        if atol <= 1e-300:
+            atol = 1e-12
+    if scheme == "rosenbrock":
+        return _rosenbrock(tr, x0, dt0=dt0, cfl=cfl_i, max_steps=max_steps, rtol=rtol, atol=atol,
+                           growth=growth, window=window, dt_max=dt_max)
+    return _scipy(tr, x0, method=scheme, dt0=dt0, cfl=cfl_i, max_steps=max_steps, rtol=rtol, atol=atol,
+                  growth=growth, window=window, dt_max=dt_max)
+
+
 def integrate(fun, fun_jac, x0, scheme: str = "ser", *, precond="none", tol: float = 1e-8, scale: float = 1.0,
               max_steps: int = 2000, cfl: float | None = None, dt0: float | None = None,
               dt_max: float | None = None, rtol: float = 1e-3, atol=None, blocks=None, sweeps: int = 1,
@@ -666,44 +729,9 @@ def integrate(fun, fun_jac, x0, scheme: str = "ser", *, precond="none", tol: flo
                     cfl=1.0, max_steps=max_steps, reject=reject, growth=growth,
                     window=window or max(50, max_steps // 10), dt_growth=dt_growth, mass=J0, first=(R0, J0))
     if not (isinstance(precond, str) and precond == "none"):
-        if isinstance(precond, str):
-            R0, J0 = tr.fun_jac(x0)
-            if not (_finite(R0) and _finite(J0)):
-                return tr.result(x0, math.inf, "non-finite residual or Jacobian at x0", False)
-            if precond == "jacobi":
-                d = np.abs(np.diag(J0))
-                M = _Mass(d=np.maximum(d, 1e-12 * max(float(d.max()), 1e-300)))
-            else:
-                try:
-                    M = _Mass(J=J0)
-                except (np.linalg.LinAlgError, scipy.linalg.LinAlgError, ValueError):
-                    return tr.result(x0, math.inf, "singular: J(x0) cannot be factored as the "
-                                                   "pseudo-time mass", False)
-        else:
-            M = _Mass(J=np.asarray(precond, dtype=float))
-        tr.M = M
-        tr._fun = lambda x, f=fun: M.solve(np.asarray(f(x), dtype=float))
-
-        def _fj(x, fj=fun_jac):
-            R, J = fj(x)
-            return M.solve(np.asarray(R, dtype=float)), M.solve(np.asarray(J, dtype=float))
-
-        tr._fun_jac = _fj
-    if scheme in ("rk4", "local"):
-        return _explicit(tr, x0, cfl=0.8 if cfl is None else cfl, max_steps=max_steps,
-                         growth=growth, window=window or max(200, max_steps // 10))
-    cfl_i = 1.0 if cfl is None else cfl
-    window = window or max(50, max_steps // 10)
-    if scheme in ("ser", "block-jacobi"):
-        return _ser(tr, x0, dt0=dt0, dt_max=dt_max, cfl=cfl_i, max_steps=max_steps,
-                    reject=reject, growth=growth, window=window,
-                    blocks=blocks if scheme == "block-jacobi" else None, sweeps=sweeps, dt_growth=dt_growth)
-    if atol is None:
-        atol = 1e-6 * max(float(np.abs(x0).max()) if x0.size else 0.0, 1e-300)
-        if atol <= 1e-300:
-            atol = 1e-12
-    if scheme == "rosenbrock":
-        return _rosenbrock(tr, x0, dt0=dt0, cfl=cfl_i, max_steps=max_steps, rtol=rtol, atol=atol,
-                           growth=growth, window=window, dt_max=dt_max)
-    return _scipy(tr, x0, method=scheme, dt0=dt0, cfl=cfl_i, max_steps=max_steps, rtol=rtol, atol=atol,
-                  growth=growth, window=window, dt_max=dt_max)
+        failed = _set_mass(tr, fun, fun_jac, x0, precond)
+        if failed is not None:
+            return failed
+    return _run_scheme(tr, x0, scheme, cfl=cfl, max_steps=max_steps, growth=growth, window=window, dt0=dt0,
+                       dt_max=dt_max, reject=reject, blocks=blocks, sweeps=sweeps, dt_growth=dt_growth, rtol=rtol,
+                       atol=atol)

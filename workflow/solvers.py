@@ -22,7 +22,7 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 
-__all__ = ["SolveResult", "newton", "powell", "blas_threads"]
+__all__ = ["DenseLU", "SolveResult", "newton", "powell", "blas_threads"]
 
 
 @dataclass
@@ -107,22 +107,115 @@ def _finite(a) -> bool:
     return bool(np.all(np.isfinite(a)))
 
 
+class DenseLU:
+    """The Newton linear solver on a dense J: LU (least squares if singular).
+
+    Protocol shared with :class:`workflow.linsolve.StructuredSolve`:
+    ``factor(J) -> bool`` (False: J not finite), ``solve(R) -> dx | None``
+    (``J dx = −R`` with the last factored J), ``lm_scale()`` and
+    ``lm_step(R, ν)`` (Levenberg–Marquardt, ``(JᵀJ + νI) dx = −JᵀR``)."""
+
+    name = "dense"
+
+    def __init__(self):
+        self.J = self.lu = None
+        self._jtj = None
+        self.stats = {"factorizations": 0}
+
+    def factor(self, J) -> bool:
+        if not _finite(J):
+            return False
+        self.J, self._jtj = J, None
+        try:
+            with warnings.catch_warnings():       # ill-conditioned: lstsq below if not finite
+                warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+                self.lu = scipy.linalg.lu_factor(J, check_finite=False)
+        except (np.linalg.LinAlgError, scipy.linalg.LinAlgError, ValueError):
+            self.lu = None
+        self.stats["factorizations"] += 1
+        return True
+
+    @property
+    def reusable(self) -> bool:
+        """A factor exists that a chord step can reuse."""
+        return self.lu is not None
+
+    def solve(self, R):
+        dx = scipy.linalg.lu_solve(self.lu, -R, check_finite=False) if self.lu is not None else None
+        if dx is not None and _finite(dx):
+            return dx
+        dx = np.linalg.lstsq(self.J, -R, rcond=None)[0]
+        return dx if _finite(dx) else None
+
+    def _normal(self):
+        if self._jtj is None:
+            self._jtj = self.J.T @ self.J
+        return self._jtj
+
+    def lm_scale(self) -> float:
+        return max(float(np.trace(self._normal())) / self.J.shape[0], 1e-300)
+
+    def lm_step(self, R, nu):
+        JtJ = self._normal()
+        try:
+            with warnings.catch_warnings():   # small ν on a singular JᵀJ: ν grows next
+                warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+                return -scipy.linalg.solve(JtJ + nu * np.eye(len(R)), self.J.T @ R, assume_a="pos",
+                                           check_finite=False)
+        except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+            return None
+
+
+def _line_search(fun, x, dx, norm, armijo, max_backtracks, count):
+    """Backtracking on ‖R‖₂: (accepted, x_trial, R_trial)."""
+    alpha = 1.0
+    xt = Rt = None
+    for _ in range(max_backtracks):
+        xt = x + alpha * dx
+        Rt = fun(xt)
+        count[0] += 1
+        if _finite(Rt) and np.linalg.norm(Rt) <= (1.0 - armijo * alpha) * norm:
+            return True, xt, Rt
+        alpha *= 0.5
+    return False, xt, Rt
+
+
+def _lm_search(fun, lin, x, R, norm, armijo, max_backtracks, count):
+    """Levenberg–Marquardt steps of growing damping: (accepted, x_trial, R_trial).
+
+    At a stick/slip/separation kink the Newton direction of the active branch
+    can point into a branch where ‖R‖ grows; the LM step turns towards
+    steepest descent as ν grows and gets the iterate off the kink."""
+    nu = 1e-8 * lin.lm_scale()
+    for _ in range(max_backtracks):
+        dx = lin.lm_step(R, nu)
+        if dx is not None and _finite(dx):
+            xt = x + dx
+            Rt = fun(xt)
+            count[0] += 1
+            if _finite(Rt) and np.linalg.norm(Rt) < (1.0 - armijo * 1e-3) * norm:
+                return True, xt, Rt
+        nu *= 10.0
+    return False, None, None
+
+
 def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxiter: int = 50,
            max_backtracks: int = 20, armijo: float = 1e-4, lm_fallback: bool = True,
-           reuse_ratio: float = 0.0, callback=None) -> SolveResult:
+           reuse_ratio: float = 0.0, callback=None, linear=None) -> SolveResult:
     """Newton–Raphson with backtracking line search on ‖R‖₂.
 
-    Each step solves ``J dx = −R`` (LU; least squares if J is singular) and
-    halves the step until ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖`` — a
-    sufficient decrease of the residual norm, which keeps Newton from
-    cycling across the kinks of the piecewise-smooth friction residual.
-    Trial points use ``fun`` (residual only, cheaper) when given. If no step
-    length decreases ‖R‖ (a kink of the piecewise-smooth residual),
+    Each step solves ``J dx = −R`` with ``linear`` (default :class:`DenseLU`;
+    :class:`workflow.linsolve.StructuredSolve` for a matrix-free J from
+    :meth:`workflow.hb.HBProblem.residual_operator`) and halves the step until
+    ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖`` — a sufficient decrease of the
+    residual norm, which keeps Newton from cycling across the kinks of the
+    piecewise-smooth friction residual. Trial points use ``fun`` (residual
+    only, cheaper) when given. If no step length decreases ‖R‖ (a kink),
     ``lm_fallback`` tries Levenberg–Marquardt steps of growing damping before
     giving up with "line search failed".
 
     tol, scale: converged when ``‖R‖₂ ≤ tol·scale`` (see module docstring).
-    reuse_ratio: if > 0, keep the LU factor of an earlier Jacobian (a chord
+    reuse_ratio: if > 0, keep the factor of an earlier Jacobian (a chord
     step, no new Jacobian) while each accepted step cuts ‖R‖ by at least
     this factor; a fresh Jacobian otherwise, or when a stale direction fails
     the line search. Pays where forming and factoring J dominates (large Nh)
@@ -132,98 +225,53 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     t0 = time.perf_counter()
     x = np.array(x0, dtype=float)
     fun = fun if fun is not None else (lambda z: fun_jac(z)[0])
-    nfev = nje = 0
+    lin = DenseLU() if linear is None else linear
+    nfev, nje = [0], [0]
     history: list[float] = []
     target = tol * scale
+
+    def jac(z):
+        nfev[0] += 1
+        nje[0] += 1
+        return fun_jac(z)
 
     def done(reason, conv, R, it):
         norm = float(np.linalg.norm(R)) if R is not None and _finite(R) else float("nan")
         return SolveResult(x=x, converged=conv, iterations=it, residual_norm=norm, reason=reason,
                            history=history, seconds=time.perf_counter() - t0,
-                           jacobian_evaluations=nje, function_evaluations=nfev)
+                           jacobian_evaluations=nje[0], function_evaluations=nfev[0])
 
-    R, J = fun_jac(x)
-    nfev += 1
-    nje += 1
+    R, J = jac(x)
     if not _finite(R):
         return done("non-finite residual", False, None, 0)
     norm = float(np.linalg.norm(R))
     history.append(norm)
-    lu = None           # LU of J, kept across chord steps when reuse_ratio > 0
+    fresh = True        # the factor in ``lin`` is of J at x (False: a chord step)
     for it in range(maxiter + 1):
         if norm <= target:
             return done("converged", True, R, it)
         if it == maxiter:
             return done("max iterations", False, R, it)
-        if J is not None:
-            if not _finite(J):
-                return done("non-finite Jacobian", False, R, it)
-            try:
-                with warnings.catch_warnings():       # ill-conditioned: lstsq below if not finite
-                    warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
-                    lu = scipy.linalg.lu_factor(J, check_finite=False)
-            except (np.linalg.LinAlgError, scipy.linalg.LinAlgError, ValueError):
-                lu = None
-        dx = scipy.linalg.lu_solve(lu, -R, check_finite=False) if lu is not None else None
-        if dx is None or not _finite(dx):
-            if J is None:                 # stale factor went bad: fresh Jacobian
-                R, J = fun_jac(x)
-                nfev += 1
-                nje += 1
-                continue
-            dx = np.linalg.lstsq(J, -R, rcond=None)[0]
-            if not _finite(dx):
-                return done("singular Jacobian", False, R, it)
-        alpha = 1.0
-        accepted = False
-        for _ in range(max_backtracks):
-            xt = x + alpha * dx
-            Rt = fun(xt)
-            nfev += 1
-            if _finite(Rt) and np.linalg.norm(Rt) <= (1.0 - armijo * alpha) * norm:
-                accepted = True
-                break
-            alpha *= 0.5
-        if not accepted and J is None:
-            # a chord direction from a stale Jacobian: refresh it and try again
-            R, J = fun_jac(x)
-            nfev += 1
-            nje += 1
+        if J is not None and not lin.factor(J):
+            return done("non-finite Jacobian", False, R, it)
+        dx = lin.solve(R)
+        accepted, xt, Rt = (False, None, None) if dx is None else \
+            _line_search(fun, x, dx, norm, armijo, max_backtracks, nfev)
+        if not accepted and not fresh:
+            # a chord direction from a stale Jacobian failed: refresh it and try again
+            (R, J), fresh = jac(x), True
             continue
+        if dx is None:
+            return done("singular Jacobian", False, R, it)
         if not accepted and lm_fallback:
-            # At a stick/slip/separation kink the Newton direction of the active
-            # branch can point into a branch where ‖R‖ grows. Levenberg–Marquardt
-            # steps (JᵀJ + νI) dx = −JᵀR turn towards steepest descent as ν grows
-            # and get the iterate off the kink.
-            JtJ = J.T @ J
-            g = J.T @ R
-            nu = 1e-8 * max(float(np.trace(JtJ)) / len(x), 1e-300)
-            for _ in range(max_backtracks):
-                try:
-                    with warnings.catch_warnings():   # small ν on a singular JᵀJ: ν grows next
-                        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
-                        dx = -scipy.linalg.solve(JtJ + nu * np.eye(len(x)), g, assume_a="pos",
-                                                 check_finite=False)
-                except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
-                    dx = None
-                if dx is not None and _finite(dx):
-                    xt = x + dx
-                    Rt = fun(xt)
-                    nfev += 1
-                    if _finite(Rt) and np.linalg.norm(Rt) < (1.0 - armijo * 1e-3) * norm:
-                        accepted = True
-                        break
-                nu *= 10.0
+            accepted, xt, Rt = _lm_search(fun, lin, x, R, norm, armijo, max_backtracks, nfev)
         if not accepted:
             return done("line search failed", False, R, it)
         x = xt
-        norm_t = float(np.linalg.norm(Rt))
-        if reuse_ratio > 0.0 and lu is not None and norm_t <= reuse_ratio * norm:
-            R, J = Rt, None                       # chord step next: keep the factor
+        if reuse_ratio > 0.0 and lin.reusable and float(np.linalg.norm(Rt)) <= reuse_ratio * norm:
+            R, J, fresh = Rt, None, False            # chord step next: keep the factor
         else:
-            R, J = fun_jac(x)
-            nfev += 1
-            nje += 1
+            (R, J), fresh = jac(x), True
         if not _finite(R):  # cannot happen after a finite trial, kept as a guard
             return done("non-finite residual", False, None, it + 1)
         norm = float(np.linalg.norm(R))

@@ -66,6 +66,30 @@ EPS_DECADES = 3
 #: path (9.5–11.1 s vs 11.2 s, more iterations).
 PATH_TOL = 1e-3
 SOLVERS = ("newton", "powell", "newton-powell", "pseudo-time")
+#: From this many unknowns up, Newton's linear solve is the structured one
+#: (:mod:`workflow.linsolve`: matrix-free J, GMRES, pair- and harmonic-block
+#: LUs) instead of the LU of the formed (n × n) J; see :func:`linear_solver`.
+#: Measured on the quick sector, HBM Nh = 7 nit = 64, 3 points through the
+#: resonance, loaded 2-core machine: 16 pairs (n = 720) dense 1.6 s a point,
+#: structured 3.7 s; 32 pairs (n = 1440) dense 14.4 s, structured 11.9 s.
+#: The switch sits above 1680 so that the paper's 16-pair scenes (Nh ≤ 17)
+#: keep the dense path they were tuned with.
+STRUCTURED_MIN_UNKNOWNS = 2000
+
+
+def linear_solver(n: int) -> str:
+    """Newton's linear solve for n unknowns: "dense" or "structured" (automatic)."""
+    return "structured" if n >= STRUCTURED_MIN_UNKNOWNS else "dense"
+
+
+def _linsolver(prob):
+    """The problem's :class:`~workflow.linsolve.StructuredSolve`, created on first
+    use and shared by the solves of one frequency (its blocks are lagged)."""
+    from workflow.linsolve import StructuredSolve
+
+    if getattr(prob, "linsolver", None) is None:
+        prob.linsolver = StructuredSolve()
+    return prob.linsolver
 
 
 @dataclass
@@ -101,12 +125,34 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
     ``pseudo``: keyword arguments of :func:`workflow.pseudotime.integrate`
     for ``solver = "pseudo-time"`` (the scene's ``[pseudotime]``); default
     SER with the Jacobian mass — pseudo-transient continuation, a damped
-    Newton — while ``precond = "none"`` is eq. 18 as printed."""
+    Newton — while ``precond = "none"`` is eq. 18 as printed. From
+    :data:`STRUCTURED_MIN_UNKNOWNS` up, Newton's linear solve is the structured
+    one and pseudo-time the matrix-free pair/harmonic block-Jacobi of
+    :mod:`workflow.pseudotime_blocks` (``pseudo`` is then not used)."""
+    if solver == "newton" and linear_solver(prob.n) == "structured":
+        # no chord steps: J costs no factorisation here, the blocks are lagged instead
+        return prob.solve(x0, solver="newton", tol=tol, maxiter=maxiter, max_backtracks=10,
+                          linear="structured", linsolver=_linsolver(prob))
     if solver == "newton":
         return prob.solve(x0, solver="newton", tol=tol, maxiter=maxiter, max_backtracks=10,
                           reuse_ratio=CHORD_RATIO if prob.n >= CHORD_MIN_UNKNOWNS else 0.0)
+    if solver == "powell" and linear_solver(prob.n) == "structured":
+        # MINPACK's Powell needs the dense J and factors it by an unblocked QR: at
+        # 64 pairs, Nh = 7 (n = 2880) one call ran for minutes — and the structured
+        # size promises no (n × n) array. The matrix-free pseudo-time takes its
+        # place as the last resort (the paper's method for large systems).
+        from workflow.pseudotime_blocks import integrate_pairs
+
+        return integrate_pairs(prob.residual, prob.residual_operator, x0, tol=tol, scale=prob.residual_scale(),
+                               max_steps=max(maxiter, 200), blocks="pairs+harmonics")
     if solver == "powell":
         return prob.solve(x0, solver="powell", tol=tol, maxiter=maxiter, maxfev=4 * maxiter)
+    if solver == "pseudo-time" and linear_solver(prob.n) == "structured":
+        # the dense schemes would form the (n × n) J: the matrix-free block-Jacobi instead
+        from workflow.pseudotime_blocks import integrate_pairs
+
+        return integrate_pairs(prob.residual, prob.residual_operator, x0, tol=tol, scale=prob.residual_scale(),
+                               max_steps=max(maxiter, 200), blocks="pairs+harmonics")
     if solver == "pseudo-time":
         from workflow.pseudotime import integrate
 
@@ -127,8 +173,12 @@ def along_eps_path(prob, x0, eps_path, tol: float, maxiter: int, run=None, solve
     its = 0
     x = x0
     for f in eps_path:
-        # the intermediate roots only start the next level: a loose tolerance will do
-        res = run_solver(_with_penalty(prob, f), x, solver, PATH_TOL, maxiter, getattr(run, "pseudo", None))
+        # the intermediate roots only start the next level: a loose tolerance will do;
+        # the structured linear solver (large interfaces) is carried from level to level
+        q = _with_penalty(prob, f)
+        q.linsolver = getattr(prob, "linsolver", None)
+        res = run_solver(q, x, solver, PATH_TOL, maxiter, getattr(run, "pseudo", None))
+        prob.linsolver = getattr(q, "linsolver", None)
         its += int(res.iterations)
         if res.converged:
             x = res.x

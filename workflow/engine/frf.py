@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from workflow.engine.cascade import solve_point
+from workflow.engine.cascade import linear_solver, solve_point
 from workflow.engine.variants import Variant
 
 #: samples per period for the max-over-period amplitude.
@@ -40,6 +40,7 @@ class SweepResult:
     cpu_seconds: float = 0.0                     # process CPU time (all threads)
     error: float | None = None
     dlft_max_passes: int = 0
+    linear_solver: str = "dense"                 # Newton's linear solve (cascade.linear_solver)
 
     @property
     def converged_points(self) -> int:
@@ -86,6 +87,12 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     out = SweepResult(variant=v, solver=solver, freqs_hz=np.array([c.omega / (2 * np.pi) for c in cond]),
                       amplitude=np.full(n, np.nan), amplitude_max=np.full(n, np.nan),
                       iterations=np.zeros(n, int), seconds=np.zeros(n), converged=np.zeros(n, bool))
+    n_unknowns = (2 * v.nh + 1) * 3 * law.p
+    out.linear_solver = linear_solver(n_unknowns)
+    if log is not None:
+        log.info(f"{v.label}: {n_unknowns} unknowns, Newton linear solve {out.linear_solver}"
+                 + (", pseudo-time: matrix-free pair/harmonic block-Jacobi" if out.linear_solver == "structured"
+                    and solver == "pseudo-time" else ""))
     t_all = time.perf_counter()
     c_all = time.process_time()
     prev: list[tuple[float, np.ndarray]] = []   # (ω, x) of the last converged points

@@ -40,6 +40,7 @@ PRODUCERS: dict[str, str] = {
     "scaling": "scaling",
     "verification": "verification",
     "contact_convergence": "contact_convergence",
+    "interface_scaling": "interface_scaling",
 }
 
 #: stage name → module path. Tests and plug-ins may register others here.

@@ -1,0 +1,170 @@
+"""The structured Newton linear solve (workflow/linsolve.py) against the dense one.
+
+Physics checked: the matrix-free J is the same ∂R/∂x as the dense analytic
+Jacobian (and its transpose the transpose); GMRES steps equal the LU steps;
+Newton with either reaches the same root within the solver tolerance for
+HBM, TCM and HDHB on a friction-damped root model with stick, slip and
+separation; the cascade switches automatically and keeps no (n × n) array.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.workflow.hbmodels import condense, law_for, root_model
+from workflow.engine import cascade
+from workflow.hb import HBProblem
+from workflow.linsolve import StructuredSolve, zb_apply
+from workflow.solvers import DenseLU
+
+P = 6
+NH = 5
+NIT = {"hbm": 32, "tcm": 33, "hdhb": 2 * NH + 1}
+
+
+def _problem(method, omega_hz=24.0, eps=1e7, force=6.0, force_n=40.0):
+    model = root_model(P, force=force, force_n=force_n, seed=1, preload=np.linspace(4.0, 20.0, P))
+    Zr, Fr, _, _ = condense(model, 2 * np.pi * omega_hz, NH)
+    return HBProblem(Zr, Fr, law_for(P, mu=0.3, eps=eps), NH, NIT[method], method)
+
+
+def _slipping_state(prob):
+    """The HBM root of the same model in ``prob``'s unknowns: a state with
+    separation, stick and slip (TCM/HDHB roots lie close to it)."""
+    hbm = HBProblem(prob.Zr, prob.Fr, prob.law, prob.nh, NIT["hbm"], "hbm")
+    res = hbm.solve(hbm.x0(), tol=1e-10, maxiter=80)
+    assert res.converged
+    return prob.unknowns_from_harmonics(hbm.harmonics(res.x))
+
+
+@pytest.mark.parametrize("method", ["hbm", "tcm", "hdhb"])
+def test_operator_is_the_dense_jacobian(method):
+    prob = _problem(method)
+    x = _slipping_state(prob)
+    x = x + 0.05 * np.abs(x).max() * np.random.default_rng(3).standard_normal(prob.n)
+    R, J = prob.residual_jacobian(x)
+    R2, op = prob.residual_operator(x)
+    assert np.array_equal(R, R2) or np.allclose(R, R2, rtol=0, atol=1e-12 * np.abs(R).max())
+    Jop = op.todense()
+    assert np.abs(Jop - J).max() <= 1e-12 * np.abs(J).max()
+    V = np.random.default_rng(4).standard_normal((prob.n, 3))
+    assert np.allclose(op.rmatmat(V), J.T @ V, rtol=0, atol=1e-12 * np.abs(J.T @ V).max())
+
+
+def test_zb_apply_is_the_real_block_matrix():
+    from workflow import fourier
+
+    rng = np.random.default_rng(0)
+    Zr = rng.standard_normal((4, 5, 5)) + 1j * rng.standard_normal((4, 5, 5))
+    Zr[0] = Zr[0].real
+    y = rng.standard_normal((7, 5))
+    Zb = fourier.real_block_diag(Zr)
+    assert np.allclose(zb_apply(Zr, y).ravel(), Zb @ y.ravel(), rtol=1e-13, atol=0)
+    assert np.allclose(zb_apply(Zr, y, conj_transpose=True).ravel(), Zb.T @ y.ravel(), rtol=1e-13, atol=0)
+
+
+def test_hdhb_operator_applied_with_ffts_equals_dense_h():
+    prob = _problem("hdhb")
+    y = np.random.default_rng(1).standard_normal((prob.nc, prob.nr))
+    ref = prob.A @ y.ravel()
+    assert np.linalg.norm(prob._apply_A(y).ravel() - ref) <= 1e-13 * np.linalg.norm(ref)
+
+
+@pytest.mark.parametrize("method", ["hbm", "hdhb"])
+def test_gmres_step_equals_lu_step(method):
+    prob = _problem(method)
+    x = _slipping_state(prob) * 1.05
+    states = prob.contact_state(x)
+    assert (states == 2).any() and np.unique(states).size >= 2 + (method == "hbm")   # mixed states
+    R, J = prob.residual_jacobian(x)
+    _, op = prob.residual_operator(x)
+    dense, lin = DenseLU(), StructuredSolve()
+    assert dense.factor(J) and lin.factor(op)
+    dx_d, dx_s = dense.solve(R), lin.solve(R)
+    assert np.linalg.norm(dx_s - dx_d) <= 1e-7 * np.linalg.norm(dx_d)
+    assert lin.stats["gmres_iterations"] < prob.n        # the preconditioner does the work
+
+
+@pytest.mark.parametrize("method", ["hbm", "tcm", "hdhb"])
+@pytest.mark.parametrize("omega_hz", [25.0, 27.0, 29.0])
+def test_newton_roots_agree_within_tolerance(method, omega_hz):
+    prob = _problem(method, omega_hz)
+    tol = 1e-9
+    ref = cascade.solve_point(prob, [_slipping_state(prob)], solver="newton", tol=tol, maxiter=60)
+    assert ref.converged
+    x0 = ref.result.x * 1.03          # a start off the root, the same for both
+    rd = prob.solve(x0, tol=tol, maxiter=80)
+    rs = prob.solve(x0, tol=tol, maxiter=80, linear="structured")
+    assert rd.converged and rs.converged
+    scale = prob.residual_scale()
+    assert np.linalg.norm(prob.residual(rs.x)) <= tol * scale
+    # both roots of the same well-posed system: their gap is bounded by the
+    # residual tolerance through the Jacobian's conditioning (J⁻¹ of the root)
+    _, J = prob.residual_jacobian(rd.x)
+    bound = 2 * tol * scale * np.linalg.norm(np.linalg.inv(J), 2)
+    assert np.linalg.norm(rs.x - rd.x) <= max(bound, 1e-12 * np.linalg.norm(rd.x))
+
+
+def test_structured_solve_keeps_no_dense_matrix():
+    prob = _problem("hbm")
+    res = prob.solve(prob.x0(), tol=1e-9, maxiter=80, linear="structured")
+    assert res.converged
+    assert prob._dense is None and prob._pen is None
+
+
+def test_cascade_switches_automatically(monkeypatch):
+    assert cascade.linear_solver(cascade.STRUCTURED_MIN_UNKNOWNS - 1) == "dense"
+    assert cascade.linear_solver(cascade.STRUCTURED_MIN_UNKNOWNS) == "structured"
+    prob = _problem("hbm", 25.0)
+    dense = cascade.solve_point(prob, [prob.x0()], solver="newton", tol=1e-9, maxiter=60)
+    monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
+    prob2 = _problem("hbm", 25.0)
+    structured = cascade.solve_point(prob2, [prob2.x0()], solver="newton", tol=1e-9, maxiter=60)
+    assert dense.converged and structured.converged
+    assert isinstance(prob2.linsolver, StructuredSolve) and prob2.linsolver.stats["solves"] > 0
+    assert prob2._dense is None
+    U_d, U_s = prob.harmonics(dense.result.x), prob2.harmonics(structured.result.x)
+    assert np.abs(U_s - U_d).max() <= 1e-6 * np.abs(U_d).max()
+
+
+def test_bad_linear_solver_name():
+    from workflow.errors import SceneError
+
+    prob = _problem("hbm")
+    with pytest.raises(SceneError, match="linear_solver"):
+        prob.solve(prob.x0(), linear="cholesky")
+
+
+@pytest.mark.parametrize("method", ["hbm", "hdhb"])
+@pytest.mark.parametrize("omega_hz", [20.0, 29.0])
+def test_block_jacobi_pseudo_time_reaches_the_newton_root(method, omega_hz):
+    from workflow.pseudotime_blocks import integrate_pairs
+
+    prob = _problem(method, omega_hz)
+    tol = 1e-9
+    ref = cascade.solve_point(prob, [_slipping_state(prob)], solver="newton", tol=tol, maxiter=60)
+    assert ref.converged
+    r = integrate_pairs(prob.residual, prob.residual_operator, ref.result.x * 1.03, tol=tol,
+                        scale=prob.residual_scale(), max_steps=300, blocks="pairs+harmonics")
+    assert r.converged and r.steps > 1          # a march, not one Newton step
+    assert np.linalg.norm(r.x - ref.result.x) <= 1e-6 * np.linalg.norm(ref.result.x)
+    with pytest.raises(ValueError, match="pseudotime.blocks"):
+        integrate_pairs(prob.residual, prob.residual_operator, ref.result.x, blocks="instants")
+
+
+def test_cascade_pseudo_time_is_matrix_free_when_structured(monkeypatch):
+    monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
+    prob = _problem("hbm", 29.0)
+    ref = prob.solve(_slipping_state(prob), tol=1e-9, maxiter=80)
+    fresh = _problem("hbm", 29.0)
+    res = cascade.run_solver(fresh, ref.x * 1.03, "pseudo-time", 1e-9, 300)
+    assert res.scheme == "block-jacobi-pairs" and res.converged
+    assert fresh._dense is None
+
+
+def test_powell_is_replaced_by_matrix_free_pseudo_time_at_the_structured_size(monkeypatch):
+    monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
+    prob = _problem("hbm", 25.0)
+    res = cascade.run_solver(prob, prob.x0(), "powell", 1e-9, 50)
+    assert res.scheme == "block-jacobi-pairs"
+    assert prob._dense is None

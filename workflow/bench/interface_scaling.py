@@ -1,0 +1,253 @@
+"""Cost of the harmonic-balance solve against the number of contact pairs (issue #16).
+
+``python -m workflow.bench.interface_scaling [--pairs 16,32,64,128,256,512]
+[--methods hbm,hdhb] [--nh 7] [--solvers newton] [--points 9] [--max-gb 8]
+[--out results/bench/interface-scaling]``
+
+For each pair count the dovetail sector of the ``interface-scaling`` scene (the quick one's) is meshed with
+``geometry.nodes_along × nodes_across`` contact vertices per flank
+(:func:`grid`; two flanks), assembled and reduced (the pipeline, cached), and
+each (method, solver) sweeps a fixed band through the first tied resonance
+(±10 %, ``points`` frequencies) in a fresh process (:func:`worker`), so its
+peak memory (``ru_maxrss``) is its own. The row: pairs, unknowns
+``(2Nh+1)·3·pairs``, method, solver, Newton's linear solve (automatic,
+:func:`workflow.engine.cascade.linear_solver`), seconds per converged point,
+iterations, peak memory, converged/points. Before a pair count, the peak
+memory is extrapolated from the two previous counts (power law); the study
+stops there if it exceeds ``max_gb`` (as :mod:`workflow.bench.scaling`).
+
+Output: ``interface_scaling.csv``, ``interface_scaling.png`` (log–log seconds
+per converged point and memory against pairs, fitted exponents) and
+``interface_scaling.json`` (power laws ``y = a·pairs^b`` per method × solver
+over pairs ≥ ``fit_min_pairs``). Timings are wall times of one process with one
+BLAS thread: meaningful only on a quiet machine.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import resource
+import subprocess
+import sys
+from pathlib import Path
+
+PAIRS = (16, 32, 64, 128, 256, 512)
+FIT_MIN_PAIRS = 64
+
+
+def grid(pairs: int) -> tuple[int, int]:
+    """(nodes_along, nodes_across) per flank for ``pairs`` pairs over the two flanks:
+    the most nearly square factorisation with both ≥ 2 (the geometry's minimum),
+    along ≥ across (16 → 4×2, 512 → 16×16)."""
+    from workflow.errors import SceneError
+
+    m = int(pairs) // 2 if int(pairs) == pairs and pairs % 2 == 0 else 0
+    div = [d for d in range(2, int(math.isqrt(max(m, 0))) + 1) if m % d == 0]
+    if not div:
+        raise SceneError(f"interface_scaling.pairs: {pairs} is not 2·a·b with a, b ≥ 2 "
+                         "(two flanks of nodes_along × nodes_across ≥ 2 × 2)")
+    return m // div[-1], div[-1]
+
+
+def reduced_model(scene, pairs: int, work: Path, cache: Path | None, log=print) -> Path:
+    """The reduced model of ``scene`` with ``pairs`` contact pairs (the pipeline:
+    geometry → assembly → reduction, cached); its ``reduced.npz``."""
+    from dataclasses import replace
+
+    from workflow.pipeline import run_scene
+    from workflow.scene import Scene
+
+    along, across = grid(pairs)
+    sc = Scene(dict(scene))
+    sc["geometry"] = replace(scene["geometry"], nodes_along=along, nodes_across=across)
+    sc["run"] = replace(scene["run"], outputs=["reduced"])
+    out = Path(work) / f"pairs{pairs}"
+    run_scene(sc, out, cache=cache, quiet=True)
+    path = out / "reduction" / "reduced.npz"       # the run folder links each stage's product
+    if not path.is_file():
+        from workflow.errors import BundleError
+
+        raise BundleError(f"interface scaling: no reduced.npz under {out} for {pairs} pairs")
+    log(f"{pairs} pairs ({along} × {across} per flank): {path}")
+    return path
+
+
+def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: int, linear: str = "auto",
+           mu: float = 0.5, maxiter: int = 100) -> dict:
+    """One sweep (in this process): the table row without ``pairs`` bookkeeping.
+    ``linear``: "auto" (the cascade's switch), or "dense"/"structured" forced."""
+    import numpy as np
+
+    from reduction.reduced import ReducedModel
+    from workflow.engine import FRFOptions, Variant, cascade, contact_law, frf
+    from workflow.solvers import blas_threads
+
+    if linear != "auto":
+        cascade.STRUCTURED_MIN_UNKNOWNS = 0 if linear == "structured" else 10 ** 12
+    model = ReducedModel.load(reduced)
+    law = contact_law(model, mu=mu)
+    v = Variant(method, nh, nit)
+    with blas_threads(1):
+        st = frf(model, law, [v], points=points, options=FRFOptions(solver=solver, eps_check_factor=0.0,
+                                                                    reference=None, max_iterations=maxiter))
+    r = st.runs[0]
+    conv = r.converged_points
+    return dict(pairs=int(model.n_pairs), unknowns=(2 * nh + 1) * 3 * int(model.n_pairs), method=method, nh=nh,
+                nit=nit, solver=solver, linear_solver=r.linear_solver,
+                s_per_point=float(r.total_seconds / conv) if conv else float("nan"),
+                seconds=float(r.total_seconds), iterations=int(np.sum(r.iterations)),
+                peak_gb=(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2),
+                converged=conv, points=len(r.freqs_hz), peak_amplitude_m=float(np.nanmax(
+                    np.where(r.converged, r.amplitude, np.nan))) if conv else float("nan"))
+
+
+def _launch(reduced: Path, method: str, nh: int, nit: int, solver: str, points: int, out_json: Path,
+            linear: str = "auto", mu: float = 0.5, maxiter: int = 100) -> dict:
+    import os
+
+    from workflow.bench.scaling import launch_env
+    from workflow.mpi import single_thread_env
+
+    cmd = [sys.executable, "-m", "workflow.bench.interface_scaling", "--worker", str(reduced), method, str(nh),
+           str(nit), solver, str(points), str(out_json), linear, repr(float(mu)), str(int(maxiter))]
+    env = launch_env(single_thread_env())
+    env["PYTHONPATH"] = os.environ.get("PYTHONPATH", "")
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if r.returncode:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{r.stdout[-2000:]}\n{r.stderr[-3000:]}")
+    return json.loads(Path(out_json).read_text())
+
+
+def predicted_gb(rows, pairs: int) -> float | None:
+    """Peak memory [GB] at ``pairs`` from the last two pair counts (power law), None if < 2."""
+    sizes = sorted({r["pairs"] for r in rows})
+    if len(sizes) < 2:
+        return None
+    y = [max(r["peak_gb"] for r in rows if r["pairs"] == k) for k in sizes[-2:]]
+    b = math.log(y[1] / y[0]) / math.log(sizes[-1] / sizes[-2])
+    return float(y[1] * (pairs / sizes[-1]) ** b)
+
+
+def study(reduced_for, pairs, methods, solvers, nh: int, nit: int, points: int, work: Path,
+          max_gb: float | None = None, log=print, on_row=None, mu: float = 0.5, maxiter: int = 100) -> list[dict]:
+    """The rows, pair count by pair count; ``reduced_for(pairs) -> Path``; ``mu`` friction
+    coefficient, ``maxiter`` the cascade's iterations per attempt (``hb.max_iterations``).
+    Stops before a count whose extrapolated memory exceeds ``max_gb``."""
+    rows: list[dict] = []
+    for p in sorted(pairs):
+        gb = predicted_gb(rows, p)
+        if max_gb and gb is not None and gb > max_gb:
+            log(f"{p} pairs would need ~{gb:.1f} GB > {max_gb:g} GB: stop")
+            break
+        path = reduced_for(p)
+        for m in methods:
+            for s in solvers:
+                nit_m = 2 * nh + 1 if m == "hdhb" else nit
+                row = _launch(path, m, nh, nit_m, s, points, Path(work) / f"row-{p}-{m}-{s}.json", mu=mu,
+                              maxiter=maxiter)
+                rows.append(row)
+                log(f"{p} pairs, {m}-{nh} {s} ({row['linear_solver']}): {row['unknowns']} unknowns, "
+                    f"{row['s_per_point']:.2f} s/point, {row['converged']}/{row['points']} converged, "
+                    f"{row['iterations']} iterations, {row['peak_gb']:.2f} GB")
+                if on_row is not None:
+                    on_row(rows)
+    return rows
+
+
+def fits(rows, min_pairs: int = FIT_MIN_PAIRS) -> dict:
+    """``y = a·pairs^b`` per (method, solver) for seconds per converged point and peak memory."""
+    import numpy as np
+
+    out = {}
+    for m, s in sorted({(r["method"], r["solver"]) for r in rows}):
+        for q in ("s_per_point", "peak_gb"):
+            pts = [(r["pairs"], r[q]) for r in rows if (r["method"], r["solver"]) == (m, s)
+                   and r["pairs"] >= min_pairs and np.isfinite(r[q]) and r[q] > 0]
+            if len(pts) < 2:
+                continue
+            n, y = np.array(pts, dtype=float).T
+            b, loga = np.polyfit(np.log(n), np.log(y), 1)
+            out[f"{q}:{m}:{s}"] = dict(quantity=q, method=m, solver=s, a=float(np.exp(loga)), b=float(b),
+                                       points=len(pts), min_pairs=min_pairs)
+    return out
+
+
+def write(rows, fit: dict, out: Path) -> list[Path]:
+    """interface_scaling.csv / .json / .png under ``out`` (atomic, workflow.io)."""
+    from workflow.io import write_json, write_rows
+
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [write_rows(out / "interface_scaling.csv", rows), write_json(out / "interface_scaling.json", fit)]
+    paths.append(_plot(rows, fit, out / "interface_scaling.png"))
+    return paths
+
+
+def _plot(rows, fit, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from workflow.io import atomic_path
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for ax, q, unit in ((axes[0], "s_per_point", "seconds per converged point"),
+                        (axes[1], "peak_gb", "peak memory [GB]")):
+        for m, s in sorted({(r["method"], r["solver"]) for r in rows}):
+            pts = sorted((r["pairs"], r[q]) for r in rows if (r["method"], r["solver"]) == (m, s))
+            f = fit.get(f"{q}:{m}:{s}")
+            lab = f"{m} {s}" + (f" (∝ pairs^{f['b']:.2f})" if f else "")
+            ax.loglog([p for p, _ in pts], [y for _, y in pts], "o-", label=lab)
+        ax.set_xlabel("contact pairs")
+        ax.set_ylabel(unit)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("bladewear: harmonic balance vs contact pairs (1 BLAS thread)")
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    return path
+
+
+def _worker(argv) -> int:
+    reduced, method, nh, nit, solver, points, out_json, linear, mu, maxiter = argv
+    from workflow.io import write_json
+
+    row = worker(Path(reduced), method, int(nh), int(nit), solver, int(points), linear, float(mu), int(maxiter))
+    write_json(Path(out_json), row)
+    return 0
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0] == "--worker":
+        return _worker(argv[1:])
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--pairs", default=",".join(map(str, PAIRS)))
+    ap.add_argument("--methods", default="hbm,hdhb")
+    ap.add_argument("--solvers", default="newton")
+    ap.add_argument("--nh", type=int, default=7)
+    ap.add_argument("--nit", type=int, default=64, help="time samples of HBM (HDHB: 2Nh+1)")
+    ap.add_argument("--points", type=int, default=9)
+    ap.add_argument("--max-gb", type=float, default=8.0)
+    ap.add_argument("--out", type=Path, default=Path("results/bench/interface-scaling"))
+    ap.add_argument("--cache", type=Path, default=None)
+    a = ap.parse_args(argv)
+    from workflow.scene import load_scene
+
+    scene = load_scene("interface-scaling")
+    work = a.out / "work"
+    work.mkdir(parents=True, exist_ok=True)
+    rows = study(lambda p: reduced_model(scene, p, work, a.cache), [int(v) for v in a.pairs.split(",")],
+                 a.methods.split(","), a.solvers.split(","), a.nh, a.nit, a.points, work, a.max_gb,
+                 on_row=lambda rows: write(rows, fits(rows), a.out), mu=scene["contact"].mu,
+                 maxiter=scene["hb"].max_iterations)
+    for p in write(rows, fits(rows), a.out):
+        print(p)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
