@@ -189,7 +189,7 @@ def _plot(rows, fit, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from workflow.io import atomic_path
+    from workflow.report.png import finish_axes, write_figure
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, q, unit in ((axes[0], "s_per_point", "seconds per converged point"),
@@ -199,15 +199,9 @@ def _plot(rows, fit, path: Path) -> Path:
             f = fit.get(f"{q}:{m}:{s}")
             lab = f"{m} {s}" + (f" (∝ pairs^{f['b']:.2f})" if f else "")
             ax.loglog([p for p, _ in pts], [y for _, y in pts], "o-", label=lab)
-        ax.set_xlabel("contact pairs")
-        ax.set_ylabel(unit)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        finish_axes(ax, "contact pairs", unit, which="both")
     fig.suptitle("bladewear: harmonic balance vs contact pairs (1 BLAS thread)")
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    write_figure(fig, path)
     return path
 
 

@@ -269,7 +269,7 @@ def fits(rows, min_dofs: int = 0) -> dict:
 
 
 def write(rows, fit: dict, out: Path) -> list[Path]:
-    from workflow.io import atomic_path, write_json, write_text
+    from workflow.io import write_json, write_text
 
     out.mkdir(parents=True, exist_ok=True)
     keys = list(dict.fromkeys(k for r in rows for k in r))
@@ -282,6 +282,8 @@ def write(rows, fit: dict, out: Path) -> list[Path]:
         import matplotlib.pyplot as plt
         import numpy as np
 
+        from workflow.report.png import finish_axes, write_figure
+
         fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
         for ax, unit, qs in ((axes[0], "wall time [s]", ("assembly_s", "reduction_s")),
                              (axes[1], "peak memory, all ranks [GB]", ("assembly_gb", "reduction_gb"))):
@@ -292,15 +294,9 @@ def write(rows, fit: dict, out: Path) -> list[Path]:
                     f = fit.get(f"{q}@{P}")
                     lab = f"{q.split('_')[0]}, {P} proc" + (f" (∝ n^{f['b']:.2f})" if f else "")
                     ax.loglog(n, y, style, color=color, label=lab, alpha=1.0 if P == 1 else 0.7)
-            ax.set_xlabel("DOFs")
-            ax.set_ylabel(unit)
-            ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=8)
+            finish_axes(ax, "DOFs", unit, which="both")
         fig.suptitle("bladewear: assembly and Craig–Bampton reduction vs DOFs (1 thread per process)")
-        fig.tight_layout()
-        with atomic_path(out / "scaling.png") as tmp:
-            fig.savefig(tmp, dpi=110, format="png")
-        plt.close(fig)
+        write_figure(fig, out / "scaling.png")
         paths.append(out / "scaling.png")
     except ImportError:  # pragma: no cover - matplotlib is a dependency
         pass

@@ -25,10 +25,13 @@ def write_figure(fig, path: Path) -> Path:
     return path
 
 
-def finish_axes(ax, xlabel: str, ylabel: str, title: str, title_size: float | None = None) -> None:
-    """Labels, title, a light grid and a small legend: the look of every line plot of the report."""
+def finish_axes(ax, xlabel: str, ylabel: str, title: str = "", title_size: float | None = None,
+                which: str = "major") -> None:
+    """Labels, title, a light grid (``which = "both"`` for log–log plots) and a small
+    legend: the look of every line plot of the report and the benchmarks."""
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title, **({"fontsize": title_size} if title_size else {}))
-    ax.grid(True, alpha=0.3)
+    if title:
+        ax.set_title(title, **({"fontsize": title_size} if title_size else {}))
+    ax.grid(True, which=which, alpha=0.3)
     ax.legend(fontsize=8)
