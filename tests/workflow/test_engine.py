@@ -87,3 +87,16 @@ def test_unbounded_undamped_resonance_is_diagnosed_not_a_traceback():
     assert r.reasons[1] == engine.study.UNBOUNDED
     assert any("unbounded" in line for line in study.unconverged())
     assert r.converged[0] and r.converged[2]
+
+
+def test_wear_eps_check_is_made_at_the_unworn_point():
+    """The wear ε-check compares the unworn wear rates at ε and 10ε; run after the
+    marches it once saw the worn W (rates ≈ 0) and reported a change of 1e15."""
+    from workflow import extreme as X
+
+    model = X.synthetic_model(2)
+    study = engine.worn_steady_state(model, engine.contact_law(model, mu=0.3),
+                                     engine.WearOptions(methods=("pseudo-time",), nh=2, nit=32, max_steps=400,
+                                                        compare_unworn=False))
+    ch = study.eps_check["max_rel_change"]
+    assert ch is not None and 0 <= ch < 0.05, study.eps_check

@@ -208,6 +208,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=pe
         coarse = _march(wp, base.x, ref, opt, 3 * i0 + 1, 4 * opt.block_tol)
         study.reference_check = reference_check(histories, ref, coarse, opt.block_tol)
     if opt.eps_check_factor > 0:
+        wp.set_wear(np.zeros(wp.p))     # the unworn point: the marches left the worn W in wp
         study.eps_check = eps_check(wp, base.x, opt)
         study.eps_check["frequency_hz"] = omega / 2 / np.pi
     return study
