@@ -141,17 +141,28 @@ def peak_checks(f, ok, i_peak, label: str) -> list[Check]:
     return out
 
 
+def eps_check(item: str, what: str, stage: dict) -> Check:
+    """The ε check of a stage summary (``eps_check``). When it fails, the reason is
+    the engine's own warning line, so the headline's warnings list it once."""
+    ec = stage.get("eps_check") or {}
+    if not ec:
+        return Check(item, "ε check", "none", "no ε check in this run (contact.eps_check = 0)")
+    ch, fac = ec.get("max_rel_change"), ec.get("factor", 10)
+    if ch is not None and float(ch) <= EPS_TOL:
+        return Check(item, "ε check", "green",
+                     f"{what}: change {float(ch):.2e} with ε × {fac:g} (tolerance {EPS_TOL:g})")
+    said = next((line for line in stage.get("warnings") or [] if "ε-check" in line), None)
+    if said is None:
+        said = (f"{what}: could not be re-solved with ε × {fac:g}" if ch is None else
+                f"{what}: change {float(ch):.2e} with ε × {fac:g} (tolerance {EPS_TOL:g})")
+    return Check(item, "ε check", "amber", said)
+
+
 def reference_checks(hb: dict, run: dict) -> list[Check]:
     """ε check of the peaks, the variant's error against the reference, and
     the reference's own convergence (2×nit, 1.5×Nh, 10×ε)."""
     out = []
-    ec = hb.get("eps_check") or {}
-    if ec.get("max_rel_change") is not None:
-        ch, fac = float(ec["max_rel_change"]), ec.get("factor", 10)
-        out.append(Check("peak", "ε check", "green" if ch <= EPS_TOL else "amber",
-                         f"peak moves by {ch:.2e} with ε × {fac:g} (tolerance {EPS_TOL:g})"))
-    else:
-        out.append(Check("peak", "ε check", "none", "no ε check in this run (contact.eps_check = 0)"))
+    out.append(eps_check("peak", "peak", hb))
     ref = hb.get("reference")
     if not ref:
         out.append(Check("peak", "reference", "none", "no converged reference in this scene "
@@ -264,11 +275,7 @@ def wear_headline(wear: dict, folder: Path | None, method: str | None) -> tuple[
         checks.append(Check("wear", f"steady state ({name})", st, f"{name}: {m.get('reason', '')}"))
     for line in wear.get("unconverged") or []:
         checks.append(Check("wear", "convergence", "red", line))
-    ec = wear.get("eps_check") or {}
-    if ec.get("max_rel_change") is not None:
-        ch = float(ec["max_rel_change"])
-        checks.append(Check("wear", "ε check", "green" if ch <= EPS_TOL else "amber",
-                            f"wear-point response moves by {ch:.2e} with ε × {ec.get('factor', 10):g}"))
+    checks.append(eps_check("wear", "unworn wear rates", wear))
     d = wear.get("profile_max_rel_diff")
     if d is not None:
         checks.append(Check("wear", "pseudo-time vs reference", "green" if d <= PROFILE_TOL else "amber",
