@@ -77,6 +77,21 @@ class Loads:
 
 
 @dataclass
+class Cyclic:
+    """The sector's two cyclic faces (optional ``cyclic.npz``; :mod:`reduction.cyclic`).
+
+    ``low_dofs``, ``high_dofs``: (m, 3) x, y, z DOF indices of matched
+    nodes, ``high`` the image of ``low`` under the rotation by 2π/N about x.
+    ``n_sectors``: N, sectors of the whole disk. A bundle without it is the
+    paper's fixed-boundary sector.
+    """
+
+    low_dofs: np.ndarray
+    high_dofs: np.ndarray
+    n_sectors: int
+
+
+@dataclass
 class Bundle:
     """Full-model matrices [SI], contact pairs, loads and provenance."""
 
@@ -88,6 +103,7 @@ class Bundle:
     meta: dict = field(default_factory=dict)
     coords: np.ndarray | None = None  # (n/3, 3) coordinates of each DOF block [m]
     path: Path | None = None
+    cyclic: Cyclic | None = None
 
     @property
     def n_dofs(self) -> int:
@@ -140,6 +156,10 @@ def write_bundle(bundle: Bundle, path: str | Path, extra_files: dict[str, Path] 
         np.savez(tmp / "loads.npz", **{k: getattr(bundle.loads, k) for k in LOAD_KEYS})
         if bundle.coords is not None:
             np.savez(tmp / "nodes.npz", coords=bundle.coords)
+        if bundle.cyclic is not None:
+            cy = bundle.cyclic
+            np.savez(tmp / "cyclic.npz", low_dofs=cy.low_dofs, high_dofs=cy.high_dofs,
+                     n_sectors=np.int64(cy.n_sectors))
         (tmp / "meta.json").write_text(json.dumps(bundle.meta, indent=2, default=_jsonable) + "\n")
         for name, src in (extra_files or {}).items():
             Path(src).replace(tmp / name)
@@ -185,6 +205,11 @@ def read_bundle(path: str | Path, matrices: bool = True) -> Bundle:
         if (path / "nodes.npz").is_file():
             with np.load(path / "nodes.npz") as z:
                 coords = z["coords"]
+        cyclic = None
+        current = path / "cyclic.npz"
+        if current.is_file():
+            with np.load(current) as z:
+                cyclic = Cyclic(low_dofs=z["low_dofs"], high_dofs=z["high_dofs"], n_sectors=int(z["n_sectors"]))
         current = path / "meta.json"
         meta = json.loads((path / "meta.json").read_text()) if (path / "meta.json").is_file() else {}
     except BundleError:
@@ -192,7 +217,7 @@ def read_bundle(path: str | Path, matrices: bool = True) -> Bundle:
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
         # A truncated or foreign file: name it rather than leak a zipfile error.
         raise BundleError(f"model bundle file {current} cannot be read: {exc}") from exc
-    bundle = Bundle(**mats, contact=contact, loads=loads, meta=meta, coords=coords, path=path)
+    bundle = Bundle(**mats, contact=contact, loads=loads, meta=meta, coords=coords, path=path, cyclic=cyclic)
     validate(bundle)
     return bundle
 
@@ -302,6 +327,20 @@ def validate(b: Bundle) -> None:
             raise BundleError(f"bundle loads.{k} indexes outside 0..{n - 1}")
     if b.coords is not None and b.coords.shape != (n // 3, 3):
         raise BundleError(f"bundle nodes.coords has shape {b.coords.shape}, expected ({n // 3}, 3)")
+    if b.cyclic is not None:
+        _check_cyclic(b.cyclic, n, at)
+
+
+def _check_cyclic(cy: Cyclic, n: int, at: str) -> None:
+    lo, hi = np.asarray(cy.low_dofs), np.asarray(cy.high_dofs)
+    if lo.ndim != 2 or lo.shape[1:] != (3,) or hi.shape != lo.shape:
+        raise BundleError(f"{at}cyclic.npz: low_dofs and high_dofs must both be (m, 3), got {lo.shape}, {hi.shape}")
+    if lo.size and (min(lo.min(), hi.min()) < 0 or max(lo.max(), hi.max()) >= n):
+        raise BundleError(f"{at}cyclic.npz: DOF indices outside 0..{n - 1}")
+    if np.intersect1d(lo, hi).size:
+        raise BundleError(f"{at}cyclic.npz: a DOF is on both cyclic faces")
+    if not int(cy.n_sectors) >= 2:
+        raise BundleError(f"{at}cyclic.npz: n_sectors must be ≥ 2, got {cy.n_sectors}")
 
 
 def _check_symmetric(A: sp.spmatrix, where: str) -> None:
