@@ -94,6 +94,13 @@ class SectorParams:
             (2·nodes_along − 1)(2·nodes_across − 1) per flank, with a linear
             contact layer; reduction/pairs.py, docs/contact-layout.md).
         element_order: 1 or 2 (Lagrange tetrahedra).
+
+    Cyclic symmetry
+        cyclic: mesh the disk's two cut faces (the planes through the x
+            axis at ±π/n_sectors) as periodic under the rotation by
+            2π/n_sectors about x, tagged cyclic_low (+y face) and
+            cyclic_high (−y face = R·low); false keeps the paper's sector
+            (docs/cyclic.md).
     """
 
     n_sectors: int = 47
@@ -128,6 +135,7 @@ class SectorParams:
     nodes_across: int = 2
     element_order: int = 2
     contact_nodes: str = "vertices"
+    cyclic: bool = False
 
     # ---- derived quantities (all in the y–z plane, half profile y ≥ 0) ----
 
@@ -158,7 +166,10 @@ def _fail(name: str, why: str) -> None:
 def _check_types(p: SectorParams) -> None:
     for f in fields(p):
         v = getattr(p, f.name)
-        if f.type in ("int", int):
+        if f.type in ("bool", bool):
+            if not isinstance(v, bool):
+                _fail(f.name, f"must be true or false, got {v!r}")
+        elif f.type in ("int", int):
             if isinstance(v, bool) or not isinstance(v, int):
                 _fail(f.name, f"must be an integer, got {v!r}")
         elif f.type in ("str", str):

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from geometry import cyclic as gc
 from geometry import meshing as gm
 from geometry.airfoil import Airfoil
 from geometry.params import SectorParams, check_params
@@ -74,7 +75,11 @@ def build_sector(params: SectorParams | None, msh_path) -> dict:
       chord plane (towards the extrados);
     * ``quality_min``, ``quality_mean`` (tetrahedron shape, 1 = regular),
       ``jacobian_ratio_min`` (> 0: no folded curved element);
-    * ``groups``: name → [dim, tag]; ``params``: the parameters used.
+    * ``groups``: name → [dim, tag]; ``params``: the parameters used;
+    * with ``params.cyclic``: the groups ``cyclic_low`` (2, 51) and
+      ``cyclic_high`` (2, 52), the disk's cut faces meshed periodic under the
+      rotation by 2π/N (:mod:`geometry.cyclic`), and ``cyclic_nodes``,
+      ``cyclic_distance_max`` (m), ``cyclic_blade_clearance`` (m).
     """
     p = params if params is not None else SectorParams()
     check_params(p)
@@ -88,8 +93,14 @@ def build_sector(params: SectorParams | None, msh_path) -> dict:
         faces = _find_faces(p, dov, foil, blade, disk)
         _embed_tip_point(tip_pt, faces["blade_tip"])
         _structure_flanks(p, faces)
+        if p.cyclic:
+            cut = gc.find_faces(disk, p.r_in, p.r_out, p.axial_length, p.n_sectors, gm.BBOX_TOL * p.r_out)
+            gc.make_periodic(cut, p.n_sectors)
         _set_sizes(p, dov, blade, disk, tip_pt)
         _add_groups(blade, disk, faces)
+        if p.cyclic:
+            for name, (dim, tag) in gc.GROUPS.items():
+                gm.add_group(dim, [cut[name]], tag, name)
         gm.set_mesh_options(min(p.h_blade, p.h_disk, p.h_airfoil) / 20.0,
                             max(p.h_blade, p.h_disk, p.h_airfoil))
         gm.generate(p.element_order, [blade, disk])
@@ -101,7 +112,7 @@ def build_sector(params: SectorParams | None, msh_path) -> dict:
         "flank_normals": {k: list(v) for k, v in dov.flank_normals().items()},
         "tip_point": [float(v) for v in foil.tip_point()],
         "excitation_direction": [float(v) for v in foil.tip_normal()],
-        "groups": {k: list(v) for k, v in GROUPS.items()},
+        "groups": {k: list(v) for k, v in (dict(GROUPS, **gc.GROUPS) if p.cyclic else GROUPS).items()},
         "params": p.to_dict(),
     })
     return info
@@ -272,6 +283,8 @@ def _measure(msh_file: Path, p: SectorParams) -> dict:
             vert_total.update(gm.group_nodes(*GROUPS[name])[0].tolist())
         out.update(n_vertices=len(vert_total), contact_pairs=pairs, pairs_per_flank=per_flank,
                    pair_distance_max=dmax, pair_distance_max_all_nodes=dmax_all)
+        if p.cyclic:
+            out.update(gc.check(p.n_sectors, GROUPS["blade"], p.r_out))
     expected = p.nodes_along * p.nodes_across
     if any(n != expected for n in per_flank.values()):
         raise GeometryError(f"gmsh failed: flank vertices {per_flank}, expected {expected} per flank "

@@ -25,13 +25,14 @@ import scipy.sparse as sp
 
 from reduction import dolfinx_compat as dc
 from reduction import elasticity as el
-from reduction.bundle import Bundle, Contact, Loads, write_bundle
+from reduction.bundle import Bundle, Contact, Cyclic, Loads, write_bundle
 from reduction.pairs import bundle_keys, contact_pairs, layout_of
 from reduction.prestress import static_displacement, tie_map
 from workflow.errors import BundleError, GeometryError, SceneError
 
-#: Physical-group tags of contracts §1.
+#: Physical-group tags of contracts §1; the cyclic faces of geometry/cyclic.py.
 CLAMP, TIP = 31, 41
+CYCLIC_LOW, CYCLIC_HIGH = 51, 52
 DEGREE = 2
 
 
@@ -101,6 +102,30 @@ def clamped_dofs(V, facet_tags, tag: int = CLAMP) -> np.ndarray | None:
     return np.sort((bs * g[0][:, None] + np.arange(bs)).ravel())
 
 
+def cyclic_faces(V, facet_tags, geometry_info: dict, coords: np.ndarray | None) -> Cyclic | None:
+    """The matched cyclic faces (rank 0; None elsewhere or for a non-cyclic sector). Collective.
+
+    Cyclic when ``geometry_info["params"]["cyclic"]`` is true; the mesh must
+    then carry both facet groups 51/52 (:class:`GeometryError` otherwise).
+    """
+    from reduction.cyclic import face_dofs
+
+    params = geometry_info.get("params", {}) if isinstance(geometry_info, dict) else {}
+    if not params.get("cyclic", False):
+        return None
+    present = dc.tag_values(facet_tags)
+    if CYCLIC_LOW not in present or CYCLIC_HIGH not in present:
+        raise GeometryError(f"geometry.cyclic = true but the mesh lacks the cyclic facet groups "
+                            f"{CYCLIC_LOW}/{CYCLIC_HIGH} (cyclic_low/cyclic_high): re-run the geometry stage")
+    lo = dc.gather_owned_blocks(V, dc.blocks_on_facets(V, facet_tags, CYCLIC_LOW))
+    hi = dc.gather_owned_blocks(V, dc.blocks_on_facets(V, facet_tags, CYCLIC_HIGH))
+    if lo is None:
+        return None
+    n_sectors = int(params["n_sectors"])
+    low, high = face_dofs(lo[0], hi[0], coords, n_sectors, dc.block_size(V))
+    return Cyclic(low_dofs=low, high_dofs=high, n_sectors=n_sectors)
+
+
 def nearest_block(coords: np.ndarray, point) -> int:
     """Index of the DOF block closest to ``point`` [m]."""
     return int(np.argmin(np.linalg.norm(coords - np.asarray(point, dtype=float), axis=1)))
@@ -132,7 +157,8 @@ def _facet_area(mesh, ds, tag) -> float:
 
 def assemble_operators(mesh, cell_tags, facet_tags, material, omega: float = 0.0, *, stress_stiffening=True,
                        spin_softening=True, static_force: float = 0.0, fixed=None, blade_dofs=None,
-                       disk_dofs=None, V=None, prestress_iterations: int = 0) -> tuple[Operators, object]:
+                       disk_dofs=None, V=None, prestress_iterations: int = 0,
+                       cyclic: Cyclic | None = None) -> tuple[Operators, object]:
     """M, K(Ω) and the static load of the mesh; returns ``(Operators, V)``.
 
     ``omega`` [rad/s] about x. ``fixed`` (clamped DOFs) and the pair DOFs
@@ -141,6 +167,9 @@ def assemble_operators(mesh, cell_tags, facet_tags, material, omega: float = 0.0
     facets tagged 31). Flags switch K_σ and −Ω²M_⊥ independently.
     ``prestress_iterations`` > 0 re-solves the static state with K_σ of the
     previous one (stress-stiffened static solve, fixed point); 0 = linear.
+    ``cyclic`` (rank 0): the sector's matched cyclic faces; the prestress is
+    then solved under the ND-0 constraint ``u_high = R u_low`` as well (the
+    whole tuned disk spinning: the rim carries its hoop stress).
     """
     t = {}
     V = V or dc.vector_space(mesh, DEGREE)
@@ -172,6 +201,10 @@ def assemble_operators(mesh, cell_tags, facet_tags, material, omega: float = 0.0
             bd = np.zeros((0, 3), np.int64) if blade_dofs is None else blade_dofs
             dd = np.zeros((0, 3), np.int64) if disk_dofs is None else disk_dofs
             T = tie_map(n, fixed, bd, dd, tied=True)
+            if cyclic is not None:
+                from reduction.cyclic import constrain_map
+
+                T = constrain_map(T, cyclic.low_dofs, cyclic.high_dofs, cyclic.n_sectors, nd=0)
         # Spin softening belongs in the static operator too: equilibrium in the rotating frame.
         # Collective: the factorisation runs on every rank (parallel MUMPS).
         ops.u0 = static_displacement(Kstat, f, T, comm=mesh.comm)
@@ -234,6 +267,8 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
     if comm.bcast(pairs is None, root=dc.ROOT):
         pairs = contact_pairs(V, facet_tags, nodes=layout_of(geometry_info))
     fixed = clamped_dofs(V, facet_tags)
+    coords = dc.gather_block_coordinates(V)
+    cyclic = cyclic_faces(V, facet_tags, geometry_info, coords)
     t["pairs_s"] = time.perf_counter() - t0
     ops, _ = assemble_operators(
         mesh, cell_tags, facet_tags, material, omega,
@@ -241,9 +276,9 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
         spin_softening=bool(_get(rotation, "spin_softening", True)),
         static_force=float(_get(excitation, "static_force", 0.0)), fixed=fixed,
         prestress_iterations=int(_get(rotation, "prestress_iterations", 0)),
-        blade_dofs=pairs["blade_dofs"] if root else None, disk_dofs=pairs["disk_dofs"] if root else None, V=V)
+        blade_dofs=pairs["blade_dofs"] if root else None, disk_dofs=pairs["disk_dofs"] if root else None, V=V,
+        cyclic=cyclic)
     t.update(ops.timings)
-    coords = dc.gather_block_coordinates(V)
     bundle = None
     if root:
         n = ops.M.shape[0]
@@ -252,7 +287,8 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
                               geometry_info["excitation_direction"], bs)
         loads = Loads(fixed=fixed, static=ops.f_static, harmonic=harmonic, observe=bs * tip + np.arange(bs))
         contact = Contact(**bundle_keys(pairs))
-        bundle = Bundle(M=ops.M, K=ops.K, C=sp.csr_matrix(ops.M.shape), contact=contact, loads=loads, coords=coords)
+        bundle = Bundle(M=ops.M, K=ops.K, C=sp.csr_matrix(ops.M.shape), contact=contact, loads=loads, coords=coords,
+                        cyclic=cyclic)
     # Damping: Rayleigh plus β for a modal ratio on the first tied mode.
     t0 = time.perf_counter()
     alpha, beta = float(_get(damping, "alpha", 0.0)), float(_get(damping, "beta", 0.0))
@@ -270,6 +306,8 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
                 flank_area_m2=float(contact.area.sum()), first_tied_hz=f1,
                 damping=dict(alpha=alpha, beta=beta, beta_modal=b_modal, beta_total=beta + b_modal,
                              modal_ratio=ratio),
+                cyclic=None if cyclic is None else dict(n_sectors=cyclic.n_sectors,
+                                                        face_nodes=int(cyclic.low_dofs.shape[0])),
                 prestress=dict(stress_stiffening=ops.K_sigma is not None, spin_softening=ops.M_perp is not None,
                                max_u0_m=float(np.abs(ops.u0).max()) if ops.u0 is not None else 0.0,
                                iterations=len(ops.prestress_change), change=ops.prestress_change),

@@ -108,3 +108,42 @@ def sector_operator(A: sp.spmatrix, T: sp.spmatrix) -> sp.csr_matrix:
 def nodal_diameter_of_harmonic(n: int, engine_order: int, n_sectors: int) -> int:
     """ND ``(n·EO) mod N`` on which harmonic n of an EO travelling wave lives (module doc)."""
     return (int(n) * int(engine_order)) % int(n_sectors)
+
+
+def constrain_map(T: sp.spmatrix, low_dofs: np.ndarray, high_dofs: np.ndarray, n_sectors: int,
+                  nd: int = 0) -> sp.csr_matrix:
+    """Compose an existing constraint map ``u = T w`` with the cyclic constraint of ND ``nd``.
+
+    ``T`` (n, n_w) keeps some DOFs as columns (each kept DOF's row has one 1
+    in its own column — e.g. :func:`reduction.prestress.tie_map`: clamp and
+    tied interface). The cyclic faces' DOFs must not follow other DOFs in
+    ``T`` (they are disk DOFs away from the flanks). Pairs whose low or high
+    node is dropped by ``T`` (the clamped bore edge, on both faces) are
+    skipped. Returns ``T @ T_k`` with ``T_k`` the :func:`cyclic_map` on w:
+    ``u = T T_k v`` obeys both constraints (real for ND 0 and N/2).
+    """
+    T = sp.csr_matrix(T)
+    low_dofs, high_dofs = np.asarray(low_dofs, np.int64), np.asarray(high_dofs, np.int64)
+
+    def column(d: np.ndarray) -> np.ndarray:
+        nnz = np.diff(T.indptr)[d]
+        c = -np.ones(d.shape, np.int64)
+        c[nnz == 1] = T.indices[T.indptr[d[nnz == 1]]]
+        return c
+
+    cl, ch = column(low_dofs), column(high_dofs)
+    ok = (cl >= 0).all(axis=1) & (ch >= 0).all(axis=1)
+    return (T @ cyclic_map(T.shape[1], cl[ok], ch[ok], n_sectors, nd)).tocsr()
+
+
+def face_dofs(low_blocks: np.ndarray, high_blocks: np.ndarray, coords: np.ndarray, n_sectors: int,
+              bs: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """(low_dofs, high_dofs), each (m, bs), of the cyclic faces' DOF blocks, high matched to low.
+
+    ``coords`` (n_blocks, 3) [m] the block coordinates; matching tolerance
+    1e-8 of the model size (:func:`match_faces`).
+    """
+    low = np.unique(np.asarray(low_blocks, np.int64))
+    high = match_faces(coords, low, np.unique(np.asarray(high_blocks, np.int64)), n_sectors,
+                       1e-8 * float(np.abs(coords).max()))
+    return bs * low[:, None] + np.arange(bs), bs * high[:, None] + np.arange(bs)
