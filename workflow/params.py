@@ -75,6 +75,9 @@ class Reduction:
     check_mode_counts: list = param([10, 20, 40, 80], "", "fixed-interface mode counts for the convergence study",
                                     min=0)
     frf_points: int = param(40, "", "frequencies of the linear FRF comparison", min=2)
+    cyclic_harmonics: int = param(6, "", "cyclic sector (geometry.cyclic): the reduction prepares the nodal "
+                                         "diameters (j·EO) mod N of harmonics j = 0 … this (one Craig–Bampton "
+                                         "per ND); hb/wear harmonics beyond need it raised", min=1)
 
     def check(self):
         if self.modes == 0 and self.cutoff_hz == 0:
@@ -310,10 +313,38 @@ class InterfaceScaling:
             grid(p)
 
 
+@dataclass
+class Cyclic:
+    modes_per_nd: int = param(6, "", "modes of each nodal diameter (interface tied, disk clamped at the bore)", min=1)
+    nodal_diameters: list = param([], "", "nodal diameters to solve ([]: all 0 … N/2; k > N/2 is folded to N − k, "
+                                          "the same frequencies)", min=0, min_items=0)
+    campbell_speeds_rpm: list = param([], "rpm", "rotation speeds of the Campbell diagram, K(Ω) re-assembled at "
+                                                 "each with the ND-0 prestress ([]: no Campbell)", min=0.0, max=1e5,
+                                 min_items=0)
+    engine_order: int = param(1, "", "engine order EO of the travelling-wave excitation (harmonic n lives on ND "
+                                     "n·EO mod N); drawn on the Campbell and ZZENF diagrams; cyclic-frf reads it",
+                              min=0)
+    engine_order_lines: list = param([], "", "further engine orders drawn as lines f = EO·Ω/2π on the Campbell "
+                                             "diagram and whose crossings are listed", min=0, min_items=0)
+    zzenf_band: float = param(0.05, "", "ZZENF: list the modes of each engine order's ND within this relative "
+                                        "distance of f = EO·Ω/2π at rotation.speed_rpm", min=0.0,
+                              min_exclusive=True, max=1.0)
+
+    def check(self):
+        # empty defaults leave the item type to this check (workflow/schema.py types items by the default's)
+        for key, kind in (("nodal_diameters", int), ("engine_order_lines", int), ("campbell_speeds_rpm", float)):
+            for v in getattr(self, key):
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and not isinstance(v, int)):
+                    raise SceneError(f"cyclic.{key} contains {v!r}; its items must be "
+                                     f"{'integers' if kind is int else 'numbers'}")
+        if len(self.campbell_speeds_rpm) == 1:
+            raise SceneError("cyclic.campbell_speeds_rpm needs at least 2 speeds for a Campbell diagram (or [])")
+
+
 SECTIONS = {
     "run": Run, "model": Model, "material": Material, "rotation": Rotation, "damping": Damping,
     "excitation": Excitation, "modes": Modes, "reduction": Reduction, "contact": Contact, "hb": HB,
     "sweep": Sweep, "pseudotime": PseudoTime, "wear": Wear, "remap": Remap, "extreme": Extreme,
     "scaling": Scaling, "verification": Verification, "contact_convergence": ContactConvergence,
-    "interface_scaling": InterfaceScaling,
+    "interface_scaling": InterfaceScaling, "cyclic": Cyclic,
 }
