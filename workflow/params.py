@@ -13,7 +13,7 @@ from workflow.errors import SceneError
 from workflow.schema import param
 
 PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report",
-            "scaling", "verification", "contact_convergence", "interface_scaling")
+            "scaling", "verification", "contact_convergence", "interface_scaling", "cyclic_modes")
 
 
 @dataclass

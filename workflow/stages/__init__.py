@@ -41,6 +41,7 @@ PRODUCERS: dict[str, str] = {
     "verification": "verification",
     "contact_convergence": "contact_convergence",
     "interface_scaling": "interface_scaling",
+    "cyclic_modes": "cyclic_modes",
 }
 
 #: stage name → module path. Tests and plug-ins may register others here.
