@@ -131,3 +131,14 @@ def test_fixed_interface_modes_of_a_hermitian_interior_by_eigsh():
     np.testing.assert_allclose(Phi.conj().T @ M[3:, 3:] @ Phi, np.eye(5), atol=1e-10)
     ref = sla.eigh(K[3:, 3:], M[3:, 3:], eigvals_only=True)[:5]
     np.testing.assert_allclose(w ** 2, ref, rtol=1e-10)
+
+
+def test_harmonics_beyond_the_reduced_nodal_diameters_are_refused_naming_the_key():
+    from workflow.errors import SceneError
+    from workflow.stages.hb import cyclic_check
+
+    cyc = reduce_cyclic(sector_bundle(N), 3, 1)
+    assert cyclic_check(cyc, 1) == {"n_sectors": N, "engine_order": 3, "nodal_diameters": [0, 3]}
+    with pytest.raises(SceneError, match=r"nodal diameters \[1\].*reduction.cyclic_harmonics to ≥ 2"):
+        cyclic_check(cyc, 2)
+    assert cyclic_check(reduce_cyclic(sector_bundle(N), 0, 1), 5)["nodal_diameters"] == [0] * 6  # EO 0: all ND 0
