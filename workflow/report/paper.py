@@ -48,6 +48,13 @@ CAPTIONS = {
                         "blade's frequency change.", ""),
     "convergence": ("Reduced-model frequency error against the number of fixed-interface modes.", ""),
     "scaling": ("Run time against problem size.", ""),
+    "nd_map": ("Frequencies of the tuned disk against nodal diameter, one line per mode family (interface tied): "
+               "flat families are blade-dominated (the disk barely couples the blades), rising ones disk-dominated.",
+               ""),
+    "campbell": ("Frequencies of every nodal diameter against speed with engine-order lines: circles are the "
+                 "resonances an EO excites (its lines meet the modes of ND EO mod N, folded).", ""),
+    "zzenf": ("ZZENF: the nodal-diameter map with the zig-zag of the engine-order excitation at the scene's speed; "
+              "a mode on the zig-zag is resonant.", ""),
 }
 
 
