@@ -15,6 +15,15 @@ exactly. The relative equations are then ``Z_r U_r + λ = F_r`` (eq. 3), with
 
 Complex harmonic amplitudes follow ``docs/contracts.md`` §3:
 ``D_j = K − (jω)² M + i jω C`` [N/m], ω in rad/s.
+
+Cyclic models (tuned disk, :mod:`reduction.cyclic_reduce`): harmonic j
+lives on nodal diameter ``(j·EO) mod N`` (Petrov 2004), so its ``D_j`` is
+that ND's complex Hermitian sector model; :func:`relative_coordinates` of a
+:class:`~reduction.cyclic_reduce.CyclicReducedModel` returns a
+:class:`CyclicRelativeCoordinates` (one :class:`RelativeCoordinates` per ND)
+and :func:`condense` / :func:`recover` pick each harmonic's own. ``D_j`` is
+then Hermitian-based, not complex symmetric, and the ω-derivative uses the
+general formula.
 """
 from __future__ import annotations
 
@@ -41,6 +50,49 @@ class RelativeCoordinates:
     O: np.ndarray  # O T: z → observed DOFs
     n_rel: int  # 3p
 
+    def harmonic(self, j: int) -> "RelativeCoordinates":
+        """The coordinates harmonic j is condensed in: the same for every j."""
+        return self
+
+
+@dataclass
+class CyclicRelativeCoordinates:
+    """One :class:`RelativeCoordinates` per nodal diameter of a tuned disk.
+
+    ``by_nd``: {ND k: coordinates of the ND-k sector model}; harmonic j uses
+    ND ``(j·EO) mod N`` (:func:`reduction.cyclic.nodal_diameter_of_harmonic`).
+    The attributes the engine's *linear* parts read (``K``, ``M``, ``C``,
+    ``O``, ``f_harmonic``, ``n_rel``: tied modes, band, the wear frequency)
+    are those of harmonic 1's ND (the EO excitation's); ``f_static`` ND 0's.
+    """
+
+    by_nd: dict
+    engine_order: int
+    n_sectors: int
+
+    def nodal_diameter(self, j: int) -> int:
+        from reduction.cyclic import nodal_diameter_of_harmonic
+
+        return nodal_diameter_of_harmonic(j, self.engine_order, self.n_sectors)
+
+    def harmonic(self, j: int) -> RelativeCoordinates:
+        k = self.nodal_diameter(j)
+        if k not in self.by_nd:
+            from workflow.errors import BundleError
+
+            raise BundleError(f"cyclic reduced model has no nodal diameter {k} (harmonic {j} with engine order "
+                              f"{self.engine_order} of {self.n_sectors} sectors): it was reduced for NDs "
+                              f"{sorted(self.by_nd)} — rerun the reduction for more harmonics")
+        return self.by_nd[k]
+
+    def __getattr__(self, name):
+        # the linear reference parts of the engine see the EO excitation's ND
+        if name in ("K", "M", "C", "O", "f_harmonic", "n_rel"):
+            return getattr(self.harmonic(1), name)
+        if name == "f_static":
+            return self.harmonic(0).f_static
+        raise AttributeError(name)
+
 
 @dataclass
 class Condensed:
@@ -61,11 +113,22 @@ class Condensed:
         return self.Zr.shape[0] - 1
 
 
-def relative_coordinates(model: ReducedModel) -> RelativeCoordinates:
+def relative_coordinates(model):
+    """Relative coordinates of a :class:`ReducedModel`, or of every ND of a
+    cyclic model (:class:`CyclicRelativeCoordinates`): the one place that
+    tells the two apart."""
+    if getattr(model, "is_cyclic", False):
+        return CyclicRelativeCoordinates(by_nd={k: _relative(m) for k, m in model.models.items()},
+                                         engine_order=model.engine_order, n_sectors=model.n_sectors)
+    return _relative(model)
+
+
+def _relative(model: ReducedModel) -> RelativeCoordinates:
     """Build ``T`` with ``B T = [I, 0]`` from a QR factorisation of ``Bᵀ``.
 
-    ``B = Rᵀ Qᵀ`` (economy QR of Bᵀ, B of full row rank 3p), so
-    ``T = [Q R⁻ᵀ, N]`` with N an orthonormal basis of null(B).
+    ``B = Rᵀ Qᵀ`` (economy QR of Bᵀ, B of full row rank 3p, real), so
+    ``T = [Q R⁻ᵀ, N]`` with N an orthonormal basis of null(B). T is real,
+    so ``Tᵀ D T`` keeps a Hermitian D Hermitian.
     """
     B = model.B
     n_rel, m = B.shape
@@ -98,51 +161,67 @@ def harmonic_load(rc: RelativeCoordinates, j: int) -> np.ndarray:
     return np.zeros(rc.M.shape[0], dtype=complex)
 
 
-def condense(rc: RelativeCoordinates, omega: float, nh: int, derivative: bool = False) -> Condensed:
+def condense(rc, omega: float, nh: int, derivative: bool = False) -> Condensed:
     """Condense onto relative DOFs for harmonics 0…nh at ω [rad/s] (eq. 3).
 
-    One LU of ``D'_yy`` per harmonic serves Z_r, F_r and their ω-derivatives.
+    ``rc``: :class:`RelativeCoordinates`, or :class:`CyclicRelativeCoordinates`
+    (harmonic j on its own ND). One LU of ``D'_yy`` per harmonic serves Z_r,
+    F_r and their ω-derivatives.
     """
-    r = rc.n_rel
+    r = rc.harmonic(0).n_rel
     Zr = np.empty((nh + 1, r, r), dtype=complex)
     Fr = np.empty((nh + 1, r), dtype=complex)
     dZr = np.empty_like(Zr) if derivative else None
     dFr = np.empty_like(Fr) if derivative else None
     for j in range(nh + 1):
-        D, dD = dynamic_stiffness(rc, j, omega)
-        f = harmonic_load(rc, j)
-        if D.shape[0] == r:
-            # every coordinate is a relative contact DOF (e.g. Den Hartog's oscillator):
-            # nothing to condense, and LAPACK refuses an empty factorisation
-            Zr[j], Fr[j] = D, f
-            if derivative:
-                dZr[j], dFr[j] = dD, np.zeros(r, dtype=complex)
-            continue
-        lu = sla.lu_factor(D[r:, r:], check_finite=False)
-        rhs = np.concatenate([D[r:, :r], f[r:, None]], axis=1)
-        sol = sla.lu_solve(lu, rhs, check_finite=False)
-        A, b = sol[:, :r], sol[:, r]  # D_yy⁻¹ D_yr, D_yy⁻¹ f_y
-        Zr[j] = D[:r, :r] - D[:r, r:] @ A
-        Fr[j] = f[:r] - D[:r, r:] @ b
+        out = _condense_harmonic(rc.harmonic(j), j, omega, derivative)
+        Zr[j], Fr[j] = out[0], out[1]
         if derivative:
-            # D is complex symmetric, so D_ry D_yy⁻¹ = Aᵀ.
-            At = A.T
-            dZr[j] = dD[:r, :r] - dD[:r, r:] @ A - At @ dD[r:, :r] + At @ dD[r:, r:] @ A
-            dFr[j] = -dD[:r, r:] @ b + At @ (dD[r:, r:] @ b)
+            dZr[j], dFr[j] = out[2], out[3]
     return Condensed(omega=omega, Zr=Zr, Fr=Fr, dZr=dZr, dFr=dFr)
 
 
-def recover(rc: RelativeCoordinates, omega: float, Ur: np.ndarray) -> np.ndarray:
+def _condense_harmonic(rc: RelativeCoordinates, j: int, omega: float, derivative: bool):
+    """(Z_r, F_r[, dZ_r/dω, dF_r/dω]) of harmonic j: the Schur complement onto u_r."""
+    r = rc.n_rel
+    D, dD = dynamic_stiffness(rc, j, omega)
+    f = harmonic_load(rc, j)
+    if D.shape[0] == r:
+        # every coordinate is a relative contact DOF (e.g. Den Hartog's oscillator):
+        # nothing to condense, and LAPACK refuses an empty factorisation
+        return D, f, dD, np.zeros(r, dtype=complex)
+    lu = sla.lu_factor(D[r:, r:], check_finite=False)
+    rhs = np.concatenate([D[r:, :r], f[r:, None]], axis=1)
+    sol = sla.lu_solve(lu, rhs, check_finite=False)
+    A, b = sol[:, :r], sol[:, r]  # D_yy⁻¹ D_yr, D_yy⁻¹ f_y
+    Z = D[:r, :r] - D[:r, r:] @ A
+    F = f[:r] - D[:r, r:] @ b
+    if not derivative:
+        return Z, F
+    if np.isrealobj(rc.K):
+        # D complex symmetric (real K, M, C), so D_ry D_yy⁻¹ = Aᵀ.
+        L = A.T
+    else:
+        # a cyclic ND's Hermitian sector model: D_ry D_yy⁻¹ = (D_yy⁻ᵀ D_ryᵀ)ᵀ, one transposed solve
+        L = sla.lu_solve(lu, D[:r, r:].T, trans=1, check_finite=False).T
+    dZ = dD[:r, :r] - dD[:r, r:] @ A - L @ dD[r:, :r] + L @ dD[r:, r:] @ A
+    dF = -dD[:r, r:] @ b + L @ (dD[r:, r:] @ b)
+    return Z, F, dZ, dF
+
+
+def recover(rc, omega: float, Ur: np.ndarray) -> np.ndarray:
     """Observed response harmonics (Nh+1, n_obs) from relative ones ``Ur`` (Nh+1, 3p).
 
-    Solves the tied remainder ``D'_yy y = f'_y − D'_yr u_r`` per harmonic and
-    maps ``z = [u_r; y]`` to the observed DOFs.
+    Solves the tied remainder ``D'_yy y = f'_y − D'_yr u_r`` per harmonic (on
+    its own ND for a cyclic ``rc``: sector 0's complex amplitudes) and maps
+    ``z = [u_r; y]`` to the observed DOFs.
     """
-    r = rc.n_rel
-    out = np.empty((Ur.shape[0], rc.O.shape[0]), dtype=complex)
+    out = np.empty((Ur.shape[0], rc.harmonic(0).O.shape[0]), dtype=complex)
     for j in range(Ur.shape[0]):
-        D, _ = dynamic_stiffness(rc, j, omega)
-        f = harmonic_load(rc, j)
+        rj = rc.harmonic(j)
+        r = rj.n_rel
+        D, _ = dynamic_stiffness(rj, j, omega)
+        f = harmonic_load(rj, j)
         y = np.linalg.solve(D[r:, r:], f[r:] - D[r:, :r] @ Ur[j]) if D.shape[0] > r else np.zeros(0, complex)
-        out[j] = rc.O[:, :r] @ Ur[j] + rc.O[:, r:] @ y
+        out[j] = rj.O[:, :r] @ Ur[j] + rj.O[:, r:] @ y
     return out

@@ -75,6 +75,9 @@ class Reduction:
     check_mode_counts: list = param([10, 20, 40, 80], "", "fixed-interface mode counts for the convergence study",
                                     min=0)
     frf_points: int = param(40, "", "frequencies of the linear FRF comparison", min=2)
+    cyclic_harmonics: int = param(6, "", "cyclic sector (geometry.cyclic): the reduction prepares the nodal "
+                                         "diameters (j·EO) mod N of harmonics j = 0 … this (one Craig–Bampton "
+                                         "per ND); hb/wear harmonics beyond need it raised", min=1)
 
     def check(self):
         if self.modes == 0 and self.cutoff_hz == 0:

@@ -19,7 +19,8 @@ SIGNIFICANT = 0.05
 def tied_modes(rc) -> tuple[np.ndarray, np.ndarray]:
     """Eigenfrequencies (Hz) of the model with the interface tied (u_r = 0), and
     each mode's modal response at the observed DOFs to the harmonic load,
-    ``‖O φ‖ |φᵀ f| / ω²`` (m), normalised so the largest is 1."""
+    ``‖O φ‖ |φᴴ f| / ω²`` (m), normalised so the largest is 1. K, M may be
+    complex Hermitian (a cyclic ND's sector model: harmonic 1's ND)."""
     import scipy.linalg as sla
 
     r = rc.n_rel
@@ -28,7 +29,7 @@ def tied_modes(rc) -> tuple[np.ndarray, np.ndarray]:
     w2 = np.maximum(w2, 0.0)
     f = np.sqrt(w2) / (2 * np.pi)
     obs = np.linalg.norm(rc.O[:, r:] @ phi, axis=0)
-    force = np.abs(phi.T @ rc.f_harmonic[r:])
+    force = np.abs(phi.conj().T @ rc.f_harmonic[r:])
     with np.errstate(divide="ignore", invalid="ignore"):
         resp = np.where(w2 > 0, obs * force / np.where(w2 > 0, w2, 1.0), 0.0)
     top = resp.max() if resp.size and resp.max() > 0 else 1.0

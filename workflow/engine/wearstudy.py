@@ -93,12 +93,13 @@ class WearStudy:
 
 
 def first_tied_frequency(rc) -> float:
-    """First natural frequency (rad/s) of the structure with the interface tied (u_r = 0)."""
+    """First natural frequency (rad/s) of the structure with the interface tied (u_r = 0)
+    (harmonic 1's ND for a cyclic model; K, M Hermitian)."""
     import scipy.linalg
 
     r = rc.n_rel
     K, M = rc.K[r:, r:], rc.M[r:, r:]
-    ev = scipy.linalg.eigh(0.5 * (K + K.T), 0.5 * (M + M.T), eigvals_only=True, subset_by_index=[0, 0])
+    ev = scipy.linalg.eigh(0.5 * (K + K.conj().T), 0.5 * (M + M.conj().T), eigvals_only=True, subset_by_index=[0, 0])
     return float(np.sqrt(max(ev[0], 0.0)))
 
 

@@ -6,6 +6,11 @@ engine's front door :func:`workflow.engine.frf`; writes what it returns
 (:mod:`workflow.report.frf`). The choices (band, condensation once, static
 state, cascade, reference, MPI sharing, error, penalties) are the engine's,
 documented there.
+
+A cyclic sector's model (:class:`~reduction.cyclic_reduce.CyclicReducedModel`,
+``geometry.cyclic``) goes through the same front door: harmonic j is
+condensed on its nodal diameter ``(j·EO) mod N`` (the tuned disk under an
+engine-order travelling wave); the summary gains ``cyclic``.
 """
 from __future__ import annotations
 
@@ -58,21 +63,43 @@ def law_of(scene, model, rc=None):
                        factor=ct.penalty_factor, rc=rc)
 
 
+def cyclic_check(model, nh: int) -> dict | None:
+    """For a cyclic model: ``{n_sectors, engine_order, nodal_diameters}`` (the ND of
+    each harmonic 0…nh); :class:`SceneError` naming ``reduction.cyclic_harmonics``
+    if one was not reduced. None for a fixed-boundary model."""
+    from workflow.errors import SceneError
+
+    if not getattr(model, "is_cyclic", False):
+        return None
+    nds = model.nodal_diameters(nh)
+    missing = sorted({k for k in nds if k not in model.models})
+    if missing:
+        raise SceneError(f"harmonics up to {nh} need nodal diameters {missing}, which the cyclic reduction did not "
+                         f"prepare (it has {sorted(model.models)}): raise reduction.cyclic_harmonics to ≥ {nh}")
+    return {"n_sectors": model.n_sectors, "engine_order": model.engine_order, "nodal_diameters": nds}
+
+
+def needed_harmonics(opt, todo) -> int:
+    """Largest Nh the FRF study condenses: variants, reference and its 1.5×Nh check."""
+    nh = max([v.nh for v in todo] + [1])
+    if opt.reference is not None:
+        nh = max(nh, int(math.ceil(1.5 * opt.reference.nh)) if opt.reference_check else opt.reference.nh)
+    return nh
+
+
 def run(scene, inputs: dict, out: Path, log) -> dict:
-    from reduction.reduced import ReducedModel
     from workflow.engine import frf
     from workflow.errors import BundleError, SolverError
     from workflow.mpi import world
     from workflow.report.frf import write_outputs
+    from workflow.stages.reduction import load_model
 
-    path = Path(inputs["reduced"]) / "reduced.npz"
-    if not path.exists():
-        raise BundleError(f"reduced model {path} is missing (the reduction stage writes it)")
-    model = ReducedModel.load(path)
+    model = load_model(Path(inputs["reduced"]))
     if model.n_pairs == 0:
-        raise BundleError(f"reduced model {path} has no contact pairs")
+        raise BundleError(f"reduced model in {inputs['reduced']} has no contact pairs")
     t0 = time.perf_counter()
     opt, todo = options(scene)
+    cyclic = cyclic_check(model, needed_harmonics(opt, todo))
     sw = scene["sweep"]
     try:
         study = frf(model, law_of(scene, model), todo, band_hz=(sw.f_start_hz, sw.f_stop_hz), points=sw.points,
@@ -87,6 +114,8 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     files = write_outputs(Path(out), study)
     summary = summarise(study, scene)
     summary["mu_source"] = model.friction(scene["contact"].mu)[1]
+    if cyclic is not None:
+        summary["cyclic"] = cyclic
     summary.update(seconds=round(time.perf_counter() - t0, 3), files=files)
     return summary
 

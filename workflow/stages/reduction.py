@@ -5,6 +5,12 @@ with ``[reduction] modes`` fixed-interface modes (or every mode below
 ``cutoff_hz`` when ``modes = 0``); writes ``out/reduced.npz``. The pipeline's
 cache keys this on the bundle's content, so a sweep never re-reduces an
 unchanged model.
+
+A cyclic sector bundle (``cyclic.npz``: ``geometry.cyclic = true``) is
+reduced per nodal diameter instead (:func:`reduction.cyclic_reduce.reduce_cyclic`:
+the NDs ``(j·EO) mod N`` of harmonics j = 0 … ``reduction.cyclic_harmonics``
+under ``cyclic.engine_order``) into ``out/cyclic_reduced.npz``;
+:func:`load_model` gives the hb and wear stages whichever was written.
 """
 from __future__ import annotations
 
@@ -12,13 +18,14 @@ import time
 from pathlib import Path
 
 NAME = "reduction"
-SECTIONS = ("reduction",)
+SECTIONS = ("reduction", "cyclic")
 NEEDS = ("bundle",)
 PRODUCES = ("reduced",)
 
 MPI = True  # collective under mpirun: reduction.parallel (every rank reads its rows; rank 0 writes)
 
 REDUCED_FILE = "reduced.npz"
+CYCLIC_FILE = "cyclic_reduced.npz"
 
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
@@ -28,6 +35,10 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
 
     cfg = scene["reduction"]
     comm = world()
+    if read_bundle(bundle_folder(inputs["bundle"]), matrices=False).cyclic is not None:
+        if comm is not None and comm.Get_rank() != 0:
+            return None  # the per-ND reduction is serial: rank 0 does it
+        return _run_cyclic(scene, read_bundle(bundle_folder(inputs["bundle"])), Path(out), log)
     if comm is not None:
         return _run_parallel(cfg, bundle_folder(inputs["bundle"]), Path(out), log, comm)
     from reduction.reduce import reduce_bundle
@@ -52,6 +63,43 @@ def _run_parallel(cfg, folder: Path, out: Path, log, comm) -> dict | None:
         return None
     model.save(out / REDUCED_FILE)
     return _summary(model, seconds, log)
+
+
+def _run_cyclic(scene, bundle, out: Path, log) -> dict:
+    from reduction.cyclic_reduce import reduce_cyclic
+    from workflow.errors import SceneError
+
+    cfg, eo = scene["reduction"], int(scene["cyclic"].engine_order)
+    if not cfg.modes:
+        raise SceneError("reduction.modes = 0: the cyclic (per nodal diameter) reduction keeps a count of "
+                         "fixed-interface modes; set reduction.modes > 0")
+    log.info(f"cyclic sector of {bundle.cyclic.n_sectors}: reducing {bundle.n_dofs} DOFs per nodal diameter of "
+             f"harmonics 0…{cfg.cyclic_harmonics} under engine order {eo}")
+    model = reduce_cyclic(bundle, eo, cfg.cyclic_harmonics, n_modes=cfg.modes)
+    model.save(out / CYCLIC_FILE)
+    per = model.info["seconds_per_nd"]
+    log.info(f"{len(per)} nodal diameters {sorted(per)}: " +
+             ", ".join(f"ND {k} {v:.2f} s ({model.models[k].size} coordinates)" for k, v in per.items()))
+    return {"cyclic": True, "n_sectors": model.n_sectors, "engine_order": eo, "nodal_diameters": sorted(per),
+            "modes": int(cfg.modes), "size": {str(k): m.size for k, m in model.models.items()},
+            "seconds_per_nd": {str(k): round(v, 3) for k, v in per.items()},
+            "seconds": round(model.info["seconds"], 3), "reduced": CYCLIC_FILE}
+
+
+def load_model(folder: Path):
+    """The model the reduction stage wrote in ``folder``: a
+    :class:`~reduction.cyclic_reduce.CyclicReducedModel` (cyclic sector) or a
+    :class:`~reduction.reduced.ReducedModel`; :class:`BundleError` if neither."""
+    from reduction.cyclic_reduce import CyclicReducedModel
+    from reduction.reduced import ReducedModel
+    from workflow.errors import BundleError
+
+    folder = Path(folder)
+    if (folder / CYCLIC_FILE).exists():
+        return CyclicReducedModel.load(folder / CYCLIC_FILE)
+    if not (folder / REDUCED_FILE).exists():
+        raise BundleError(f"reduced model {folder / REDUCED_FILE} is missing (the reduction stage writes it)")
+    return ReducedModel.load(folder / REDUCED_FILE)
 
 
 def _summary(model, seconds: float, log) -> dict:
