@@ -114,7 +114,7 @@ def test_zero_wear_cyclic_reassembly_has_no_shift_and_the_same_frf(upstream, zer
     frf = stage.worn_vs_new_frf(scene, new, worn)
     a_new, a_worn = (np.where(frf[k].converged, frf[k].amplitude, np.nan) for k in ("new", "worn"))
     assert frf["new"].converged.all() and frf["worn"].converged.all()
-    np.testing.assert_allclose(a_worn, a_new, rtol=1e-6)
+    np.testing.assert_allclose(a_worn, a_new, rtol=1e-7)  # measured 1e-9 (re-numbered worn mesh)
     assert s["frf_peak_hz"]["worn"] == s["frf_peak_hz"]["new"]
 
 
@@ -126,7 +126,7 @@ def test_cyclic_remap_new_peak_is_the_cyclic_hb_peak(upstream, zero_wear):
     hb = summary["hb"]["runs"][0]
     assert s["frf_points"] == hb["points"] and s["frf_band_hz"][0] < hb["peak_hz"] < s["frf_band_hz"][1]
     assert s["frf_peak_hz"]["new"] == pytest.approx(hb["peak_hz"], rel=1e-12)
-    assert s["frf_peak_amplitude_m"]["new"] == pytest.approx(hb["peak_amplitude_m"], rel=1e-6)
+    assert s["frf_peak_amplitude_m"]["new"] == pytest.approx(hb["peak_amplitude_m"], rel=1e-9)
     assert s["frf_tied_hz"]["new"] == pytest.approx(summary["hb"]["tied_frequency_hz"], rel=1e-12)
 
 
