@@ -14,7 +14,9 @@ wear stage's ``wear.csv``; writes under ``out``:
   study on the worn geometry, the first tied frequencies new vs worn
   (``freq_shift_hz``), and a short nonlinear FRF of the new and the worn
   reduced models around the first excited tied mode (``frf_peak_hz``,
-  ``frf_peak_amplitude_m``, ``figures/frf_worn_vs_new.png``).
+  ``frf_peak_amplitude_m``, ``figures/frf_worn_vs_new.png``). A cyclic
+  sector (tuned disk) stays cyclic: ``cyclic_reduced.npz`` (per ND, as the
+  reduction stage), frequencies of ND ``EO mod N`` (``freq_nodal_diameter``).
 
 Where the wear lives in the worn model (geometry *and* gap, not twice)
 ----------------------------------------------------------------------
@@ -152,21 +154,21 @@ def write_viewer_3d(path: Path, points, cells, types, body, surfaces, method: st
 
 def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log, reduced_dir=None) -> dict:
     """Assemble the worn model (new bundle under ``out/model``,
-    :func:`reduction.worn.worn_bundle`), reduce it (``out/reduced.npz``),
-    compare the first tied frequencies and the nonlinear FRF peak of the new
-    and the worn reduced models.
+    :func:`reduction.worn.worn_bundle`), reduce it, compare the first tied
+    frequencies and the nonlinear FRF peak of the new and the worn reduced
+    models (:func:`reduction.worn.new_and_worn`).
 
-    The new reduced model is ``reduced_dir/reduced.npz`` (the reduction
-    stage's) when given, else the new bundle re-reduced with the same settings.
+    The new reduced model is the reduction stage's in ``reduced_dir`` when
+    given, else the new bundle reduced here with the same settings. A cyclic
+    sector is reduced per ND (``cyclic_reduced.npz``) and its frequencies are
+    those of ND ``EO mod N`` (``freq_nodal_diameter``); else ``reduced.npz``.
     """
     import time
 
     from reduction.assemble import as_section
     from reduction.bundle import write_bundle
-    from reduction.modes import frequencies
-    from reduction.reduce import reduce_bundle
-    from reduction.reduced import ReducedModel
-    from reduction.worn import worn_bundle
+    from reduction.worn import new_and_worn, worn_bundle
+    from workflow.stages.reduction import CYCLIC_FILE, REDUCED_FILE, load_model
 
     t0 = time.perf_counter()
     sections = {k: scene.get(k) for k in ("rotation", "damping", "excitation")}
@@ -176,19 +178,20 @@ def reassemble(scene, bundle, mesh, ct, ft, r, pairs, out: Path, log, reduced_di
     write_bundle(worn, out / "model", extra_files={"mesh.xdmf": stage / "mesh.xdmf", "mesh.h5": stage / "mesh.h5"})
     stage.rmdir()
     n = min(N_FREQ, int(getattr(scene.get("modes"), "count", N_FREQ)))
-    f_new, f_worn = frequencies(bundle, n, tied=True), frequencies(worn, n, tied=True)
+    red, cyc = scene.get("reduction"), scene.get("cyclic")
+    have = reduced_dir is not None and any((Path(reduced_dir) / f).is_file() for f in (CYCLIC_FILE, REDUCED_FILE))
+    m = new_and_worn(bundle, worn, n, int(getattr(red, "modes", 30)), load_model(reduced_dir) if have else None,
+                     cyclic=(int(getattr(cyc, "engine_order", 1)), int(getattr(red, "cyclic_harmonics", 1))))
+    nd, f_new, f_worn = m["nodal_diameter"], m["freq_new_hz"], m["freq_worn_hz"]
+    family = "fixed-boundary sector" if nd is None else f"ND {nd} (harmonic 1 of the engine-order wave)"
     res = {"worn_bundle": "model", "freq_new_hz": f_new.tolist(), "freq_worn_hz": f_worn.tolist(),
-           "freq_shift_hz": (f_worn - f_new).tolist(), "reduced": None}
-    log.info("remap: first tied frequencies worn − new [Hz]: "
+           "freq_shift_hz": (f_worn - f_new).tolist(), "freq_nodal_diameter": nd, "freq_family": family,
+           "reduced": REDUCED_FILE if nd is None else CYCLIC_FILE}
+    log.info(f"remap: first tied frequencies of the {family}, worn − new [Hz]: "
              + ", ".join(f"{d:+.4g}" for d in res["freq_shift_hz"]))
-    kw = dict(n_modes=int(getattr(scene.get("reduction"), "modes", 30)))
-    worn_red = reduce_bundle(worn, **kw)
-    worn_red.save(out / "reduced.npz")
-    res["reduced"] = "reduced.npz"
-    new_path = Path(reduced_dir) / "reduced.npz" if reduced_dir is not None else None
-    new_red = ReducedModel.load(new_path) if new_path is not None and new_path.is_file() else reduce_bundle(bundle, **kw)
+    m["worn"].save(out / res["reduced"])
     res["reassembly_s"] = time.perf_counter() - t0
-    res.update(_frf(scene, new_red, worn_red, out, log))
+    res.update(_frf(scene, m["new"], m["worn"], out, log))
     return res
 
 
