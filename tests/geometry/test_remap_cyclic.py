@@ -9,6 +9,8 @@ import types
 import numpy as np
 import pytest
 
+from workflow.engine.compare import PEAK_XTOL
+
 from workflow.errors import BundleError, GeometryError
 
 
@@ -115,7 +117,9 @@ def test_zero_wear_cyclic_reassembly_has_no_shift_and_the_same_frf(upstream, zer
     a_new, a_worn = (np.where(frf[k].converged, frf[k].amplitude, np.nan) for k in ("new", "worn"))
     assert frf["new"].converged.all() and frf["worn"].converged.all()
     np.testing.assert_allclose(a_worn, a_new, rtol=1e-7)  # measured 1e-9 (re-numbered worn mesh)
-    assert s["frf_peak_hz"]["worn"] == s["frf_peak_hz"]["new"]
+    # the refined peaks agree to the bounded search's tolerance
+    xtol = PEAK_XTOL * s["frf_tied_hz"]["new"]
+    assert abs(s["frf_peak_hz"]["worn"] - s["frf_peak_hz"]["new"]) <= 2 * xtol
 
 
 @pytest.mark.slow
@@ -125,8 +129,11 @@ def test_cyclic_remap_new_peak_is_the_cyclic_hb_peak(upstream, zero_wear):
     s, _ = zero_wear
     hb = summary["hb"]["runs"][0]
     assert s["frf_points"] == hb["points"] and s["frf_band_hz"][0] < hb["peak_hz"] < s["frf_band_hz"][1]
-    assert s["frf_peak_hz"]["new"] == pytest.approx(hb["peak_hz"], rel=1e-12)
-    assert s["frf_peak_amplitude_m"]["new"] == pytest.approx(hb["peak_amplitude_m"], rel=1e-9)
+    # the remap refines the hb stage's grid peak between its grid neighbours: within a grid
+    # step of it, and at least as high (the grid point is one of the candidates)
+    step = (s["frf_band_hz"][1] - s["frf_band_hz"][0]) / (s["frf_points"] - 1)
+    assert abs(s["frf_peak_hz"]["new"] - hb["peak_hz"]) <= step
+    assert s["frf_peak_amplitude_m"]["new"] >= hb["peak_amplitude_m"] * (1 - 1e-9)
     assert s["frf_tied_hz"]["new"] == pytest.approx(summary["hb"]["tied_frequency_hz"], rel=1e-12)
 
 

@@ -148,7 +148,10 @@ def test_zero_wear_reassembly_has_no_frequency_shift(upstream, tmp_path):
     np.testing.assert_allclose(s["freq_shift_hz"], 0.0, atol=1e-8 * max(s["freq_new_hz"]))
     # Zero wear: the worn model is the new one, so is its nonlinear FRF peak.
     assert s["frf_converged"]["new"] == s["frf_converged"]["worn"] > 0
-    assert s["frf_peak_hz"]["worn"] == s["frf_peak_hz"]["new"]
+    # refined peaks (bounded search): equal to its tolerance
+    from workflow.engine.compare import PEAK_XTOL
+
+    assert abs(s["frf_peak_hz"]["worn"] - s["frf_peak_hz"]["new"]) <= 2 * PEAK_XTOL * s["frf_tied_hz"]["new"]
     np.testing.assert_allclose(s["frf_peak_amplitude_m"]["worn"], s["frf_peak_amplitude_m"]["new"], rtol=1e-6)
 
 

@@ -61,9 +61,8 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
     engine's static state at every frequency. ``solver_kw``: ``solver``,
     ``tol``, ``maxiter``, ``max_passes`` of :func:`workflow.engine.frf.sweep_variant`.
     """
-    from scipy.optimize import minimize_scalar
-
     from reduction.condense import condense, relative_coordinates
+    from workflow.engine.compare import refine_peak
     from workflow.engine.frf import sweep_variant
     from workflow.engine.linear import first_excited_mode
     from workflow.engine.study import static_state
@@ -77,25 +76,11 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
     sw = sweep_variant(rc, cond, law, static, variant, **kw)
     if not sw.converged.any():
         raise SolverError(f"contact_convergence: no frequency of the peak bracket converged ({sw.reasons[0]})")
-    solved = {float(f): (a, U, c) for f, a, U, c, ok in zip(grid, sw.amplitude, sw.Ur, cond, sw.converged) if ok}
-
-    def minus_amplitude(f):
-        c = condense(rc, 2 * np.pi * f, variant.nh)
-        seed = solved[min(solved, key=lambda g: abs(g - f))][1]
-        r = sweep_variant(rc, [c], law, static, variant, seeds=[seed], **kw)
-        if not r.converged[0]:
-            return 0.0  # an unconverged point cannot be the peak
-        solved[float(f)] = (float(r.amplitude[0]), r.Ur[0], c)
-        return -float(r.amplitude[0])
-
-    i = int(np.argmax(np.where(sw.converged, sw.amplitude, -np.inf)))
-    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-    minimize_scalar(minus_amplitude, bounds=(lo, hi), method="bounded", options={"xatol": xtol * f_tied})
-    f_pk = max(solved, key=lambda g: solved[g][0])
-    a_pk, U_pk, c_pk = solved[f_pk]
+    pk = refine_peak(rc, sw, law, static, variant, xtol * f_tied, **kw)
+    f_pk, a_pk, U_pk, c_pk, i = pk.hz, pk.amplitude, pk.Ur, pk.cond, pk.grid_index
     energy = _energy(model, law, variant, c_pk, U_pk, static, solver_kw["max_passes"])
     return {"peak_hz": float(f_pk), "peak_amplitude_m": float(a_pk), "energy_J": energy,
-            "grid_hz": grid, "grid_m": sw.amplitude, "evaluations": len(solved), "tied_hz": float(f_tied),
+            "grid_hz": grid, "grid_m": sw.amplitude, "evaluations": pk.evaluations, "tied_hz": float(f_tied),
             "eps_n": float(np.mean(law.eps_n)), "eps_t": float(np.mean(law.eps_t)),
             "at_band_edge": bool(i in (0, len(grid) - 1))}
 
