@@ -7,8 +7,8 @@ import pytest
 
 def test_refined_peak_of_a_damped_oscillator_is_the_closed_form_one():
     """μ = 0 leaves m ẍ + c ẋ + k x = F cos ωt: |X| = F / √((k − mω²)² + (cω)²) peaks at
-    ω_n √(1 − 2ζ²) with F / (2ζ k √(1 − ζ²)). A 7-point grid of 0.4 Hz steps misses it by half a
-    grid step (0.4 Hz here); the bounded search between the grid neighbours finds it."""
+    ω_n √(1 − 2ζ²) with F / (2ζ k √(1 − ζ²)). A 7-point grid of 0.4 Hz steps misses it by 0.2 Hz;
+    the bounded search between the grid neighbours finds it."""
     from reduction.condense import relative_coordinates
     from workflow import engine
     from workflow.engine.compare import refine_peak
