@@ -33,3 +33,22 @@ def test_refined_peak_of_a_damped_oscillator_is_the_closed_form_one():
     assert pk.hz == pytest.approx(f_exact, rel=1e-6)
     assert pk.amplitude == pytest.approx(a_exact, rel=1e-8)
     assert pk.evaluations > 7 and pk.grid_index == i
+
+
+def test_frf_study_reports_the_refined_peak_of_its_most_converged_sweep():
+    """engine.frf refines the peak of the variant with the most harmonics (no reference
+    here) by default: the damped oscillator's closed-form peak, not the grid's largest point."""
+    from workflow import engine
+    from workflow.verification import models
+
+    m, fn, zeta, force = 1.0, 10.0, 0.02, 1.0
+    k = m * (2 * np.pi * fn) ** 2
+    model, _ = models.coulomb(m, k, 2 * zeta * np.sqrt(k * m), 1.0, force, 0.0)
+    variants = [engine.Variant("hbm", 1, 16), engine.Variant("hbm", 3, 32)]
+    study = engine.frf(model, engine.contact_law(model, mu=0.0), variants, band_hz=(9.0, 11.4), points=7,
+                       options=engine.FRFOptions(reference=None, eps_check_factor=0.0))
+    pk = study.peak
+    assert pk["run"] == "HBM-3 nit=32"
+    assert abs(pk["hz"] - fn * np.sqrt(1 - 2 * zeta ** 2)) <= 2 * pk["xtol_hz"]
+    assert pk["amplitude_m"] == pytest.approx(force / (2 * zeta * k * np.sqrt(1 - zeta ** 2)), rel=1e-8)
+    assert pk["amplitude_m"] > 1.3 * pk["grid_amplitude_m"]

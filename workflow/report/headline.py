@@ -200,6 +200,13 @@ def hb_headline(hb: dict, folder: Path | None, damping: dict | None) -> tuple[di
     i, vals["peak_hz"], vals["peak_amplitude_m"] = grid_peak(f, a, ok)
     vals["peak_source"] = f"{run['role']} {label}"
     checks = peak_checks(f, ok, i, label) + reference_checks(hb, run)
+    pk = hb.get("peak")
+    if pk and pk.get("hz") is not None:   # the engine refined the grid peak between grid points
+        vals["peak_hz"], vals["peak_amplitude_m"] = float(pk["hz"]), float(pk["amplitude_m"])
+        vals["peak_source"] += f", refined between grid points (±{pk['xtol_hz']:.1g} Hz)"
+        checks.append(Check("peak", "peak search", "green",
+                            f"grid peak {pk['grid_hz']:.6g} Hz / {pk['grid_amplitude_m']:.4g} m refined to "
+                            f"{pk['hz']:.6g} Hz / {pk['amplitude_m']:.4g} m ({pk['evaluations']} frequencies solved)"))
     lin = read_rows(Path(folder) / "linear.csv")
     if lin:
         fl = np.array([float(r["frequency_hz"]) for r in lin])

@@ -114,6 +114,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     files = write_outputs(Path(out), study)
     summary = summarise(study, scene)
     summary["mu_source"] = model.friction(scene["contact"].mu)[1]
+    summary["peak"] = study.peak
     if cyclic is not None:
         summary["cyclic"] = cyclic
     summary.update(seconds=round(time.perf_counter() - t0, 3), files=files)
