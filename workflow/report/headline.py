@@ -289,7 +289,8 @@ def remap_headline(remap: dict, tied_mode: int | None) -> tuple[dict, list[Check
     when the remap reassembled the worn model, else the tied mode's shift."""
     vals = dict(worn_frequency_shift_hz=None, worn_frequency_shift_source=None, worn_tied_shift_hz=None)
     if not remap:
-        return vals, []
+        return vals, [Check("worn", "frequency shift", "none",
+                            "no worn model in this run (the scene's outputs have no “wear_map”)")]
     checks = []
     frac, allowed = remap.get("max_motion_fraction"), remap.get("max_fraction_allowed")
     if frac is not None and allowed:

@@ -149,3 +149,26 @@ def write_viewer(path, points, cells, cell_types, body, surfaces, title: str, no
 
 
 _TEMPLATE = Path(__file__).with_name("viewer3d.html").read_text()
+
+
+def read_viewer(path) -> dict:
+    """The arrays a page of :func:`write_viewer` carries, decoded: ``positions``
+    (v, 3) float32 [mm], ``colours`` (v, 3) uint8, ``part`` (v,) uint8,
+    ``triangles`` (t, 3) uint32, ``wear_max_um`` (colour bar top [µm]), ``size_mm``,
+    ``view_side`` (±1: the side of the first view).
+    The inverse of the page's embedding (used to export the same data elsewhere
+    and by the tests)."""
+    text = Path(path).read_text(encoding="utf-8")
+    head, sep, rest = text.partition("const DATA = ")
+    if not sep:
+        raise GeometryError(f"{path}: not a 3D view page (no DATA)")
+    data, _ = json.JSONDecoder().raw_decode(rest)
+    wmax = head.rsplit("<span>", 1)[-1].split("</span>", 1)[0]
+
+    def dec(key, dtype, width):
+        a = np.frombuffer(base64.b64decode(data[key]), dtype=dtype)
+        return a.reshape(-1, width) if width > 1 else a
+
+    return {"positions": dec("positions", np.float32, 3), "colours": dec("colours", np.uint8, 3),
+            "part": dec("part", np.uint8, 1), "triangles": dec("triangles", np.uint32, 3),
+            "wear_max_um": float(wmax), "size_mm": float(data["size_mm"]), "view_side": float(data["view_side"])}
