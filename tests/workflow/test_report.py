@@ -240,3 +240,23 @@ def test_paper_numbers_quoted_by_the_report_are_the_papers():
     for stem in ("frf_nit_aliasing", "iterations", "tangential", "wear_profile", "tip_cycle", "max_wear", "harmonic1"):
         fig = paper.caption(stem)[1]
         assert re.search(rf"\n{re.escape(fig)}:", text), (stem, fig)
+
+
+def test_viewer_benchmark_counts_only_network_requests_and_real_errors():
+    """The offline check of the 3D views (workflow/bench/viewer3d_compare.py): local URLs are not network
+    requests; software-GL performance notes are not errors; a failed fetch and an exception are."""
+    from workflow.bench import viewer3d_compare as vc
+
+    ev = [{"method": "Network.requestWillBeSent", "params": {"request": {"url": u}}}
+          for u in ("file:///r/wear_3d.html", "data:image/png;base64,AA", "https://kitware.github.io/x.png")]
+    ev += [{"method": "Log.entryAdded", "params": {"entry": {"level": "error", "text": t}}}
+           for t in ("Failed to load resource: net::ERR_INTERNET_DISCONNECTED", "GL Driver Message (OpenGL, x)")]
+    ev.append({"method": "Runtime.exceptionThrown", "params": {"exceptionDetails": {"text": "Uncaught",
+                                                                                     "exception": {"description": "E"}}}})
+    assert vc._requests(ev) == ["https://kitware.github.io/x.png"]
+    assert vc._errors(ev) == ["Failed to load resource: net::ERR_INTERNET_DISCONNECTED", "E"]
+    loads = [{"first_frame_ms": f, "first_draw_ms": f, "webgl_context_ms": [1.0, g], "requests": [],
+              "errors": [], "drawn_fraction": 0.3} for f, g in ((700.0, 650.0), (900.0, 800.0), (None, 700.0))]
+    row = vc.summarise(__file__, loads)
+    assert row["first_frame_ms_median"] == 800.0 and row["first_frame_ms_range"] == [700.0, 900.0]
+    assert row["page_work_ms_median"] == 75.0  # median of 50 and 100 ms: the page's own work after its context

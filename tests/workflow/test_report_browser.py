@@ -147,3 +147,16 @@ def test_3d_view_loads_fast_small_and_shows_the_worn_flanks(run_folder, tmp_path
     coloured = px[np.ptp(px, axis=1) > 40]
     near = np.min(np.abs(coloured[:, None, :] - lut[None]).sum(axis=2), axis=1) < 40 if len(coloured) else []
     assert np.count_nonzero(near) > 50, "no wear-coloured flank visible"
+
+
+def test_report_and_3d_view_work_offline(run_folder):
+    """Network emulated offline and every host unresolvable (workflow/bench/viewer3d_compare.py drives
+    Chromium over the DevTools pipe): the 3D view draws, and neither page asks for anything that is not
+    on disk (pyvista's export_html asks for five favicons: docs/report.md)."""
+    from workflow.bench.viewer3d_compare import open_page
+
+    view = open_page(run_folder / "report" / "wear_3d.html")
+    assert view["requests"] == [] and view["errors"] == [], view
+    assert view["first_frame_ms"] is not None and view["drawn_fraction"] > 0.1, view
+    page = open_page(run_folder / "report" / "report.html", timeout_s=3.0)  # its 3D view is in an iframe
+    assert page["requests"] == [] and page["errors"] == [], page
