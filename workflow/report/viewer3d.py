@@ -7,11 +7,13 @@ hidden). It opens from disk in any current browser (``file://``), without a
 server, a CDN or a Python package beyond NumPy and matplotlib (for the
 colour map).
 
-Why not ``pyvista.Plotter.export_html``: it needs ``trame`` and
-``trame-vtk`` (not in the project's venv), and its page carries vtk.js
-(~4 MB of JavaScript) before the first triangle. Measured on the quick
-scene (README, "Report"): this page is ~0.2 MB and draws in well under a
-second in headless Chromium (software WebGL).
+Why not ``pyvista.Plotter.export_html``: measured on the quick scene with
+the same triangles (``workflow/bench/viewer3d_compare.py``, docs/report.md),
+its page is 1.08 MB (vtk.js) against 0.05 MB here, reaches its first frame
+~0.3 s later (1080 against 765 ms median in headless Chromium, software
+WebGL), asks the network for five favicons when opened offline, and needs
+trame, trame-vtk, trame-vuetify, trame-pyvista and nest_asyncio2, which the
+project does not depend on. Its colour bar (ticks, title) is the better one.
 
 Units: positions are drawn in millimetres (metres in, ×1e3); wear in
 micrometres (metres in, ×1e6).
