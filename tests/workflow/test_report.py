@@ -154,8 +154,14 @@ def test_table1_side_by_side_pairs_our_cells_with_the_papers():
             {"method": "hdhb", "Nh": "17", "nit": "35", "nit_label": "2Nh+1", "normalised": "30.8"},
             {"method": "hbm", "Nh": "25", "nit": "128", "nit_label": "128", "normalised": "99"}]
     t = paper.table1_side_by_side(rows)
-    assert [(r["Nh"], r["column"], r["ours"], r["paper"]) for r in t] == \
-        [(1, "HBM nit=105", 1.0, 1.0), (17, "HDHB nit=2Nh+1", 30.8, 46.70)]
+    assert [(r["Nh"], r["column"], r["ours"], r["paper"], r["paper_text"]) for r in t] == \
+        [(1, "HBM nit=105", 1.0, 1.0, "1"), (17, "HDHB nit=2Nh+1", 30.8, 46.70, "46.70")]
+    from workflow.report import html as html_page
+    from workflow.report import markdown as md_page
+
+    args = ("t", {"status": "none"}, (None, None), (t, None), [], {}, [], {})
+    assert "<b>30.8</b> / 46.70" in html_page.page(*args)  # the paper's digits, not a rounding
+    assert "| 17 | HDHB nit=2Nh+1 | 30.8 | 46.70 |" in md_page.page(*args)
     assert paper.cpu_ratio_52({"cpu_ratio_pseudo_over_reference": 0.08})["paper"] == 0.29
     assert paper.caption("wear_profile")[1] == "Fig. 9"
     # The paper's FRF figures by their harmonic groups (Fig. 4: Nh = 1, 3; Fig. 5: Nh = 7, 17), else both.
@@ -232,8 +238,8 @@ def test_paper_numbers_quoted_by_the_report_are_the_papers():
     for line in text[text.index("$nit = 105$"):text.index("Table 1:")].splitlines():
         cells = line.split()
         if len(cells) == 6 and cells[0].isdigit():
-            table[int(cells[0])] = tuple(float(c) for c in cells[1:])
-    assert table == paper.TABLE1
+            table[int(cells[0])] = tuple(cells[1:])
+    assert table == paper.TABLE1_TEXT  # digit for digit, as the report prints them
     assert "pseudo time method requires 29%" in text and paper.CPU_RATIO_52 == 0.29
     for fig, words in (("Fig. 4", "Nh = 1, 3"), ("Fig. 5", "Nh = 7, 17")):
         assert re.search(re.escape(fig) + r":[^\n]*" + r"\$Nh = " + words.split("= ")[1], text), fig

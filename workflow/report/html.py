@@ -136,14 +136,15 @@ def paper_html(table1: list[dict], ratio: dict | None) -> str:
     out = ["<h2>Beside the paper (Salles et al. 2012)</h2>"]
     if table1:
         out.append("<p><b>Table 1</b> (§5.1, Figs. 4–7): CPU time of 50 frequencies, normalised by HBM, Nh = 1, "
-                   "nit = 105 [–]. The paper's Nh = 17 HBM cost (521) comes from its MATLAB solver; compare the "
-                   "trends, not the digits. Each cell: <b>ours</b> / paper.</p>")
+                   "nit = 105 [–]. Each side is normalised by its own HBM-1 cost and measured on its own code and "
+                   "machine: compare the trends (which column is cheapest at each Nh, how cost grows with Nh), not "
+                   "the digits. Each cell: <b>ours</b> / paper (as printed in the paper).</p>")
         cols = list(dict.fromkeys(r["column"] for r in table1))
         cell = {(r["Nh"], r["column"]): r for r in table1}
         out.append("<table><tr><th>Nh</th>" + "".join(f"<th>{e(c)}</th>" for c in cols) + "</tr>")
         for nh in sorted({r["Nh"] for r in table1}):
             out.append(f"<tr><td class='n'>{nh}</td>" + "".join(
-                f"<td class='n'><b>{cell[nh, c]['ours']:.3g}</b> / {cell[nh, c]['paper']:.3g}</td>"
+                f"<td class='n'><b>{cell[nh, c]['ours']:.3g}</b> / {e(cell[nh, c]['paper_text'])}</td>"
                 if (nh, c) in cell else "<td></td>" for c in cols) + "</tr>")
         out.append("</table>")
     if ratio:

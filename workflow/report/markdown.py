@@ -66,7 +66,7 @@ def page(title: str, h: dict, viewer: tuple, paper: tuple, sections, prov: dict,
         lines += ["## Beside the paper: Table 1 (§5.1, Figs. 4–7), CPU time of 50 frequencies normalised by "
                   "HBM Nh = 1 nit = 105", "",
                   "| Nh | method, nit | ours [–] | paper [–] |", "|---|---|---|---|"]
-        lines += [f"| {r['Nh']} | {r['column']} | {r['ours']:.3g} | {r['paper']:.3g} |" for r in table1] + [""]
+        lines += [f"| {r['Nh']} | {r['column']} | {r['ours']:.3g} | {r['paper_text']} |" for r in table1] + [""]
     if ratio:
         lines += _ratio_md(ratio)
     for product, figures, _ in sections:
