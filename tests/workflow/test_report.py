@@ -156,12 +156,16 @@ def test_table1_side_by_side_pairs_our_cells_with_the_papers():
     t = paper.table1_side_by_side(rows)
     assert [(r["Nh"], r["column"], r["ours"], r["paper"], r["paper_text"]) for r in t] == \
         [(1, "HBM nit=105", 1.0, 1.0, "1"), (17, "HDHB nit=2Nh+1", 30.8, 46.70, "46.70")]
+    # A variant whose points gave up is marked: its CPU includes the solves that hit the iteration limit.
+    runs = [{"method": "hdhb", "harmonics": 17, "time_samples": 35, "points": 50, "converged_points": 41}]
+    t = paper.table1_side_by_side(rows, runs)
+    assert [r["not_converged"] for r in t] == [0, 9]
     from workflow.report import html as html_page
     from workflow.report import markdown as md_page
 
     args = ("t", {"status": "none"}, (None, None), (t, None), [], {}, [], {})
-    assert "<b>30.8</b> / 46.70" in html_page.page(*args)  # the paper's digits, not a rounding
-    assert "| 17 | HDHB nit=2Nh+1 | 30.8 | 46.70 |" in md_page.page(*args)
+    assert "<b>30.8</b><sup>*&nbsp;(9)</sup> / 46.70" in html_page.page(*args)  # the paper's digits, not a rounding
+    assert "| 17 | HDHB nit=2Nh+1 | 30.8 * (9) | 46.70 |" in md_page.page(*args)
     assert paper.cpu_ratio_52({"cpu_ratio_pseudo_over_reference": 0.08})["paper"] == 0.29
     assert paper.caption("wear_profile")[1] == "Fig. 9"
     # The paper's FRF figures by their harmonic groups (Fig. 4: Nh = 1, 3; Fig. 5: Nh = 7, 17), else both.
@@ -266,3 +270,17 @@ def test_viewer_benchmark_counts_only_network_requests_and_real_errors():
     row = vc.summarise(__file__, loads)
     assert row["first_frame_ms_median"] == 800.0 and row["first_frame_ms_range"] == [700.0, 900.0]
     assert row["page_work_ms_median"] == 75.0  # median of 50 and 100 ms: the page's own work after its context
+
+
+def test_unconverged_variants_are_listed_once_each_and_make_a_check():
+    """summary.json's top-level ``unconverged`` is {stage: [lines]}: the warnings list the lines (not the
+    stage name), and variants beside a reference with points that gave up make an amber check."""
+    runs = [{"method": "hbm", "harmonics": 1, "time_samples": 105, "converged_points": 50, "points": 50},
+            {"method": "tcm", "harmonics": 7, "time_samples": 105, "converged_points": 43, "points": 50},
+            {"method": "tcm", "harmonics": 3, "time_samples": 105, "converged_points": 47, "points": 50}]
+    line = "TCM-7 nit=105 (newton-powell): 7/50 frequencies did not converge (…)"
+    summary = {"unconverged": {"hb": [line]}, "hb": {"unconverged": [line], "runs": runs}}
+    assert hl.stage_lines(summary, "unconverged") == [line]
+    c = hl.variants_check(runs)[0]
+    assert c.status == "amber" and "2 of 3 variants" in c.reason and "10 points" in c.reason and "TCM-7" in c.reason
+    assert hl.variants_check(runs[:1])[0].status == "green" and hl.variants_check([]) == []

@@ -46,7 +46,7 @@ _UNITS = (("_rad_s", "rad/s"), ("_m2", "m²"), ("_m3", "m³"), ("_hz", "Hz"), ("
 _WHOLE = {"seconds": "time [s]", "cpu_seconds": "CPU time [s]", "cpu_seconds_per_50": "CPU per 50 frequencies [s]",
           "normalised": "normalised CPU [–]", "Nh": "Nh", "nit": "nit",
           # hb: FRF error / peak amplitude; wear: profile error / max W (both relative)
-          "error": "error [–]"}
+          "error": "error [–]", "reference_uncertainty": "reference uncertainty [–]"}
 
 
 def header(name: str) -> str:

@@ -115,7 +115,7 @@ def warnings_html(h: dict) -> str:
     w = h.get("warnings") or []
     if not w:
         return ""
-    return ("<h2>Warnings</h2><ul>" + "".join(f"<li style='color:{COLOURS['red'] if 'not converged' in x else '#5a3d00'}'>"
+    return ("<h2>Warnings</h2><ul>" + "".join(f"<li style='color:{COLOURS['red'] if 'not converge' in x else '#5a3d00'}'>"
                                               f"{e(x)}</li>" for x in w) + "</ul>")
 
 
@@ -144,9 +144,12 @@ def paper_html(table1: list[dict], ratio: dict | None) -> str:
         out.append("<table><tr><th>Nh</th>" + "".join(f"<th>{e(c)}</th>" for c in cols) + "</tr>")
         for nh in sorted({r["Nh"] for r in table1}):
             out.append(f"<tr><td class='n'>{nh}</td>" + "".join(
-                f"<td class='n'><b>{cell[nh, c]['ours']:.3g}</b> / {e(cell[nh, c]['paper_text'])}</td>"
+                f"<td class='n'><b>{cell[nh, c]['ours']:.3g}</b>{_gave_up(cell[nh, c])} / {e(cell[nh, c]['paper_text'])}</td>"
                 if (nh, c) in cell else "<td></td>" for c in cols) + "</tr>")
         out.append("</table>")
+        if any(r.get("not_converged") for r in table1):
+            out.append("<p><small>* (k): k of the variant's 50 points did not converge; its CPU includes those "
+                       "solves up to the iteration limit (Warnings above).</small></p>")
     if ratio:
         d, ref = ratio.get("profile_max_rel_diff"), e(ratio.get("reference", "reference"))
         secs = [ratio.get("pseudo_seconds"), ratio.get("reference_seconds")]
@@ -161,6 +164,11 @@ def paper_html(table1: list[dict], ratio: dict | None) -> str:
                    + f"<tr><td>wear profiles apart [% of max W]</td><td class='n'>"
                    f"{'—' if d is None else f'{100 * d:.2g}'}</td><td class='n'>“the same” (Fig. 9)</td></tr></table>")
     return "\n".join(out)
+
+
+def _gave_up(row: dict) -> str:
+    k = row.get("not_converged") or 0
+    return f"<sup>*&nbsp;({k})</sup>" if k else ""
 
 
 def figures_html(sections) -> str:

@@ -71,10 +71,18 @@ def caption(stem: str) -> tuple[str, str]:
     return CAPTIONS[max(keys, key=len)] if keys else ("", "")
 
 
-def table1_side_by_side(cpu_rows: list[dict]) -> list[dict]:
-    """Rows ``{"Nh", "column", "ours", "paper", "paper_text"}`` for every (Nh,
-    method, nit) that both the run's ``cpu_table.csv`` rows and the paper's
-    Table 1 have (normalised CPU, dimensionless; ``paper_text`` as printed)."""
+def table1_side_by_side(cpu_rows: list[dict], runs=()) -> list[dict]:
+    """Rows ``{"Nh", "column", "ours", "paper", "paper_text", "not_converged"}``
+    for every (Nh, method, nit) that both the run's ``cpu_table.csv`` rows and
+    the paper's Table 1 have (normalised CPU, dimensionless; ``paper_text`` as
+    printed); ``not_converged`` counts the variant's points that gave up (from
+    the hb summary's ``runs``: their CPU is in the cell too)."""
+    gave_up = {}
+    for r in runs:
+        nit = "105" if int(r.get("time_samples", 0)) == 105 else (
+            "2Nh+1" if int(r.get("time_samples", 0)) == 2 * int(r.get("harmonics", 0)) + 1 else None)
+        if nit and r.get("points") is not None and r.get("converged_points") is not None:
+            gave_up[(int(r["harmonics"]), r.get("method"), nit)] = int(r["points"]) - int(r["converged_points"])
     ours = {}
     for r in cpu_rows:
         try:
@@ -85,8 +93,8 @@ def table1_side_by_side(cpu_rows: list[dict]) -> list[dict]:
     for nh, values in TABLE1.items():
         for (method, nit), paper, text in zip(TABLE1_COLUMNS, values, TABLE1_TEXT[nh]):
             if (nh, method, nit) in ours:
-                out.append({"Nh": nh, "column": f"{method.upper()} nit={nit}",
-                            "ours": ours[(nh, method, nit)], "paper": paper, "paper_text": text})
+                out.append({"Nh": nh, "column": f"{method.upper()} nit={nit}", "ours": ours[(nh, method, nit)],
+                            "paper": paper, "paper_text": text, "not_converged": gave_up.get((nh, method, nit), 0)})
     return out
 
 
