@@ -9,11 +9,13 @@ colour map).
 
 Why not ``pyvista.Plotter.export_html``: measured on the quick scene with
 the same triangles (``workflow/bench/viewer3d_compare.py``, docs/report.md),
-its page is 1.08 MB (vtk.js) against 0.05 MB here, reaches its first frame
-~0.3 s later (1080 against 765 ms median in headless Chromium, software
-WebGL), asks the network for five favicons when opened offline, and needs
-trame, trame-vtk, trame-vuetify, trame-pyvista and nest_asyncio2, which the
-project does not depend on. Its colour bar (ticks, title) is the better one.
+its page is 1.08 MB (vtk.js) against 0.05 MB here, needs ~0.3 s of its
+own work after its WebGL context against ~0.05–0.08 s here (the first
+frame itself comes 0.8–1.1 s after navigation for both in headless Chromium
+with software WebGL, most of it Chromium's GL start-up), asks the network
+for five favicons when opened offline, and needs trame, trame-vtk,
+trame-vuetify, trame-pyvista and nest_asyncio2, which the project does not
+depend on. Its colour bar (ticks, title) is the better one.
 
 Units: positions are drawn in millimetres (metres in, ×1e3); wear in
 micrometres (metres in, ×1e6).
