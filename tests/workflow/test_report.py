@@ -4,6 +4,7 @@ the paper side by side and the self-contained 3D view — without a browser
 from __future__ import annotations
 
 import base64
+import os
 import json
 import re
 import types
@@ -115,6 +116,30 @@ def test_headline_of_a_whole_summary(tmp_path):
     assert hl.headline(summary, {"frf": tmp_path, "wear": tmp_path / "wear"})["status"] == "red"
 
 
+def test_a_wear_only_scene_says_what_it_did_not_compute(tmp_path):
+    """paper-wear has no FRF and no worn model: the cards say so (not a row of dashes), the §5.2 side by side
+    names the reference march and its times, and the status stands on the wear checks alone."""
+    (tmp_path / "wear").mkdir()
+    (tmp_path / "wear" / "wear.csv").write_text("pair,flank,W_implicit_m,W_pseudo-time_m\n0,intrados,2e-6,2.01e-6\n")
+    wear = {"methods": {"implicit": {"steady": True, "reason": "steady", "seconds": 500.0},
+                        "pseudo-time": {"steady": True, "reason": "steady", "seconds": 50.0}},
+            "profile_max_rel_diff": 0.005, "cpu_ratio_pseudo_over_reference": 0.1}
+    h = hl.headline({"wear": wear, "timings": {"wear": 550.0}}, {"wear": tmp_path / "wear"})
+    assert h["peak_hz"] is None and h["max_wear_m"] == 2e-6 and h["status"] == "green"
+    worn = [c for c in h["checks"] if c["item"] == "worn"]
+    assert [c["status"] for c in worn] == ["none"] and "wear_map" in worn[0]["reason"]
+    from workflow.report import html as html_page
+    from workflow.report import markdown as md_page
+
+    ratio = paper.cpu_ratio_52(wear)
+    assert ratio["reference"] == "implicit" and (ratio["pseudo_seconds"], ratio["reference_seconds"]) == (50.0, 500.0)
+    args = ("t", h, (None, None), ([], ratio), [], {}, [], {})
+    page, md = html_page.page(*args), md_page.page(*args)
+    assert "no FRF in this run" in page and "no FRF in this run" in md and "data-key='tied_peak_amplitude_m'" in page
+    assert "pseudo-time / implicit march [–]" in page and "| time ratio pseudo-time / implicit march [–] | 0.1 | 0.29 |" in md
+    assert "50, 500" in page and "| wear profiles apart [% of max W] | 0.5 |" in md
+
+
 def test_formatting_puts_units_where_engineers_read_them():
     assert fmt.si(6.37356e-4, "m") == "637 µm" and fmt.si(2.2932e-6, "m") == "2.29 µm"
     assert fmt.si(None, "m") == "—" and fmt.si(0.0, "m") == "0 m"
@@ -129,10 +154,23 @@ def test_table1_side_by_side_pairs_our_cells_with_the_papers():
             {"method": "hdhb", "Nh": "17", "nit": "35", "nit_label": "2Nh+1", "normalised": "30.8"},
             {"method": "hbm", "Nh": "25", "nit": "128", "nit_label": "128", "normalised": "99"}]
     t = paper.table1_side_by_side(rows)
-    assert [(r["Nh"], r["column"], r["ours"], r["paper"]) for r in t] == \
-        [(1, "HBM nit=105", 1.0, 1.0), (17, "HDHB nit=2Nh+1", 30.8, 46.70)]
+    assert [(r["Nh"], r["column"], r["ours"], r["paper"], r["paper_text"]) for r in t] == \
+        [(1, "HBM nit=105", 1.0, 1.0, "1"), (17, "HDHB nit=2Nh+1", 30.8, 46.70, "46.70")]
+    # A variant whose points gave up is marked: its CPU includes the solves that hit the iteration limit.
+    runs = [{"method": "hdhb", "harmonics": 17, "time_samples": 35, "points": 50, "converged_points": 41}]
+    t = paper.table1_side_by_side(rows, runs)
+    assert [r["not_converged"] for r in t] == [0, 9]
+    from workflow.report import html as html_page
+    from workflow.report import markdown as md_page
+
+    args = ("t", {"status": "none"}, (None, None), (t, None), [], {}, [], {})
+    assert "<b>30.8</b><sup>*&nbsp;(9)</sup> / 46.70" in html_page.page(*args)  # the paper's digits, not a rounding
+    assert "| 17 | HDHB nit=2Nh+1 | 30.8 * (9) | 46.70 |" in md_page.page(*args)
     assert paper.cpu_ratio_52({"cpu_ratio_pseudo_over_reference": 0.08})["paper"] == 0.29
-    assert paper.caption("frf_nh1_3")[1] == "Figs. 4–5" and paper.caption("wear_profile")[1] == "Fig. 9"
+    assert paper.caption("wear_profile")[1] == "Fig. 9"
+    # The paper's FRF figures by their harmonic groups (Fig. 4: Nh = 1, 3; Fig. 5: Nh = 7, 17), else both.
+    assert paper.caption("frf_nh1_3")[1] == "Fig. 4" and paper.caption("frf_nh7_17")[1] == "Fig. 5"
+    assert paper.caption("frf_nh3")[1] == "Figs. 4–5" and paper.caption("frf_nh1_35")[1] == "Figs. 4–5"
 
 
 def cube_tets():
@@ -181,3 +219,68 @@ def test_viewer_page_is_self_contained_and_carries_the_wear(tmp_path):
     np.testing.assert_array_equal(col[-4:], viewer3d.viridis_rgb(flank.wear, 2e-6))
     assert ">2<" in page  # colour bar's top label: max wear 2 µm
     assert float(np.ptp(pos[:, 0])) == pytest.approx(10.0, rel=1e-6)  # mm
+    # read_viewer decodes what the page carries (the pyvista comparison exports the same data).
+    d = viewer3d.read_viewer(path)
+    np.testing.assert_array_equal(d["triangles"], tri)
+    np.testing.assert_array_equal(d["colours"], col)
+    np.testing.assert_array_equal(d["positions"], pos)
+    assert d["wear_max_um"] == 2.0 and d["view_side"] in (-1.0, 1.0)
+    from workflow.errors import GeometryError
+
+    with pytest.raises(GeometryError, match="not a 3D view"):
+        viewer3d.read_viewer(tmp_path / "plain.html") if (tmp_path / "plain.html").write_text("<p>x</p>") else None
+
+
+PAPER = os.environ.get("BLADEWEAR_PAPER", "/work/shared/reference/salles-2012-dual-time-stepping-hb-fretting-wear.md")
+
+
+@pytest.mark.skipif(not os.path.isfile(PAPER), reason="the paper's text is not on this machine (BLADEWEAR_PAPER)")
+def test_paper_numbers_quoted_by_the_report_are_the_papers():
+    """Table 1 and the §5.2 CPU share in workflow/report/paper.py, read again from the paper's text."""
+    text = open(PAPER, encoding="utf-8").read()
+    table = {}
+    for line in text[text.index("$nit = 105$"):text.index("Table 1:")].splitlines():
+        cells = line.split()
+        if len(cells) == 6 and cells[0].isdigit():
+            table[int(cells[0])] = tuple(cells[1:])
+    assert table == paper.TABLE1_TEXT  # digit for digit, as the report prints them
+    assert "pseudo time method requires 29%" in text and paper.CPU_RATIO_52 == 0.29
+    for fig, words in (("Fig. 4", "Nh = 1, 3"), ("Fig. 5", "Nh = 7, 17")):
+        assert re.search(re.escape(fig) + r":[^\n]*" + r"\$Nh = " + words.split("= ")[1], text), fig
+    for stem in ("frf_nit_aliasing", "iterations", "tangential", "wear_profile", "tip_cycle", "max_wear", "harmonic1"):
+        fig = paper.caption(stem)[1]
+        assert re.search(rf"\n{re.escape(fig)}:", text), (stem, fig)
+
+
+def test_viewer_benchmark_counts_only_network_requests_and_real_errors():
+    """The offline check of the 3D views (workflow/bench/viewer3d_compare.py): local URLs are not network
+    requests; software-GL performance notes are not errors; a failed fetch and an exception are."""
+    from workflow.bench import viewer3d_compare as vc
+
+    ev = [{"method": "Network.requestWillBeSent", "params": {"request": {"url": u}}}
+          for u in ("file:///r/wear_3d.html", "data:image/png;base64,AA", "https://kitware.github.io/x.png")]
+    ev += [{"method": "Log.entryAdded", "params": {"entry": {"level": "error", "text": t}}}
+           for t in ("Failed to load resource: net::ERR_INTERNET_DISCONNECTED", "GL Driver Message (OpenGL, x)")]
+    ev.append({"method": "Runtime.exceptionThrown", "params": {"exceptionDetails": {"text": "Uncaught",
+                                                                                     "exception": {"description": "E"}}}})
+    assert vc._requests(ev) == ["https://kitware.github.io/x.png"]
+    assert vc._errors(ev) == ["Failed to load resource: net::ERR_INTERNET_DISCONNECTED", "E"]
+    loads = [{"first_frame_ms": f, "first_draw_ms": f, "webgl_context_ms": [1.0, g], "requests": [],
+              "errors": [], "drawn_fraction": 0.3} for f, g in ((700.0, 650.0), (900.0, 800.0), (None, 700.0))]
+    row = vc.summarise(__file__, loads)
+    assert row["first_frame_ms_median"] == 800.0 and row["first_frame_ms_range"] == [700.0, 900.0]
+    assert row["page_work_ms_median"] == 75.0  # median of 50 and 100 ms: the page's own work after its context
+
+
+def test_unconverged_variants_are_listed_once_each_and_make_a_check():
+    """summary.json's top-level ``unconverged`` is {stage: [lines]}: the warnings list the lines (not the
+    stage name), and variants beside a reference with points that gave up make an amber check."""
+    runs = [{"method": "hbm", "harmonics": 1, "time_samples": 105, "converged_points": 50, "points": 50},
+            {"method": "tcm", "harmonics": 7, "time_samples": 105, "converged_points": 43, "points": 50},
+            {"method": "tcm", "harmonics": 3, "time_samples": 105, "converged_points": 47, "points": 50}]
+    line = "TCM-7 nit=105 (newton-powell): 7/50 frequencies did not converge (…)"
+    summary = {"unconverged": {"hb": [line]}, "hb": {"unconverged": [line], "runs": runs}}
+    assert hl.stage_lines(summary, "unconverged") == [line]
+    c = hl.variants_check(runs)[0]
+    assert c.status == "amber" and "2 of 3 variants" in c.reason and "10 points" in c.reason and "TCM-7" in c.reason
+    assert hl.variants_check(runs[:1])[0].status == "green" and hl.variants_check([]) == []

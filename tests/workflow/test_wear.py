@@ -220,7 +220,7 @@ def test_paper_wear_scene_resolves():
     sc = load_scene(SHIPPED / "paper-wear.toml")
     assert sc["geometry"].nodes_along * sc["geometry"].nodes_across * 2 == 48
     assert sc["hb"].harmonics == [3] and sc["excitation"].amplitude == 0.5 and sc["contact"].mu == 0.5
-    assert sc["run"].outputs == ["wear"]
+    assert sc["run"].outputs == ["wear", "report"]
 
 
 def test_reference_and_pseudo_time_converge_to_the_same_trajectory_end():

@@ -44,7 +44,9 @@ def seconds(value) -> str:
 _UNITS = (("_rad_s", "rad/s"), ("_m2", "m²"), ("_m3", "m³"), ("_hz", "Hz"), ("_kg", "kg"), ("_pa", "Pa"),
           ("_n", "N"), ("_m", "m"), ("_s", "s"))
 _WHOLE = {"seconds": "time [s]", "cpu_seconds": "CPU time [s]", "cpu_seconds_per_50": "CPU per 50 frequencies [s]",
-          "normalised": "normalised CPU [–]", "Nh": "Nh", "nit": "nit"}
+          "normalised": "normalised CPU [–]", "Nh": "Nh", "nit": "nit",
+          # hb: FRF error / peak amplitude; wear: profile error / max W (both relative)
+          "error": "error [–]", "reference_uncertainty": "reference uncertainty [–]"}
 
 
 def header(name: str) -> str:

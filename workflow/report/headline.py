@@ -178,12 +178,31 @@ def reference_checks(hb: dict, run: dict) -> list[Check]:
         out.append(Check("peak", "error vs reference", "green",
                          f"headline is the reference; variants' FRF errors {100 * min(errs):.2g}–"
                          f"{100 * max(errs):.2g} % of the peak"))
+    out += variants_check(hb.get("runs") or [])
     conv = ref.get("convergence") or {}
     if conv.get("max_rel_change") is not None:
         ch = float(conv["max_rel_change"])
         out.append(Check("peak", "reference convergence", "green" if ch <= EPS_TOL else "amber",
                          f"reference peak moves by {ch:.2e} under 2×nit / 1.5×Nh / 10×ε"))
     return out
+
+
+def variants_check(runs: list[dict]) -> list[Check]:
+    """The variants beside the headline (paper-frf: Table 1's cells): amber when some of their
+    points did not converge — their errors and times then include solves that gave up."""
+    bad = [r for r in runs if r.get("converged_points") is not None and r.get("points")
+           and int(r["converged_points"]) < int(r["points"])]
+    if not runs or not any(r.get("points") for r in runs):
+        return []
+    if not bad:
+        return [Check("peak", "variants converged", "green", f"every point of the {len(runs)} variants converged")]
+    n = sum(int(r["points"]) - int(r["converged_points"]) for r in bad)
+    worst_run = max(bad, key=lambda r: int(r["points"]) - int(r["converged_points"]))
+    return [Check("peak", "variants converged", "amber",
+                  f"{len(bad)} of {len(runs)} variants have points that did not converge ({n} points in all; most: "
+                  f"{worst_run.get('method', '?').upper()}-{worst_run.get('harmonics')} nit={worst_run.get('time_samples')}, "
+                  f"{int(worst_run['points']) - int(worst_run['converged_points'])}/{worst_run['points']}): their FRF "
+                  "errors and times include solves that gave up")]
 
 
 def hb_headline(hb: dict, folder: Path | None, damping: dict | None) -> tuple[dict, list[Check]]:
@@ -296,7 +315,8 @@ def remap_headline(remap: dict, tied_mode: int | None) -> tuple[dict, list[Check
     when the remap reassembled the worn model, else the tied mode's shift."""
     vals = dict(worn_frequency_shift_hz=None, worn_frequency_shift_source=None, worn_tied_shift_hz=None)
     if not remap:
-        return vals, []
+        return vals, [Check("worn", "frequency shift", "none",
+                            "no worn model in this run (the scene's outputs have no “wear_map”)")]
     checks = []
     frac, allowed = remap.get("max_motion_fraction"), remap.get("max_fraction_allowed")
     if frac is not None and allowed:
@@ -346,8 +366,11 @@ def model_checks(summary: dict) -> list[Check]:
 
 
 def stage_lines(summary: dict, key: str) -> list[str]:
-    """Every ``key`` ("unconverged"/"warnings") line of the summary: top level and per stage."""
-    lines = list(summary.get(key) or [])
+    """Every ``key`` ("unconverged"/"warnings") line of the summary: top level and per stage.
+    The top level's ``unconverged`` is ``{stage: [lines]}`` (workflow/pipeline.py); a stage's is a list."""
+    top = summary.get(key) or []
+    lines = [str(x) for v in top.values() for x in (v if isinstance(v, list) else [v])] \
+        if isinstance(top, dict) else [str(x) for x in top]
     for entry in summary.values():
         if isinstance(entry, dict) and isinstance(entry.get(key), list):
             lines += [str(x) for x in entry[key] if str(x) not in lines]

@@ -11,10 +11,12 @@ from __future__ import annotations
 
 #: Paper Table 1: normalised CPU per (Nh, column); columns as in the paper.
 TABLE1_COLUMNS = (("hbm", "105"), ("hbm", "2Nh+1"), ("tcm", "105"), ("tcm", "2Nh+1"), ("hdhb", "2Nh+1"))
-TABLE1 = {1: (1.0, 0.17, 1.43, 0.18, 0.17),
-          3: (3.71, 0.51, 2.70, 0.45, 0.71),
-          7: (14.59, 6.41, 7.10, 3.24, 3.71),
-          17: (521.0, 88.44, 44.62, 46.60, 46.70)}
+#: As printed in the paper (the report quotes these strings, not a rounding of them).
+TABLE1_TEXT = {1: ("1", "0.17", "1.43", "0.18", "0.17"),
+               3: ("3.71", "0.51", "2.70", "0.45", "0.71"),
+               7: ("14.59", "6.41", "7.10", "3.24", "3.71"),
+               17: ("521", "88.44", "44.62", "46.60", "46.70")}
+TABLE1 = {nh: tuple(float(v) for v in row) for nh, row in TABLE1_TEXT.items()}
 #: Paper §5.2: pseudo-time CPU / implicit DLFT CPU to the worn steady state.
 CPU_RATIO_52 = 0.29
 PAPER_SCENES = ("paper-frf", "paper-wear")
@@ -24,6 +26,12 @@ CAPTIONS = {
     "frf_nh": ("Tip amplitude (first harmonic) against frequency for each method and nit; grey dash-dot: "
                "the tied and sliding linear limits. Look at how far the friction-damped peak sits below the tied "
                "peak and between the two limits, and whether the methods agree.", "Figs. 4–5"),
+    # The paper's own groups: Fig. 4 is Nh = 1, 3 and Fig. 5 is Nh = 7, 17 (paper-frf's harmonics).
+    "frf_nh1_3": ("Tip amplitude (first harmonic) against frequency, Nh = 1 and 3, each method and nit; grey "
+                  "dash-dot: the tied and sliding linear limits. Look at how far the friction-damped peak sits below "
+                  "the tied peak, and where nit = 2Nh+1 (and HDHB) part from nit = 105.", "Fig. 4"),
+    "frf_nh7_17": ("The same at Nh = 7 and 17: the methods should now overlay (HDHB has converged to HBM).",
+                   "Fig. 5"),
     "frf_nit_aliasing": ("The same at the lowest Nh with nit = 2Nh+1 against a large nit: where the curves part, "
                          "the few time samples alias the contact forces.", "Fig. 6"),
     "iterations": ("Solver iterations per frequency: peaks mark where the contact state changes (stick → slip); "
@@ -34,8 +42,9 @@ CAPTIONS = {
                       "best buy.", ""),
     "wear_profile": ("Wear depth W per contact pair at the worn steady state, per method: the profiles should "
                      "coincide; the tallest bars are where the flank wears first.", "Fig. 9"),
-    "tip_cycle": ("Tip displacement over one period before and after wear: the change is what wear does to the "
-                  "blade's response.", "Fig. 10"),
+    "tip_cycle": ("Tip displacement over one period before wear and at each method's worn steady state: the "
+                  "worn curves should overlay (the paper's Fig. 10 compares the methods); their change from the "
+                  "unworn curve is what wear does to the blade's response.", "Fig. 10"),
     "max_wear": ("Deepest wear against cycles (physical for the march, pseudo for pseudo-time): the curve "
                  "flattening is the worn steady state.", "Fig. 11"),
     "harmonic1": ("First harmonic of the tracked pair's tangential displacement against cycles: it settles when "
@@ -58,17 +67,29 @@ CAPTIONS = {
 }
 
 
+#: Keys that name one figure exactly (no prefix match: ``frf_nh1_3`` is not ``frf_nh1_35``).
+EXACT = ("frf_nh1_3", "frf_nh7_17")
+
+
 def caption(stem: str) -> tuple[str, str]:
     """(what to look at, paper figure) for a figure file stem; the longest
-    matching key wins (``frf_nh1_3`` → ``frf_nh``)."""
-    keys = [k for k in CAPTIONS if stem == k or stem.startswith(k)]
+    matching key wins (``frf_nh3_5`` → ``frf_nh``, ``frf_nh1_3`` → itself)."""
+    keys = [k for k in CAPTIONS if stem == k or (k not in EXACT and stem.startswith(k))]
     return CAPTIONS[max(keys, key=len)] if keys else ("", "")
 
 
-def table1_side_by_side(cpu_rows: list[dict]) -> list[dict]:
-    """Rows ``{"Nh", "column", "ours", "paper"}`` for every (Nh, method, nit)
-    that both the run's ``cpu_table.csv`` rows and the paper's Table 1 have
-    (normalised CPU, dimensionless)."""
+def table1_side_by_side(cpu_rows: list[dict], runs=()) -> list[dict]:
+    """Rows ``{"Nh", "column", "ours", "paper", "paper_text", "not_converged"}``
+    for every (Nh, method, nit) that both the run's ``cpu_table.csv`` rows and
+    the paper's Table 1 have (normalised CPU, dimensionless; ``paper_text`` as
+    printed); ``not_converged`` counts the variant's points that gave up (from
+    the hb summary's ``runs``: their CPU is in the cell too)."""
+    gave_up = {}
+    for r in runs:
+        nit = "105" if int(r.get("time_samples", 0)) == 105 else (
+            "2Nh+1" if int(r.get("time_samples", 0)) == 2 * int(r.get("harmonics", 0)) + 1 else None)
+        if nit and r.get("points") is not None and r.get("converged_points") is not None:
+            gave_up[(int(r["harmonics"]), r.get("method"), nit)] = int(r["points"]) - int(r["converged_points"])
     ours = {}
     for r in cpu_rows:
         try:
@@ -77,17 +98,26 @@ def table1_side_by_side(cpu_rows: list[dict]) -> list[dict]:
             continue
     out = []
     for nh, values in TABLE1.items():
-        for (method, nit), paper in zip(TABLE1_COLUMNS, values):
+        for (method, nit), paper, text in zip(TABLE1_COLUMNS, values, TABLE1_TEXT[nh]):
             if (nh, method, nit) in ours:
-                out.append({"Nh": nh, "column": f"{method.upper()} nit={nit}",
-                            "ours": ours[(nh, method, nit)], "paper": paper})
+                out.append({"Nh": nh, "column": f"{method.upper()} nit={nit}", "ours": ours[(nh, method, nit)],
+                            "paper": paper, "paper_text": text, "not_converged": gave_up.get((nh, method, nit), 0)})
     return out
 
 
 def cpu_ratio_52(wear: dict) -> dict | None:
-    """Our pseudo-time / reference-march CPU ratio beside the paper's §5.2 29 %."""
+    """Our pseudo-time / reference-march time ratio beside the paper's §5.2 29 %.
+
+    The reference is the implicit DLFT march when the scene ran it (the paper's
+    "implicit method with DLFT", 100 %), else the explicit one: the wear
+    engine's rule (workflow/engine/wearstudy.py). Times [s] are the wear
+    study's wall-clock seconds per method; the paper's are CPU shares."""
     r = (wear or {}).get("cpu_ratio_pseudo_over_reference")
     if r is None:
         return None
-    return {"ours": float(r), "paper": CPU_RATIO_52,
-            "profile_max_rel_diff": (wear or {}).get("profile_max_rel_diff")}
+    methods = wear.get("methods") or {}
+    ref = next((m for m in ("implicit", "explicit") if m in methods), None)
+    sec = {m: (methods.get(m) or {}).get("seconds") for m in (ref, "pseudo-time") if m}
+    return {"ours": float(r), "paper": CPU_RATIO_52, "reference": ref or "reference",
+            "reference_seconds": sec.get(ref), "pseudo_seconds": sec.get("pseudo-time"),
+            "profile_max_rel_diff": wear.get("profile_max_rel_diff")}

@@ -7,11 +7,15 @@ hidden). It opens from disk in any current browser (``file://``), without a
 server, a CDN or a Python package beyond NumPy and matplotlib (for the
 colour map).
 
-Why not ``pyvista.Plotter.export_html``: it needs ``trame`` and
-``trame-vtk`` (not in the project's venv), and its page carries vtk.js
-(~4 MB of JavaScript) before the first triangle. Measured on the quick
-scene (README, "Report"): this page is ~0.2 MB and draws in well under a
-second in headless Chromium (software WebGL).
+Why not ``pyvista.Plotter.export_html``: measured on the quick scene with
+the same triangles (``workflow/bench/viewer3d_compare.py``, docs/report.md),
+its page is 1.08 MB (vtk.js) against 0.05 MB here, needs ~0.3 s of its
+own work after its WebGL context against ~0.05–0.08 s here (the first
+frame itself comes 0.8–1.1 s after navigation for both in headless Chromium
+with software WebGL, most of it Chromium's GL start-up), asks the network
+for five favicons when opened offline, and needs trame, trame-vtk,
+trame-vuetify, trame-pyvista and nest_asyncio2, which the project does not
+depend on. Its colour bar (ticks, title) is the better one.
 
 Units: positions are drawn in millimetres (metres in, ×1e3); wear in
 micrometres (metres in, ×1e6).
@@ -149,3 +153,26 @@ def write_viewer(path, points, cells, cell_types, body, surfaces, title: str, no
 
 
 _TEMPLATE = Path(__file__).with_name("viewer3d.html").read_text()
+
+
+def read_viewer(path) -> dict:
+    """The arrays a page of :func:`write_viewer` carries, decoded: ``positions``
+    (v, 3) float32 [mm], ``colours`` (v, 3) uint8, ``part`` (v,) uint8,
+    ``triangles`` (t, 3) uint32, ``wear_max_um`` (colour bar top [µm]), ``size_mm``,
+    ``view_side`` (±1: the side of the first view).
+    The inverse of the page's embedding (used to export the same data elsewhere
+    and by the tests)."""
+    text = Path(path).read_text(encoding="utf-8")
+    head, sep, rest = text.partition("const DATA = ")
+    if not sep:
+        raise GeometryError(f"{path}: not a 3D view page (no DATA)")
+    data, _ = json.JSONDecoder().raw_decode(rest)
+    wmax = head.rsplit("<span>", 1)[-1].split("</span>", 1)[0]
+
+    def dec(key, dtype, width):
+        a = np.frombuffer(base64.b64decode(data[key]), dtype=dtype)
+        return a.reshape(-1, width) if width > 1 else a
+
+    return {"positions": dec("positions", np.float32, 3), "colours": dec("colours", np.uint8, 3),
+            "part": dec("part", np.uint8, 1), "triangles": dec("triangles", np.uint32, 3),
+            "wear_max_um": float(wmax), "size_mm": float(data["size_mm"]), "view_side": float(data["view_side"])}

@@ -51,7 +51,8 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     viewer = copy_viewer(folders.get("wear_map"), out)
     h = headline(summary, folders)
     stem = Path(str(summary.get("scene", ""))).stem
-    table1 = paper.table1_side_by_side(read_rows(folders["frf"] / "cpu_table.csv")) \
+    runs = (summary.get("hb") or {}).get("runs") or []
+    table1 = paper.table1_side_by_side(read_rows(folders["frf"] / "cpu_table.csv"), runs) \
         if stem == "paper-frf" and "frf" in folders else []
     ratio = paper.cpu_ratio_52(summary.get("wear")) if stem == "paper-wear" else None
     stages = [(n, s, summary.get("timings", {}).get(n, "")) for n, s in summary.get("stages", {}).items()]
