@@ -89,7 +89,7 @@ def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: i
     law = contact_law(model, mu=mu)
     v = Variant(method, nh, nit)
     with blas_threads(1):
-        st = frf(model, law, [v], points=points, options=FRFOptions(solver=solver, eps_check_factor=0.0,
+        st = frf(model, law, [v], points=points, options=FRFOptions(solver=solver, eps_check_factor=0.0, refine_peak=False,
                                                                     reference=None, max_iterations=maxiter))
     r = st.runs[0]
     conv = r.converged_points

@@ -6,7 +6,7 @@ model's DLFT penalties, so the comparison is free of ε; each keeps its own
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -33,8 +33,7 @@ def frf_new_vs_worn(new, worn, law, variant, f_range_hz, points: int, options, g
     f0, f1 = band(f_range_hz[0], f_range_hz[1], f_new)
     out = {"freqs_hz": np.linspace(f0, f1, int(points)), "tied_hz": {}, "variant": variant}
     out["peak"] = {}
-    kw = dict(solver=options.solver, tol=options.tol, maxiter=options.max_iterations,
-              max_passes=options.max_passes, eps_path=options.eps_path)
+    options = replace(options, refine_peak=True, peak_xtol=PEAK_XTOL)
     for key, model in (("new", new), ("worn", worn)):
         lk = ContactLaw(mu=law.mu, eps_n=law.eps_n, eps_t=law.eps_t,
                         gap=np.asarray(model.gap, dtype=float) + float(gap))
@@ -42,14 +41,13 @@ def frf_new_vs_worn(new, worn, law, variant, f_range_hz, points: int, options, g
         out[key] = study.runs[0]
         out[key].static = study.static
         out["tied_hz"][key] = study.tied_hz
-        pk = refine_peak(relative_coordinates(model), study.runs[0], lk, study.static, variant,
-                         PEAK_XTOL * f_new, **kw)
-        out["peak"][key] = (None, None) if pk is None else (pk.hz, pk.amplitude)
+        pk = study.peak
+        out["peak"][key] = (None, None) if pk is None else (pk["hz"], pk["amplitude_m"])
     return out
 
 
-#: Peak frequency tolerance of :func:`refine_peak` in the new-vs-worn comparison, relative to
-#: the tied frequency: worn − new shifts are ~1e-6 of it on the sectors we ran, far below a grid step.
+#: Peak frequency tolerance of the new-vs-worn comparison (:attr:`FRFOptions.peak_xtol`), relative
+#: to the peak frequency: worn − new shifts are ~1e-6 of it on the sectors we ran, far below a grid step.
 PEAK_XTOL = 1e-8
 
 

@@ -93,6 +93,11 @@ def static_state(Zr, Fr, law, max_passes: int = 20):
     return st
 
 
+#: Frequency tolerance of the refined peak, relative to the peak frequency: ~2e-4 Hz at 200 Hz,
+#: far below any grid step and the peak's width, in ~20 extra points of one sweep.
+PEAK_XTOL = 1e-6
+
+
 @dataclass
 class FRFOptions:
     """How to solve: ``solver`` (newton, powell, newton-powell, pseudo-time),
@@ -104,7 +109,9 @@ class FRFOptions:
     default penalty; empty for a user's own ε);
     ``pseudo``: :func:`workflow.pseudotime.integrate` options of the
     ``pseudo-time`` solver; ``refine_peak``: refine the peak of the most
-    converged grid sweep between its grid points (:attr:`FRFStudy.peak`)."""
+    converged grid sweep of a band between its grid points, to ``peak_xtol``
+    × its frequency (:attr:`FRFStudy.peak`; not done for explicit
+    ``freqs_hz``)."""
 
     solver: str = "newton-powell"
     tol: float = 1e-8
@@ -118,6 +125,7 @@ class FRFOptions:
     eps_path: tuple = penalty.path(penalty.FACTOR)
     pseudo: dict = field(default_factory=dict)
     refine_peak: bool = True
+    peak_xtol: float = PEAK_XTOL
 
 
 @dataclass
@@ -289,16 +297,11 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
             study.eps_check = epscheck.frf_runs(rc, cond, law, static, runs + ([ref] if ref else []), opt)
         if ref is not None and opt.reference_check and opt.sweep == "grid":
             study.reference_convergence = epscheck.reference(rc, cond, law, static, ref, opt)
-        if opt.refine_peak and opt.sweep == "grid" and len(freqs) > 1:
+        if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:
             study.peak = _refined_peak(rc, law, static, ref if ref is not None else _most_harmonics(runs), opt,
                                        reference=ref is not None)
     study.seconds = time.perf_counter() - t0
     return study
-
-
-#: Frequency tolerance of the refined peak, relative to the peak frequency: ~2e-4 Hz at 200 Hz,
-#: far below any grid step and the peak's width, in ~20 extra points of one sweep.
-PEAK_XTOL = 1e-6
 
 
 def _most_harmonics(runs):
@@ -313,7 +316,7 @@ def _refined_peak(rc, law, static, sweep, opt, reference: bool) -> dict | None:
     if sweep is None or not sweep.converged.any():
         return None
     i = int(np.argmax(np.where(sweep.converged, sweep.amplitude, -np.inf)))
-    xtol = PEAK_XTOL * float(sweep.freqs_hz[i])
+    xtol = opt.peak_xtol * float(sweep.freqs_hz[i])
     solver = dict(solver="newton-powell") if reference else dict(solver=opt.solver, pseudo=opt.pseudo)
     pk = refine_peak(rc, sweep, law, static, sweep.variant, xtol, tol=opt.tol, maxiter=opt.max_iterations,
                      max_passes=opt.max_passes, eps_path=opt.eps_path, **solver)
