@@ -311,7 +311,7 @@ def _at_law(prob, pr: PointResult, tol: float) -> PointResult:
 
 
 def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=None,
-                eps_path=(), pseudo: dict | None = None, _collocated_first: bool = True) -> PointResult:
+                eps_path=(), pseudo: dict | None = None) -> PointResult:
     """Solve one frequency of ``prob`` (:class:`~workflow.hb.HBProblem`) from
     ``guesses`` (unknown vectors; None entries skipped) through the cascade
     of the module docstring. ``tol`` is relative to ‖F‖. ``smooth``
@@ -320,7 +320,7 @@ def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=
     ``pseudo``: see :func:`run_solver`."""
     if solver not in SOLVERS:
         raise SceneError(f"hb.solver: {solver!r} is not one of {', '.join(SOLVERS)}")
-    if _collocated_first and collocated(prob) and len(eps_path):
+    if collocated(prob) and len(eps_path):
         # measured on the hb-stage tests' blade (Nh = 5, nit = 11, 41 points through the
         # resonance): along the ε-path 21/41 (HBM), 17/41 (HDHB, TCM) points converged in
         # 5–7 s; the whole cascade at the path's first level, 41/41 in 0.6 s, the three
@@ -328,13 +328,16 @@ def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=
         # (on the same blade with milder slip, Nh = 2, the first level lost 3 of 7 points
         # that the path finds: it is the fallback)
         low = _with_penalty(prob, eps_path[0])
-        pr = _at_law(prob, solve_point(low, guesses, solver=solver, tol=tol, maxiter=maxiter, smooth=smooth,
-                                       pseudo=pseudo), tol)
+        pr = _at_law(prob, _cascade(low, guesses, solver, tol, maxiter, smooth, (), pseudo), tol)
         if pr.converged:
             return pr
-        rest = solve_point(prob, guesses, solver=solver, tol=tol, maxiter=maxiter, smooth=smooth,
-                           eps_path=eps_path, pseudo=pseudo, _collocated_first=False)
+        rest = _cascade(prob, guesses, solver, tol, maxiter, smooth, eps_path, pseudo)
         return replace(rest, iterations=rest.iterations + pr.iterations)
+    return _cascade(prob, guesses, solver, tol, maxiter, smooth, eps_path, pseudo)
+
+
+def _cascade(prob, guesses, solver: str, tol: float, maxiter: int, smooth, eps_path, pseudo) -> PointResult:
+    """Attempts 1–8 of the module docstring (:func:`solve_point` has the arguments)."""
     done, k, norms = _satisfied(prob, guesses, tol)
     if done is not None:
         return PointResult(done, 0, f"guess{k}")
