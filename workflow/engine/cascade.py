@@ -292,6 +292,21 @@ def homotopy(prob, run, solver: str, tol: float, maxiter: int, best: _Best) -> b
     return _chain([scaled_forcing(f) for f in HOMOTOPY], run, solver, maxiter, best)
 
 
+def _once(fn):
+    """``fn`` (a ``smooth`` guess callable, or None) computed at most once: later calls
+    return its guess again at no iteration cost."""
+    if fn is None:
+        return None
+    memo = []
+
+    def once():
+        if not memo:
+            memo.append(fn())
+            return memo[0]
+        return memo[0][0], 0
+    return once
+
+
 def _at_law(prob, pr: PointResult, tol: float) -> PointResult:
     """A collocated problem's root at a smaller ε (:func:`collocated`) as the root at the
     law's own ε: accepted by its residual there, else polished by Newton from it."""
@@ -328,6 +343,7 @@ def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=
         # (on the same blade with milder slip, Nh = 2, the first level lost 3 of 7 points
         # that the path finds: it is the fallback)
         low = _with_penalty(prob, eps_path[0])
+        smooth = _once(smooth)      # its guess does not depend on the ε it seeds: made once for both
         pr = _at_law(prob, _cascade(low, guesses, solver, tol, maxiter, smooth, (), pseudo), tol)
         if pr.converged:
             return pr
