@@ -60,12 +60,17 @@ def sliding_frequency(model: ReducedModel) -> float:
     return float(np.sqrt(w2[0]) / (2 * np.pi))
 
 
-def run_stage(tmp: Path, model: ReducedModel, *, mu=0.3, **hb) -> tuple[dict, Path]:
+#: what the FRF tests do not look at — ε-check, the reference's own check, the peak refinement —
+#: switched off: they are tested on the ``study`` fixture (test_checks_of_a_default_stage_run)
+LEAN = dict(contact=dict(eps_check=0.0), reference_check=False, refine_peak=False)
+
+
+def run_stage(tmp: Path, model: ReducedModel, *, mu=0.3, contact=None, **hb) -> tuple[dict, Path]:
     src = tmp / "reduced"
     src.mkdir(parents=True, exist_ok=True)
     model.save(src / "reduced.npz")
     sweep = hb.pop("sweep", {})
-    scene = {"contact": Contact(mu=mu), "hb": HB(**hb), "sweep": Sweep(**sweep), "excitation": Excitation(),
+    scene = {"contact": Contact(mu=mu, **(contact or {})), "hb": HB(**hb), "sweep": Sweep(**sweep), "excitation": Excitation(),
              "pseudotime": PseudoTime()}
     out = tmp / "out"
     out.mkdir(exist_ok=True)
@@ -101,9 +106,39 @@ def study(tmp_path_factory):
 def collocated(tmp_path_factory):
     """Mild slip: the three formulations with nit = 2Nh+1, and HBM with nit = 32."""
     tmp = tmp_path_factory.mktemp("hbcolloc")
-    summary, out = run_stage(tmp, blade_chain(force=0.1, preload=np.array([2.0, 8.0, 30.0])), methods=["hbm", "tcm", "hdhb"], harmonics=[2],
-                             time_samples=[0, 32], sweep=dict(f_start_hz=99.0, f_stop_hz=105.0, points=7))
+    summary, out = run_stage(tmp, blade_chain(force=0.1, preload=np.array([2.0, 8.0, 30.0])),
+                             methods=["hbm", "tcm", "hdhb"], harmonics=[2], time_samples=[0, 32],
+                             sweep=dict(f_start_hz=99.0, f_stop_hz=105.0, points=7), **LEAN)
     return summary, out
+
+
+def test_checks_of_a_default_stage_run(study):
+    """With the scene defaults the stage re-solves each run's peak at 10 ε, checks the
+    reference in nit, Nh and ε, and refines the headline peak between grid points."""
+    _, summary, out = study
+    eps = summary["eps_check"]
+    assert eps["factor"] == 10.0 and len(eps["runs"]) == 4           # three variants and the reference
+    moved = [r["rel_change"] for r in eps["runs"] if r["converged"]]
+    assert moved and eps["max_rel_change"] == max(moved) and 0.0 <= eps["max_rel_change"] < 0.1
+    conv = summary["reference"]["convergence"]
+    assert conv["variant"] == "HBM-9 nit=64"
+    parts = [conv[k] for k in ("nit_x2", "nh_14", "eps_x10") if conv.get(k) is not None]
+    assert parts and conv["max_rel_change"] == max(parts) < 0.05
+    pk = summary["peak"]
+    f, a, ok = curve(read_frf(out), "hbm", 9, 64, role="reference")
+    i = int(np.argmax(np.where(ok, a, -np.inf)))
+    assert pk["run"] == "HBM-9 nit=64" and pk["grid_hz"] == pytest.approx(f[i])
+    assert f[i - 1] <= pk["hz"] <= f[i + 1] and pk["amplitude_m"] >= a[i]     # Brent between the neighbours
+    assert pk["evaluations"] > len(f) and pk["xtol_hz"] == pytest.approx(1e-6 * f[i])
+
+
+def test_lean_stage_run_keeps_the_grid_peak(tmp_path):
+    """hb.refine_peak = false, contact.eps_check = 0, hb.reference_check = false: none of the checks."""
+    model = blade_chain(force=0.2, preload=np.array([2.0, 8.0, 30.0]))
+    summary, _ = run_stage(tmp_path, model, methods=["hbm"], harmonics=[1], time_samples=[0], reference_harmonics=3,
+                           reference_time_samples=32, sweep=dict(f_start_hz=94.0, f_stop_hz=104.0, points=5), **LEAN)
+    assert summary["peak"] is None and not summary["eps_check"]
+    assert summary["reference"]["convergence"] is None
 
 
 def test_variants_resolve_nit_and_skip_hdhb_off_grid():
@@ -194,7 +229,7 @@ def test_collocated_forms_give_the_same_frf(collocated):
 def test_tiny_excitation_is_the_tied_linear_frf(tmp_path):
     model = blade_chain(force=1e-5)
     summary, out = run_stage(tmp_path, model, methods=["hbm", "hdhb"], harmonics=[2], time_samples=[32, 0],
-                             sweep=dict(points=9))
+                             sweep=dict(points=9), **LEAN)
     rows = read_frf(out)
     with open(out / "linear.csv") as fh:
         tied = np.array([float(r["tied_m"]) for r in csv.DictReader(fh)])
@@ -229,7 +264,7 @@ def test_newton_powell_cascade_finds_the_same_frf_as_powell(tmp_path):
     frf = {}
     for s in ("powell", "newton-powell"):
         summary, out = run_stage(tmp_path / s, model, methods=["hbm"], harmonics=[3], time_samples=[32],
-                                 solver=s, sweep=dict(f_start_hz=94.0, f_stop_hz=104.0, points=9))
+                                 solver=s, sweep=dict(f_start_hz=94.0, f_stop_hz=104.0, points=9), **LEAN)
         assert summary["runs"][0]["solver"] == s
         frf[s] = curve(read_frf(out), "hbm", 3, 32)
     (_, a1, ok1), (_, a2, ok2) = frf["powell"], frf["newton-powell"]
@@ -282,8 +317,8 @@ def test_arclength_sweep_traces_the_same_frf_as_the_grid(tmp_path):
     model = blade_chain(force=0.2, preload=np.array([2.0, 8.0, 30.0]))
     kw = dict(methods=["hbm"], harmonics=[3], time_samples=[32], reference_harmonics=5, reference_time_samples=32)
     band = dict(f_start_hz=94.0, f_stop_hz=104.0)
-    s_grid, out_grid = run_stage(tmp_path / "grid", model, sweep=dict(points=41, **band), **kw)
-    s_arc, out_arc = run_stage(tmp_path / "arc", model, sweep=dict(method="arclength", **band), **kw)
+    s_grid, out_grid = run_stage(tmp_path / "grid", model, sweep=dict(points=41, **band), **kw, **LEAN)
+    s_arc, out_arc = run_stage(tmp_path / "arc", model, sweep=dict(method="arclength", **band), **kw, **LEAN)
     fg, ag, okg = curve(read_frf(out_grid), "hbm", 3, 32)
     fa, aa, oka = curve(read_frf(out_arc), "hbm", 3, 32)
     assert oka.all() and fa[0] == pytest.approx(94.0) and fa[-1] >= 104.0 - 1e-9

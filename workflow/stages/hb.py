@@ -41,7 +41,7 @@ def options(scene):
                       max(int(hb.reference_time_samples), 2 * hb.reference_harmonics + 1))
     return FRFOptions(solver=hb.solver, tol=hb.tol, max_iterations=hb.max_iterations, max_passes=ct.max_passes,
                       sweep=sw.method, max_steps=sw.max_steps, reference=ref, eps_check_factor=ct.eps_check,
-                      reference_check=hb.reference_check,
+                      reference_check=hb.reference_check, refine_peak=hb.refine_peak,
                       eps_path=penalty.path(ct.penalty_factor, user_given=ct.eps_n > 0 and ct.eps_t > 0),
                       pseudo=pseudo_options(pt)), variants(hb)
 
