@@ -121,6 +121,13 @@ def _cpu_markdown(cpu_rows, base) -> str:
 _STYLE = {"hbm": "-", "tcm": "--", "hdhb": ":"}
 
 
+def _layout(fig) -> None:
+    """Fixed margins for the 7 × 4.5 in figures of this module: ``tight_layout``
+    measured ~0.08 s a figure here (a third of the stage's drawing time), and
+    these axes' labels do not change size."""
+    fig.subplots_adjust(left=0.13, right=0.97, bottom=0.105, top=0.93)
+
+
 def _figures(out: Path, runs, ref, freqs, tied, slide) -> dict:
     """The FRF figures (PNG); {name: file}."""
     import matplotlib
@@ -170,7 +177,7 @@ def _frf_axes(plt, save, freqs, tied, slide, ref, sel, title, name):
     ax.set_title(title)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    _layout(fig)
     save(fig, name)
 
 
@@ -185,7 +192,7 @@ def _iterations_figure(plt, save, runs):
     ax.set_title("Iterations against frequency (cf. Fig. 7)")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
+    _layout(fig)
     save(fig, "iterations.png")
 
 
@@ -225,7 +232,7 @@ def _tangential_figure(plt, save, runs, ref):
         ax.set_title(f"Tangential relative displacement over a period at {base.freqs_hz[i_res]:.2f} Hz (cf. Fig. 8)")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
-        fig.tight_layout()
+        _layout(fig)
         save(fig, "tangential.png")
 
 
@@ -245,5 +252,5 @@ def _error_figure(plt, save, runs, ref):
     ax.set_ylabel("max |A − A_ref| / max A_ref")
     ax.set_title(f"FRF error against run time (reference {ref.variant.label})")
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
+    _layout(fig)
     save(fig, "error_vs_time.png")
