@@ -285,7 +285,9 @@ def _penalty_line(scene, reduced) -> str:
     ct = scene["contact"]
     if ct.eps_n > 0 and ct.eps_t > 0:
         return f"# DLFT penalties: given, ε_N = {ct.eps_n:g}, ε_T = {ct.eps_t:g} N/m"
-    rule = f"{ct.penalty_factor:g} × each pair's static condensed stiffness (contact.penalty_factor)"
+    rule = (f"{ct.penalty_factor:g} × each pair's static condensed stiffness (contact.penalty_factor)"
+            if ct.penalty_factor > 0 else "the stiffness each pair shows the unresolved harmonics, within "
+            "1…1000 × its static condensed stiffness (workflow/engine/penalty.py)")
     from workflow.errors import BladewearError
 
     if reduced is None or not Path(reduced).is_file():

@@ -84,10 +84,10 @@ class ContactLaw:
     wear   wear depth W, (p,) ≥ 0 (m); default zeros
 
     ``p`` is taken from ``gap``. In stick and separation the converged HB
-    solution does not depend on ε; in slip with nit > 2Nh+1 it does (the
-    harmonics of X above Nh are −λ/ε and the stick/slip decisions see them),
-    and the ε → ∞ limit is the right answer — the penalties are chosen once,
-    large, in :mod:`workflow.engine.penalty`. Invalid values raise
+    solution does not depend on ε; in slip with nit > 2Nh+1 it does: the
+    harmonics of X above Nh are −λ/ε, so ε is the stiffness lent to the
+    unresolved harmonics, and the penalties are chosen once, as the contact
+    DOFs' own stiffness at those harmonics, in :mod:`workflow.engine.penalty`. Invalid values raise
     :class:`~workflow.errors.SceneError` naming ``contact.<field>``.
     """
 

@@ -176,10 +176,10 @@ def setup(model: ReducedModel, settings: Settings | None = None) -> Setup:
       of the separated/slipping structure resonates) — "anti-resonance" of
       the tied response seen from the interface;
     * ε_ref: each pair's static condensed stiffness
-      (:func:`workflow.engine.penalty.reference_stiffness`, the one the
-      application's penalty is a multiple of), so the penalty cases span
-      ε/k = 10⁻³…10³ around the interface's own stiffness; the application's
-      default (``contact.penalty_factor`` = 10³) is the top of that range.
+      (:func:`workflow.engine.penalty.reference_stiffness`, the bounds of the
+      application's automatic penalty are multiples of it), so the penalty
+      cases span ε/k = 10⁻³…10³ around the interface's own stiffness; the
+      automatic penalty lies between 1× (the dovetail) and 10³× (a bare mass).
     """
     s = settings or Settings()
     model.validate()

@@ -90,10 +90,11 @@ class Contact:
     mu: float = param(0.5, "", "Coulomb friction coefficient (paper: 0.5, titanium on titanium)", min=0.0)
     eps_n: float = param(0.0, "N/m", "DLFT normal penalty ε_N (0: automatic, from the reduced stiffness)", min=0.0)
     eps_t: float = param(0.0, "N/m", "DLFT tangential penalty ε_T (0: automatic)", min=0.0)
-    penalty_factor: float = param(1.0e3, "", "automatic penalties: this many times each pair's static condensed "
-                                            "stiffness (workflow/engine/penalty.py: the slip answer converges "
-                                            "as ε grows; 1e3 measured converged on Den Hartog)",
-                                  min=0.0, min_exclusive=True)
+    penalty_factor: float = param(0.0, "", "0: automatic penalties, the stiffness the contact DOFs show the "
+                                           "unresolved harmonics (≈ the static condensed stiffness on the dovetail, "
+                                           "up to 1e3× it on inertia-dominated contacts; workflow/engine/penalty.py); "
+                                           "> 0: this many times each pair's static condensed stiffness",
+                                  min=0.0)
     eps_check: float = param(10.0, "", "re-solve each result's peak with ε multiplied by this and report the "
                                        "change (0: off)", min=0.0)
     gap: float = param(0.0, "m", "initial normal gap added to every pair (<0: interference)")
@@ -114,7 +115,10 @@ class HB:
     reference_harmonics: int = param(0, "", "Nh of the converged reference for the error table (0: off)", min=0)
     reference_time_samples: int = param(256, "", "nit of the reference", min=3)
     reference_check: bool = param(True, "", "re-solve the reference's peak with 2×nit, 1.5×Nh and a larger ε and "
-                                            "report how much it moves (its own uncertainty)")
+                                            "report how much it moves (its own uncertainty: the nit and Nh trials)")
+    nh_check: bool = param(True, "", "re-solve each variant's peak (and the wear's unworn point) with 1.5×Nh and "
+                                     "report how much it moves: the convergence measure of every FRF and wear "
+                                     "result (a warning above 1e-3)")
     refine_peak: bool = param(True, "", "refine the headline peak between its grid neighbours (bounded scalar "
                                         "search to 1e-6 of f, ~10–25 extra solves of one variant); false: the "
                                         "grid's largest point is the headline peak")

@@ -100,3 +100,49 @@ def test_wear_eps_check_is_made_at_the_unworn_point():
                                                         compare_unworn=False))
     ch = study.eps_check["max_rel_change"]
     assert ch is not None and 0 <= ch < 0.05, study.eps_check
+
+
+def test_automatic_penalty_is_the_stiffness_of_the_unresolved_harmonics():
+    """ε stands for the stiffness lent to the harmonics above Nh (X_h = −λ_h/ε at a root,
+    where the resolved structure gives −Zr(hω)⁻¹λ_h): on Jenkins pads (massless sliders on
+    springs k_d) it must be ≈ k_d, which the static condensed stiffness (k_d in series with the
+    cantilever) is not; on a bare mass (Zr(hω) = k − (hω)²m < 0) it is the ε → ∞ stand-in."""
+    from workflow.verification import models
+
+    model, spec = models.pad_chain()
+    law = engine.contact_law(model, mu=spec.mu)
+    kd = spec.pads.k
+    assert np.allclose(law.eps_t, kd, rtol=0.12), (law.eps_t, kd)
+    from reduction.condense import condense, relative_coordinates
+
+    static = penalty.reference_stiffness(np.real(condense(relative_coordinates(model), 0.0, 0).Zr[0]))
+    # the static stiffness (k_d in series with the cantilever) is further from k_d on every pad
+    assert np.all(np.abs(law.eps_t - kd) < 0.05 * np.abs(static[:, 1] - kd))
+    # a bare mass sampled inside its band: inertia above the first harmonic → CAP × static
+    law_m = engine.contact_law(oscillator(), mu=1.0, omega_hz=0.16)
+    assert law_m.eps_t[0] == pytest.approx(penalty.CAP * 1.0)
+    # factor > 0 keeps the explicit rule
+    law_f = engine.contact_law(model, mu=spec.mu, factor=10.0)
+    assert np.allclose(law_f.eps_t, 10.0 * static[:, 1])
+
+
+def test_automatic_penalty_bounds():
+    """clip(k_unresolved, k, CAP·k): never softer than the static stiffness (no collapse),
+    never above CAP·k, CAP·k where the unresolved compliance is negative (inf)."""
+    Zr0 = np.diag([2.0, 3.0, 3.0, 2.0, 3.0, 3.0])
+    k_unres = np.array([[0.5, 30.0], [np.inf, 1e9]])
+    en, et = penalty.choose(Zr0, k_unresolved=k_unres)
+    assert en.tolist() == [2.0, 2.0 * penalty.CAP] and et.tolist() == [30.0, 3.0 * penalty.CAP]
+    assert penalty.path_of(type("L", (), {"eps_n": en, "eps_t": et})(), Zr0)[0] == pytest.approx(1 / penalty.CAP)
+    assert penalty.path(3.0) == ()                  # within half a decade of the start: no path
+
+
+def test_frf_reports_its_convergence_in_nh():
+    """Every FRF result says how converged it is in Nh: the peak re-solved at 1.5×Nh. On the
+    damped Den Hartog oscillator the first harmonic changes little from Nh = 3 to 5."""
+    study = engine.frf(oscillator(c=0.2), engine.contact_law(oscillator(c=0.2), mu=1.0),
+                       [engine.Variant("hbm", 3, 64)], band_hz=(0.12, 0.2), points=5,
+                       options=engine.FRFOptions(eps_check_factor=0.0, refine_peak=False))
+    nc = study.nh_check
+    assert nc["runs"][0]["nh"] == 5 and nc["runs"][0]["converged"]
+    assert 0 <= nc["max_rel_change"] < 0.02

@@ -60,9 +60,9 @@ def sliding_frequency(model: ReducedModel) -> float:
     return float(np.sqrt(w2[0]) / (2 * np.pi))
 
 
-#: what the FRF tests do not look at — ε-check, the reference's own check, the peak refinement —
-#: switched off: they are tested on the ``study`` fixture (test_checks_of_a_default_stage_run)
-LEAN = dict(contact=dict(eps_check=0.0), reference_check=False, refine_peak=False)
+#: what the FRF tests do not look at — ε-check, Nh-check, the reference's own check, the peak
+#: refinement — switched off: they are tested on the ``study`` fixture (test_checks_of_a_default_stage_run)
+LEAN = dict(contact=dict(eps_check=0.0), reference_check=False, refine_peak=False, nh_check=False)
 
 
 def run_stage(tmp: Path, model: ReducedModel, *, mu=0.3, contact=None, **hb) -> tuple[dict, Path]:
@@ -113,16 +113,22 @@ def collocated(tmp_path_factory):
 
 
 def test_checks_of_a_default_stage_run(study):
-    """With the scene defaults the stage re-solves each run's peak at 10 ε, checks the
-    reference in nit, Nh and ε, and refines the headline peak between grid points."""
+    """With the scene defaults the stage re-solves each run's peak at 1.5×Nh (the convergence
+    measure) and at 10 ε (the penalty's sensitivity), checks the reference in nit, Nh and ε,
+    and refines the headline peak between grid points."""
     _, summary, out = study
+    nc = summary["nh_check"]
+    assert [r["nh"] for r in nc["runs"]] == [2, 5, 8, 14] and all(r["converged"] for r in nc["runs"])
+    moved = {r["nh"]: r["rel_change"] for r in nc["runs"]}
+    # convergence in Nh: the change to 1.5×Nh shrinks as Nh grows (the reference's is the smallest)
+    assert moved[14] < moved[2] and nc["max_rel_change"] == max(moved.values()) < 0.1
     eps = summary["eps_check"]
     assert eps["factor"] == 10.0 and len(eps["runs"]) == 4           # three variants and the reference
     moved = [r["rel_change"] for r in eps["runs"] if r["converged"]]
     assert moved and eps["max_rel_change"] == max(moved) and 0.0 <= eps["max_rel_change"] < 0.1
     conv = summary["reference"]["convergence"]
     assert conv["variant"] == "HBM-9 nit=64"
-    parts = [conv[k] for k in ("nit_x2", "nh_14", "eps_x10") if conv.get(k) is not None]
+    parts = [conv[k] for k in ("nit_x2", "nh_14") if conv.get(k) is not None]
     assert parts and conv["max_rel_change"] == max(parts) < 0.05
     pk = summary["peak"]
     f, a, ok = curve(read_frf(out), "hbm", 9, 64, role="reference")
@@ -133,11 +139,12 @@ def test_checks_of_a_default_stage_run(study):
 
 
 def test_lean_stage_run_keeps_the_grid_peak(tmp_path):
-    """hb.refine_peak = false, contact.eps_check = 0, hb.reference_check = false: none of the checks."""
+    """hb.refine_peak = false, contact.eps_check = 0, hb.nh_check = false, hb.reference_check = false:
+    none of the checks."""
     model = blade_chain(force=0.2, preload=np.array([2.0, 8.0, 30.0]))
     summary, _ = run_stage(tmp_path, model, methods=["hbm"], harmonics=[1], time_samples=[0], reference_harmonics=3,
                            reference_time_samples=32, sweep=dict(f_start_hz=94.0, f_stop_hz=104.0, points=5), **LEAN)
-    assert summary["peak"] is None and not summary["eps_check"]
+    assert summary["peak"] is None and not summary["eps_check"] and not summary["nh_check"]
     assert summary["reference"]["convergence"] is None
 
 

@@ -54,7 +54,8 @@ def _hb_folder(tmp_path, converged, tied_at_mode=True):
                                                zip(f, sdof(f, 210.0, 0.002), sdof(f, 203.0, 0.002))]
     (tmp_path / "linear.csv").write_text("\n".join(lin) + "\n")
     hb = {"runs": [{"method": "hbm", "harmonics": 3, "time_samples": 64, "error": None}], "reference": None,
-          "tied_frequency_hz": 210.0, "tied_mode": 1, "eps_check": {"factor": 10.0, "max_rel_change": 2e-4}}
+          "tied_frequency_hz": 210.0, "tied_mode": 1, "eps_check": {"factor": 10.0, "max_rel_change": 2e-4},
+          "nh_check": {"max_rel_change": 2e-4, "runs": [{"nh": 5, "rel_change": 2e-4}]}}
     return hb, f, a
 
 
@@ -74,11 +75,13 @@ def test_headline_peak_and_status_follow_convergence(tmp_path):
         conv[bad] = False
         hb, _, _ = _hb_folder(tmp_path, conv)
         assert hl.worst(hl.hb_headline(hb, tmp_path, damping)[1]) == status
-    # ε check over tolerance: amber with its reason.
+    # Nh check over tolerance: amber with its reason; the ε sensitivity alone does not make amber.
     hb, _, _ = _hb_folder(tmp_path, ok)
     hb["eps_check"]["max_rel_change"] = 5e-3
-    c = [c for c in hl.hb_headline(hb, tmp_path, damping)[1] if c.name == "ε check"][0]
-    assert c.status == "amber" and "5.00e-03" in c.reason
+    assert hl.worst(hl.hb_headline(hb, tmp_path, damping)[1]) == "green"
+    hb["nh_check"]["max_rel_change"] = 5e-3
+    c = [c for c in hl.hb_headline(hb, tmp_path, damping)[1] if c.name == "Nh check"][0]
+    assert c.status == "amber" and "5.00e-03" in c.reason and "Nh = 5" in c.reason
 
 
 def test_tied_peak_missed_by_the_grid_is_amber(tmp_path):

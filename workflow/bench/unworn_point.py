@@ -69,7 +69,7 @@ def main(argv=None) -> int:
     model = ReducedModel.load(run_dir / "reduction" / "reduced.npz")
     scene = load_scene(a.scene)
     hb, _, omega = build_problem(model, law_of(scene, model), options(scene))
-    path = penalty.path(scene["contact"].penalty_factor)
+    path = penalty.path_of(hb.law, np.real(hb.Zr[0]))
     out = {"scene": a.scene, "pairs": hb.p, "unknowns": hb.n, "frequency_hz": omega / 6.283185307179586,
            "repeat": a.repeat, "eps_path_steps": len(path), "runs": [measure(hb, a.repeat, t, path) for t in (1, 2)]}
     write_json(a.out / "unworn_point.json", out)

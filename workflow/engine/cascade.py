@@ -331,10 +331,11 @@ def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=
     ``guesses`` (unknown vectors; None entries skipped) through the cascade
     of the module docstring. ``tol`` is relative to ‖F‖. ``smooth``
     (optional) is a callable returning ``(x or None, iterations)``.
-    ``eps_path``: see :func:`along_eps_path` (empty: Newton at the law's ε);
+    ``eps_path``: see :func:`along_eps_path` (empty or None: Newton at the law's ε);
     ``pseudo``: see :func:`run_solver`."""
     if solver not in SOLVERS:
         raise SceneError(f"hb.solver: {solver!r} is not one of {', '.join(SOLVERS)}")
+    eps_path = tuple(eps_path or ())
     if collocated(prob) and len(eps_path):
         # measured on the hb-stage tests' blade (Nh = 5, nit = 11, 41 points through the
         # resonance): along the ε-path 21/41 (HBM), 17/41 (HDHB, TCM) points converged in

@@ -35,15 +35,18 @@ def mesh_law(model, *, mu, eps_n: float, eps_t: float, gap: float, factor: float
              rc=None):
     """The DLFT law on ``model`` (the engine's penalty decision,
     :func:`workflow.engine.contact_law`, or :func:`area_penalty` when
-    ``per_area`` > 0) and its ε-path (:func:`workflow.engine.penalty.path`)."""
+    ``per_area`` > 0) and its ε-path (:func:`workflow.engine.penalty.path_of`; none for
+    the per-area penalty, a user's value)."""
     from workflow.engine import penalty
     from workflow.engine.study import contact_law
 
+    from reduction.condense import condense, relative_coordinates
+
+    rc = relative_coordinates(model) if rc is None else rc
     law = contact_law(model, mu=model.friction(mu)[0], eps_n=eps_n, eps_t=eps_t, gap=gap, factor=factor, rc=rc)
-    given = eps_n > 0 and eps_t > 0
     if per_area > 0:
-        law, given = area_penalty(law, model.area, per_area), True
-    return law, penalty.path(factor, user_given=given)
+        return area_penalty(law, model.area, per_area), ()
+    return law, penalty.path_of(law, np.real(condense(rc, 0.0, 0).Zr[0]))
 
 
 def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xtol: float, solver_kw: dict,

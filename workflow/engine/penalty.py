@@ -1,34 +1,53 @@
 """The DLFT penalties ε_N, ε_T: chosen here, once, for every stage.
 
-Why a large, frequency-independent penalty (measured, DESIGN §3)
------------------------------------------------------------------
-The converged DLFT solution does not depend on ε in stick and separation.
-In *slip* with nit > 2Nh+1 it does: the harmonics of the corrected
-displacement X above Nh equal −λ/ε (eq. 11) and the stick/slip decisions of
-eqs. 13–17 are taken on that polluted path. The ε → ∞ limit is the right
-answer. Measured on Den Hartog's oscillator (m = k = F0 = 1, μN/F0 = 0.5,
-β = 0.8, nit = 128; first-harmonic amplitude):
+What ε is (measured, docs/solver-guide.md "Penalty ε")
+------------------------------------------------------
+At a DLFT root (eqs. 11–17) the first Nh harmonics of the corrected
+displacement X equal U; with nit > 2Nh+1 samples the harmonics of X above Nh
+are ``−λ_h/ε``. Had those harmonics been resolved, the structure would give
+``U_h = −Zr(hω)⁻¹ λ_h`` (eq. 3; no force acts there). So ε *is* the stiffness
+the model lends the unresolved harmonics, and the best single value is the
+contact DOF's own dynamic stiffness above the first harmonic. With nit = 2Nh+1
+(collocated variants) a root does not see ε at all
+(:func:`workflow.engine.cascade.collocated`).
 
-=========  ==========  ==========  ==========  =========
-ε/k        1           10          100         ≥ 1000
-Nh = 1     1.6193      1.8453      2.0400      2.1039 (identical to 7 digits up to 10⁶)
-Nh = 7     2.0492      2.1030      2.2127      2.2774 (identical up to 10⁶)
-=========  ==========  ==========  ==========  =========
+The automatic rule, per pair and direction (:func:`unresolved_stiffness`,
+:func:`choose`): the compliance ``c = median_h Re(1/Zr_ii(hω))`` over
+h = 2…:data:`HARMONICS` at the first excited tied frequency, and
 
-so the penalty is :data:`FACTOR` times a *reference stiffness* of each
-pair: the diagonal of the static condensed stiffness ``Re Zr[0]`` (harmonic
-0 does not depend on ω, and is positive for any structure held by its
-clamp). The previous choice — the mean diagonal of ``Re Zr[1]`` at the band
-centre — was ≈ 1× that stiffness on the sector (+0.8 % error at the peak of
-a lumped friction-pad model) and collapsed to 1e-300 N/m where k − ω²m
-crossed zero inside the band.
+    ε = clip(1/c, k_static, CAP·k_static),   1/c := ∞ where c ≤ 0,
 
-Large ε makes Newton's start harder (from the stuck guess, Nh = 7: 158
-iterations at 10³, no convergence at 10⁵), not the converged point: the
-solver cascade (:mod:`workflow.engine.cascade`) therefore continues in ε
-from :data:`START_FACTOR` by decades when a direct solve fails (same case:
-16 iterations in all). Every FRF and wear result reports how much it moves
-when ε is multiplied by :data:`CHECK_FACTOR` (:mod:`workflow.engine.epscheck`).
+with ``k_static`` the static condensed stiffness (:func:`reference_stiffness`).
+
+* A finite-element contact node (the dovetail) is stiffness-dominated far
+  above the first mode: Re Zr_ii(hω) stays within ±5 % of k_static up to
+  h = 40 on the quick sector, so ε ≈ k_static.
+* A massless slider on a spring k_d (Jenkins pads): Zr → k_d, so ε ≈ k_d.
+* A contact on a bare mass (Den Hartog's oscillator): Zr(hω) = k − (hω)²m < 0,
+  the unresolved harmonics see inertia that no positive ε matches, and the
+  ε → ∞ limit (CAP × k_static) is the best a penalty can do.
+
+Measured, peak amplitude or error against independent references:
+
+=================================  ======  ======  ======  ======  =====
+Nh                                  1       3       5       7       11
+pad chain vs time integration,
+  max error / peak, CAP·k (old)    12.1 %  2.53 %  2.56 %  1.61 %  0.37 %
+  automatic (≈ k_d)                0.28 %  0.056 % 0.063 % 0.063 % 0.010 %
+quick sector, refined peak (mm),
+  CAP·k_static (old default)       3.990   3.826   3.829   3.842
+  automatic (≈ k_static)           3.908   3.863   3.858   3.860   3.857
+  collocated nit = 2Nh+1 (ε-free)  3.548   3.926   3.871   3.862   3.861
+=================================  ======  ======  ======  ======  =====
+
+so on the dovetail the automatic penalty is converged in Nh to 0.1 % from
+Nh = 3, where the large one is still 0.5 % off at Nh = 7 — and 5–8× slower
+(its Newton basin shrinks as 1/ε; 49.7 s against 6.4 s for the HBM-7 sweep).
+``contact.penalty_factor`` > 0 restores ε = factor × k_static for every pair.
+A user's ``contact.eps_n`` / ``eps_t`` (N/m) win over both. Every FRF and
+wear result reports how much it moves with Nh (``nh_check``, the measure of
+convergence) and with ε × :data:`CHECK_FACTOR` (``eps_check``, the model's
+sensitivity; :mod:`workflow.engine.epscheck`).
 """
 from __future__ import annotations
 
@@ -36,8 +55,14 @@ import numpy as np
 
 from workflow.errors import BundleError, SceneError
 
-#: ε = FACTOR × reference stiffness (see the table above).
-FACTOR = 1.0e3
+#: the largest automatic penalty, as a multiple of the static stiffness: the
+#: stand-in for ε → ∞ where the unresolved harmonics see inertia (Den Hartog:
+#: the first harmonic is identical to 7 digits from 10³ to 10⁶).
+CAP = 1.0e3
+#: kept for callers that ask for the large penalty by name
+FACTOR = CAP
+#: harmonics 2…HARMONICS at the tied frequency sample the unresolved range
+HARMONICS = 32
 #: the ε-continuation starts at this multiple of the reference stiffness.
 START_FACTOR = 1.0
 #: the ε-check re-solves with ε multiplied by this.
@@ -71,52 +96,75 @@ def reference_stiffness(Zr0: np.ndarray) -> np.ndarray:
     return k
 
 
-def choose(Zr0: np.ndarray, eps_n: float = 0.0, eps_t: float = 0.0, factor: float = FACTOR) -> tuple:
-    """(ε_N (p,), ε_T (p,)) in N/m: a user's value where given (> 0), else
-    ``factor`` × :func:`reference_stiffness` per pair.
+def unresolved_stiffness(rc, omega: float, harmonics: int = HARMONICS) -> np.ndarray:
+    """Stiffness (p, 2) per pair, [normal, tangential] (N/m), that the contact DOFs show
+    the harmonics a HB leaves unresolved: ``1 / median_h Re(1/Zr_ii(hω))`` over
+    h = 2…``harmonics`` at ``omega`` (rad/s), each DOF with the others held (the
+    diagonal of the condensed Zr, eq. 3); +inf where that median compliance is ≤ 0
+    (inertia-dominated: Den Hartog's bare mass). Tangential = the stiffer of t1, t2
+    in compliance terms (mean compliance). A cyclic model is sampled on the
+    excitation's nodal diameter. The median ignores the few h that sit on a
+    resonance of the structure with the interface free."""
+    from reduction.condense import condense
 
-    A user value that is negative, zero-but-forced or not finite is a
-    :class:`SceneError` naming ``contact.eps_n`` / ``contact.eps_t``.
+    base = rc.harmonic(1) if hasattr(rc, "by_nd") else rc
+    Z = condense(base, float(omega), int(harmonics)).Zr[2:]
+    d = np.diagonal(Z, axis1=1, axis2=2)                           # (H−1, 3p)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = np.median(np.real(1.0 / d), axis=0).reshape(-1, 3)    # m/N
+    c = np.stack([c[:, 0], 0.5 * (c[:, 1] + c[:, 2])], axis=1)
+    with np.errstate(divide="ignore"):
+        return np.where(c > 0, 1.0 / np.where(c > 0, c, 1.0), np.inf)
+
+
+def choose(Zr0: np.ndarray, eps_n: float = 0.0, eps_t: float = 0.0, factor: float = 0.0,
+           k_unresolved: np.ndarray | None = None) -> tuple:
+    """(ε_N (p,), ε_T (p,)) in N/m: a user's value where given (> 0); else, with
+    ``factor`` > 0, ``factor`` × :func:`reference_stiffness`; else the automatic
+    rule of the module docstring, ``clip(k_unresolved, k, CAP·k)`` per pair and
+    direction (``k_unresolved`` from :func:`unresolved_stiffness`; None — a model
+    with no tied mode to sample at — gives CAP·k).
+
+    A user value that is negative or not finite is a :class:`SceneError` naming
+    ``contact.eps_n`` / ``contact.eps_t`` / ``contact.penalty_factor``.
     """
     for key, v in (("contact.eps_n", eps_n), ("contact.eps_t", eps_t), ("contact.penalty_factor", factor)):
         if not np.isfinite(v) or v < 0:
             raise SceneError(f"{key} = {v!r}: must be a finite number ≥ 0")
-    if factor <= 0:
-        raise SceneError("contact.penalty_factor must be > 0")
     p = np.asarray(Zr0).shape[-1] // 3
     k = None if (eps_n > 0 and eps_t > 0) else reference_stiffness(Zr0)
-    en = np.full(p, float(eps_n)) if eps_n > 0 else factor * k[:, 0]
-    et = np.full(p, float(eps_t)) if eps_t > 0 else factor * k[:, 1]
+    if k is None:
+        auto = None
+    elif factor > 0:
+        auto = factor * k
+    elif k_unresolved is None:
+        auto = CAP * k
+    else:
+        auto = np.clip(np.asarray(k_unresolved, dtype=float).reshape(p, 2), k, CAP * k)
+    en = np.full(p, float(eps_n)) if eps_n > 0 else auto[:, 0]
+    et = np.full(p, float(eps_t)) if eps_t > 0 else auto[:, 1]
     return en, et
-
-
-def contact_law(model, contact, Zr0: np.ndarray, *, mu=None):
-    """The :class:`~workflow.contact.ContactLaw` of a scene's ``[contact]`` section on ``model``.
-
-    ``contact`` has ``mu``, ``eps_n``, ``eps_t``, ``gap`` and
-    ``penalty_factor`` (the scene section, or any object with them);
-    ``Zr0`` is the static condensed stiffness (3p, 3p) of the model.
-    ``mu`` (p,) overrides the section's μ (e.g. a bundle's own values).
-    """
-    from workflow.contact import ContactLaw
-
-    en, et = choose(Zr0, contact.eps_n, contact.eps_t, getattr(contact, "penalty_factor", FACTOR))
-    p = model.n_pairs
-    mu = np.full(p, float(contact.mu)) if mu is None else mu
-    return ContactLaw(mu=mu, eps_n=en, eps_t=et, gap=np.asarray(model.gap, dtype=float) + float(contact.gap))
 
 
 def path(factor: float, user_given: bool = False) -> tuple:
     """The ε-path of :func:`workflow.engine.cascade.along_eps_path` for penalties
-    ``factor`` × the reference stiffness: half decades from
+    up to ``factor`` × the reference stiffness: half decades from
     :data:`START_FACTOR` up to (not including) the target, as fractions of
-    it; empty for a user's own ε (nothing to continue from). Half decades:
+    it; empty for a user's own ε (nothing to continue from) or a penalty that
+    is already at the start level. Half decades:
     on the quick sector's tied resonance, decade steps lost Newton at
     ε·10⁻¹ → ε, half decades converged in 11–30 iterations each."""
-    if user_given or factor <= START_FACTOR:
-        return ()
+    if user_given or factor <= START_FACTOR * 10.0 ** 0.5:
+        return ()       # within half a decade of the start: a level below it would add nothing
     n = int(np.ceil(2 * np.log10(factor / START_FACTOR) - 1e-9))
     return tuple(f for f in (START_FACTOR / factor * 10.0 ** (k / 2) for k in range(n)) if f < 1.0 - 1e-12)
+
+
+def path_of(law, Zr0: np.ndarray) -> tuple:
+    """The ε-path of ``law`` (:func:`path`) from its largest ratio ε / static stiffness
+    over pairs and directions; ``Zr0`` is the static condensed stiffness."""
+    k = reference_stiffness(Zr0)
+    return path(float(max(np.max(law.eps_n / k[:, 0]), np.max(law.eps_t / k[:, 1]))))
 
 
 def scaled(law, factor: float):

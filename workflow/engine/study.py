@@ -27,7 +27,7 @@ Choices (and why):
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -45,16 +45,27 @@ UNBOUNDED = ("unbounded response: undamped resonance of the sliding interface an
 
 
 def contact_law(model, *, mu, eps_n: float = 0.0, eps_t: float = 0.0, gap: float = 0.0,
-                factor: float = penalty.FACTOR, rc=None):
+                factor: float = 0.0, rc=None, omega_hz: float | None = None):
     """The DLFT law of ``model``: μ (scalar or (p,)), penalties chosen by
     :func:`workflow.engine.penalty.choose` (``eps_n``/``eps_t`` > 0 are a
-    user's values in N/m), ``gap`` (m) added to the model's own gaps.
+    user's values in N/m; ``factor`` > 0 means factor × the static stiffness;
+    otherwise the automatic rule, sampled at ``omega_hz`` — default the first
+    excited tied mode), ``gap`` (m) added to the model's own gaps.
     ``rc``: the model's relative coordinates if already computed."""
     from reduction.condense import condense, relative_coordinates
     from workflow.contact import ContactLaw
 
     rc = relative_coordinates(model) if rc is None else rc
-    en, et = penalty.choose(condense(rc, 0.0, 0).Zr[0], eps_n, eps_t, factor)
+    k_unres = None
+    if factor <= 0 and not (eps_n > 0 and eps_t > 0):
+        if omega_hz is None:
+            try:
+                omega_hz = first_excited_mode(rc)[0]
+            except BundleError:
+                omega_hz = None     # no tied mode to sample at: the large penalty (penalty.choose)
+        if omega_hz:
+            k_unres = penalty.unresolved_stiffness(rc, 2 * np.pi * float(omega_hz))
+    en, et = penalty.choose(condense(rc, 0.0, 0).Zr[0], eps_n, eps_t, factor, k_unres)
     mu = np.broadcast_to(np.asarray(mu, dtype=float), (model.n_pairs,)).copy()
     return ContactLaw(mu=mu, eps_n=en, eps_t=et, gap=np.asarray(model.gap, dtype=float) + float(gap))
 
@@ -104,9 +115,10 @@ class FRFOptions:
     ``tol`` (relative to ‖F‖), ``max_iterations`` per attempt, DLFT
     ``max_passes``; ``sweep`` "grid" or "arclength" (``max_steps``);
     ``reference`` (a :class:`Variant` or None); ``eps_check_factor`` (0: no
-    ε-check); ``reference_check`` (the reference's own nit/Nh/ε check);
-    ``eps_path`` (:func:`workflow.engine.penalty.path`; default: that of the
-    default penalty; empty for a user's own ε);
+    ε-check); ``nh_check`` (each run's peak re-solved at 1.5×Nh, the
+    convergence measure); ``reference_check`` (the reference's own nit/Nh/ε check);
+    ``eps_path`` (:func:`workflow.engine.penalty.path`; None: the law's own,
+    :func:`workflow.engine.penalty.path_of`);
     ``pseudo``: :func:`workflow.pseudotime.integrate` options of the
     ``pseudo-time`` solver; ``refine_peak``: refine the peak of the most
     converged grid sweep of a band between its grid points, to ``peak_xtol``
@@ -122,10 +134,11 @@ class FRFOptions:
     reference: Variant | None = None
     eps_check_factor: float = penalty.CHECK_FACTOR
     reference_check: bool = True
-    eps_path: tuple = penalty.path(penalty.FACTOR)
+    eps_path: tuple | None = None
     pseudo: dict = field(default_factory=dict)
     refine_peak: bool = True
     peak_xtol: float = PEAK_XTOL
+    nh_check: bool = True
 
 
 @dataclass
@@ -133,7 +146,9 @@ class FRFStudy:
     """What :func:`frf` found (Hz, m, s). ``runs`` one :class:`SweepResult`
     per variant, ``reference`` or None; ``tied``/``sliding`` the linear
     limits on ``freqs_hz``; ``eps_check`` {"factor", "max_rel_change",
-    "frequency_hz", "runs": [...]}; ``reference_convergence`` or None;
+    "frequency_hz", "runs": [...]} (the penalty model's sensitivity);
+    ``nh_check`` {"max_rel_change", "frequency_hz", "runs": [...]} (convergence
+    in Nh, :func:`workflow.engine.epscheck.nh_runs`); ``reference_convergence`` or None;
     ``peak``: the friction-damped peak of the most converged sweep (the
     reference, else the variant with the most harmonics, then time samples)
     refined between its grid points — {"hz", "amplitude_m", "run",
@@ -151,6 +166,7 @@ class FRFStudy:
     law: object
     condense_seconds: float
     eps_check: dict = field(default_factory=dict)
+    nh_check: dict = field(default_factory=dict)
     reference_convergence: dict | None = None
     seconds: float = 0.0
     peak: dict | None = None
@@ -169,19 +185,23 @@ class FRFStudy:
         return out
 
     def warnings(self) -> list[str]:
-        """Converged results whose convergence checks exceed their tolerance."""
+        """Converged results whose convergence checks exceed their tolerance: the
+        Nh-check of the peaks and the reference's own check (2×nit, 1.5×Nh). The
+        ε-check is the penalty model's sensitivity, reported, not a convergence
+        test (:mod:`workflow.engine.epscheck`)."""
         out = []
-        if self.eps_check and self.eps_check.get("max_rel_change") is None:
-            out.append(f"ε-check: the peak could not be re-solved at {self.eps_check['factor']:g}× ε "
-                       "(how converged the answer is in ε is unknown)")
-        if self.eps_check.get("max_rel_change") is not None and \
-                self.eps_check["max_rel_change"] > penalty.CHECK_TOL:
-            out.append(f"ε-check: the peak moves by {self.eps_check['max_rel_change']:.2e} (> {penalty.CHECK_TOL:g}) "
-                       f"when ε is multiplied by {self.eps_check['factor']:g}; raise contact.penalty_factor")
+        nc = self.nh_check or {}
+        if nc and nc.get("max_rel_change") is None:
+            out.append("Nh-check: the peak could not be re-solved with more harmonics "
+                       "(how converged the answer is in Nh is unknown)")
+        if nc.get("max_rel_change") is not None and nc["max_rel_change"] > penalty.CHECK_TOL:
+            worst = max((r for r in nc["runs"] if r["rel_change"] is not None), key=lambda r: r["rel_change"])
+            out.append(f"Nh-check: the peak of {worst['label']} moves by {nc['max_rel_change']:.2e} "
+                       f"(> {penalty.CHECK_TOL:g}) at Nh = {worst['nh']}, nit = {worst['nit']}; raise hb.harmonics")
         rc = self.reference_convergence or {}
         if rc.get("max_rel_change") is not None and rc["max_rel_change"] > penalty.CHECK_TOL:
             out.append(f"reference {rc.get('variant')}: its peak moves by {rc['max_rel_change']:.2e} under "
-                       "2×nit / 1.5×Nh / larger ε — errors below that are not resolved")
+                       "2×nit / 1.5×Nh — errors below that are not resolved")
         return out
 
 
@@ -272,6 +292,8 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
     nh_max = max([v.nh for v in variants] + ([opt.reference.nh] if opt.reference else []) + [1])
     cond, t_cond = _condense_grid(rc, freqs, nh_max)
     static = static_state(cond[0].Zr, cond[0].Fr, law, opt.max_passes)
+    if opt.eps_path is None:
+        opt = replace(opt, eps_path=penalty.path_of(law, np.real(cond[0].Zr[0])))
     if log is not None:
         tied = f"#{mode_index + 1} at {f_mode:.2f} Hz" if f_mode is not None else "none"
         log.info(f"{model.n_pairs} contact pairs, {model.size} reduced DOFs; first excited tied mode "
@@ -295,6 +317,8 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
                          condense_seconds=t_cond)
         if opt.eps_check_factor > 0:
             study.eps_check = epscheck.frf_runs(rc, cond, law, static, runs + ([ref] if ref else []), opt)
+        if opt.nh_check:
+            study.nh_check = epscheck.nh_runs(rc, law, static, runs + ([ref] if ref else []), opt)
         if ref is not None and opt.reference_check and opt.sweep == "grid":
             study.reference_convergence = epscheck.reference(rc, cond, law, static, ref, opt)
         if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:

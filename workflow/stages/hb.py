@@ -32,7 +32,7 @@ MPI = True
 
 def options(scene):
     """:class:`workflow.engine.FRFOptions` and the variants of a scene."""
-    from workflow.engine import FRFOptions, Variant, penalty, variants
+    from workflow.engine import FRFOptions, Variant, variants
 
     hb, sw, ct, pt = scene["hb"], scene["sweep"], scene["contact"], scene["pseudotime"]
     ref = None
@@ -41,8 +41,7 @@ def options(scene):
                       max(int(hb.reference_time_samples), 2 * hb.reference_harmonics + 1))
     return FRFOptions(solver=hb.solver, tol=hb.tol, max_iterations=hb.max_iterations, max_passes=ct.max_passes,
                       sweep=sw.method, max_steps=sw.max_steps, reference=ref, eps_check_factor=ct.eps_check,
-                      reference_check=hb.reference_check, refine_peak=hb.refine_peak,
-                      eps_path=penalty.path(ct.penalty_factor, user_given=ct.eps_n > 0 and ct.eps_t > 0),
+                      reference_check=hb.reference_check, refine_peak=hb.refine_peak, nh_check=hb.nh_check,
                       pseudo=pseudo_options(pt)), variants(hb)
 
 
@@ -149,6 +148,7 @@ def summarise(study, scene) -> dict:
         "eps_n_range": [float(law.eps_n.min()), float(law.eps_n.max())],
         "eps_t_range": [float(law.eps_t.min()), float(law.eps_t.max())],
         "eps_check": study.eps_check,
+        "nh_check": study.nh_check,
         "mu": [float(m) for m in study.law.mu] if np.ptp(study.law.mu) > 0 else float(study.law.mu[0]),
         "excitation_amplitude_N": None if "excitation" in getattr(scene, "unused", ()) else
         float(scene["excitation"].amplitude),

@@ -41,20 +41,20 @@ def options(scene):
                        max_passes=ct.max_passes, frequency_hz=w.frequency_hz, k_w=w.k_w, blade_share=w.blade_share,
                        cycles_per_block=w.cycles_per_block, max_blocks=w.max_blocks, block_tol=w.block_tol,
                        steady_tol=w.steady_tol, reference_check=w.reference_check, max_steps=pt.max_steps,
-                       rtol=pt.wear_rtol, dt_max_blocks=pt.wear_dt_max, eps_check_factor=ct.eps_check)
+                       rtol=pt.wear_rtol, dt_max_blocks=pt.wear_dt_max, eps_check_factor=ct.eps_check,
+                       nh_check=hb.nh_check)
 
 
 def run_wear(model, scene, out: Path, log) -> dict:
     """The stage's work on a :class:`reduction.reduced.ReducedModel` (also used by tests)."""
-    from workflow.engine import penalty, worn_steady_state
+    from workflow.engine import worn_steady_state
     from workflow.io import write_npz, write_rows
     from workflow.report.wear import tip_cycles, plot_wear, write_wear_csv
     from workflow.stages.hb import clean, law_of
 
     out = Path(out)
     ct = scene["contact"]
-    study = worn_steady_state(model, law_of(scene, model), options(scene), log=log,
-                              eps_path=penalty.path(ct.penalty_factor, user_given=ct.eps_n > 0 and ct.eps_t > 0))
+    study = worn_steady_state(model, law_of(scene, model), options(scene), log=log)
     u = study.unworn
     log.info(f"unworn point: newton {u['newton']['iterations']} iterations {u['newton']['seconds']:.3f} s; "
              f"pseudo-time {u['pseudo-time']['iterations']} steps {u['pseudo-time']['seconds']:.3f} s "
@@ -70,7 +70,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
     summary = {"frequency_hz": study.omega / 2 / np.pi, "pairs": study.hb.p, "csv": "wear.csv", "figures": figures,
                "unworn_point": u, "tracked_pair": study.tracked_pair,
                "methods": {m: h.summary() for m, h in study.histories.items()},
-               "eps_check": study.eps_check, "unconverged": study.unconverged(), "warnings": study.warnings(),
+               "eps_check": study.eps_check, "nh_check": study.nh_check, "unconverged": study.unconverged(), "warnings": study.warnings(),
                "mu_source": model.friction(ct.mu)[1]}
     if study.profile_max_rel_diff is not None:
         summary["profile_max_rel_diff"] = study.profile_max_rel_diff

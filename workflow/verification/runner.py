@@ -25,9 +25,12 @@ def hb_first_harmonic(model, freqs_hz, *, mu: float, nh: int, nit: int, method: 
     """
     from workflow import engine
 
-    law = engine.contact_law(model, mu=mu, eps_n=eps or 0.0, eps_t=eps or 0.0)
+    f = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
+    # the automatic penalty is sampled at the band's centre (these models may have no tied mode)
+    law = engine.contact_law(model, mu=mu, eps_n=eps or 0.0, eps_t=eps or 0.0,
+                             omega_hz=0.5 * float(f.min() + f.max()))
     opt = engine.FRFOptions(solver=solver, tol=tol, max_iterations=maxiter, max_passes=max_passes,
-                            eps_check_factor=0.0, eps_path=engine.penalty.path(engine.penalty.FACTOR))
+                            eps_check_factor=0.0)
     study = engine.frf(model, law, [engine.Variant(method, int(nh), int(nit))], freqs_hz=freqs_hz, options=opt)
     r = study.runs[0]
     return r.amplitude, r.converged, float(law.eps_t[0])
