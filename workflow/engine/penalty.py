@@ -59,8 +59,6 @@ from workflow.errors import BundleError, SceneError
 #: stand-in for ε → ∞ where the unresolved harmonics see inertia (Den Hartog:
 #: the first harmonic is identical to 7 digits from 10³ to 10⁶).
 CAP = 1.0e3
-#: kept for callers that ask for the large penalty by name
-FACTOR = CAP
 #: harmonics 2…HARMONICS at the tied frequency sample the unresolved range
 HARMONICS = 32
 #: the ε-continuation starts at this multiple of the reference stiffness.
