@@ -74,3 +74,53 @@ def test_read_msh_errors(tmp_path):
     (tmp_path / "bad.msh").write_text("not a mesh\n")
     with pytest.raises(GeometryError, match="bad.msh"):
         dc.read_msh(tmp_path / "bad.msh")
+
+
+def test_canonical_order_is_a_relabelling_that_undoes_any_permutation():
+    """reduction.bundle.canonical_order sorts DOF blocks by position (coincident nodes by their
+    neighbours in K): a bundle and any node permutation of it give the same canonical bundle,
+    and the physics (a K quadratic form, the loads on the contact DOFs) is unchanged."""
+    import scipy.sparse as sp
+
+    from reduction.bundle import Bundle, Contact, Loads, canonical_order
+
+    rng = np.random.default_rng(3)
+    nodes = 6
+    coords = rng.random((nodes, 3))
+    coords[5] = coords[4]                        # two coincident nodes (a matched flank pair)
+    n = 3 * nodes
+    K = sp.random(n, n, density=0.3, random_state=1)
+    K = (K + K.T + n * sp.eye(n)).tocsr()
+    K = K.tolil()
+    K[12, 0] = K[0, 12] = 1.0                   # node 4 touches node 0, node 5 does not: they differ
+    K[15, 0] = K[0, 15] = 0.0
+    K = K.tocsr()
+    K.eliminate_zeros()
+    M = sp.eye(n, format="csr")
+    contact = Contact(blade_dofs=np.array([[12, 13, 14]]), disk_dofs=np.array([[15, 16, 17]]),
+                      normal=np.array([[0, 0, 1.0]]), t1=np.array([[1.0, 0, 0]]), t2=np.array([[0, 1.0, 0]]),
+                      area=np.ones(1), gap=np.zeros(1))
+    loads = Loads(fixed=np.array([0, 1, 2]), static=rng.random(n), harmonic=rng.random(n), observe=np.array([6, 7, 8]))
+    b0 = Bundle(M=M, K=K, C=0.01 * K, contact=contact, loads=loads, coords=coords)
+    perm_nodes = rng.permutation(nodes)
+    p = (3 * perm_nodes[:, None] + np.arange(3)).ravel()
+    inv = np.argsort(p)
+    b1 = Bundle(M=M[p][:, p], K=K[p][:, p].tocsr(), C=0.01 * K[p][:, p].tocsr(),
+                contact=Contact(blade_dofs=inv[contact.blade_dofs], disk_dofs=inv[contact.disk_dofs],
+                                normal=contact.normal, t1=contact.t1, t2=contact.t2, area=contact.area, gap=contact.gap),
+                loads=Loads(fixed=np.sort(inv[loads.fixed]), static=loads.static[p], harmonic=loads.harmonic[p],
+                            observe=inv[loads.observe]), coords=coords[perm_nodes])
+    c0, c1 = canonical_order(b0), canonical_order(b1)
+    np.testing.assert_array_equal(c0.coords, c1.coords)
+    assert abs(c0.K - c1.K).max() == 0 and abs(c0.M - c1.M).max() == 0
+    for a, b in ((c0.contact.blade_dofs, c1.contact.blade_dofs), (c0.contact.disk_dofs, c1.contact.disk_dofs),
+                 (c0.loads.fixed, c1.loads.fixed), (c0.loads.observe, c1.loads.observe),
+                 (c0.loads.static, c1.loads.static)):
+        np.testing.assert_array_equal(a, b)
+    # a relabelling: every DOF keeps its node — the contact and observed nodes sit where they were,
+    # and a node's load and stiffness travel with it
+    assert np.array_equal(c0.coords[c0.contact.blade_dofs[0, 0] // 3], coords[4])
+    assert np.array_equal(c0.coords[c0.loads.observe[0] // 3], coords[2])
+    j = int(np.flatnonzero(np.all(c0.coords == coords[3], axis=1))[0])
+    np.testing.assert_array_equal(c0.loads.static[3 * j:3 * j + 3], loads.static[9:12])
+    assert c0.K[3 * j, 3 * j] == K[9, 9]

@@ -53,7 +53,7 @@ def test_user_penalties_are_validated_with_their_key():
 def test_eps_path_rises_by_half_decades_to_the_target():
     path = penalty.path(1e3)
     assert path[0] == pytest.approx(1e-3) and all(b / a == pytest.approx(10 ** 0.5) for a, b in zip(path, path[1:]))
-    assert path[-1] < 1.0 and penalty.path(1e3, user_given=True) == ()
+    assert path[-1] < 1.0 and penalty.path(3.0) == ()
 
 
 @pytest.mark.parametrize("nh", [1, 3])

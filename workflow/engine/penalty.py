@@ -144,15 +144,14 @@ def choose(Zr0: np.ndarray, eps_n: float = 0.0, eps_t: float = 0.0, factor: floa
     return en, et
 
 
-def path(factor: float, user_given: bool = False) -> tuple:
+def path(factor: float) -> tuple:
     """The ε-path of :func:`workflow.engine.cascade.along_eps_path` for penalties
     up to ``factor`` × the reference stiffness: half decades from
     :data:`START_FACTOR` up to (not including) the target, as fractions of
-    it; empty for a user's own ε (nothing to continue from) or a penalty that
-    is already at the start level. Half decades:
+    it; empty for a penalty within half a decade of the start level. Half decades:
     on the quick sector's tied resonance, decade steps lost Newton at
     ε·10⁻¹ → ε, half decades converged in 11–30 iterations each."""
-    if user_given or factor <= START_FACTOR * 10.0 ** 0.5:
+    if factor <= START_FACTOR * 10.0 ** 0.5:
         return ()       # within half a decade of the start: a level below it would add nothing
     n = int(np.ceil(2 * np.log10(factor / START_FACTOR) - 1e-9))
     return tuple(f for f in (START_FACTOR / factor * 10.0 ** (k / 2) for k in range(n)) if f < 1.0 - 1e-12)
