@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from reduction import dolfinx_compat as dc
 from reduction import elasticity as el
-from reduction.bundle import Bundle, Contact, Cyclic, Loads, canonical_order, write_bundle
+from reduction.bundle import Bundle, Contact, Cyclic, Loads, write_bundle
 from reduction.pairs import bundle_keys, contact_pairs, layout_of
 from reduction.prestress import static_displacement, tie_map
 from workflow.errors import BundleError, GeometryError, SceneError
@@ -299,12 +299,9 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
     b_modal = modal_beta(ratio, 2 * math.pi * f1) if f1 else 0.0
     bundle.C = rayleigh(ops.M, ops.K, alpha, beta + b_modal)
     t["damping_s"] = time.perf_counter() - t0
-    # the DOF order of the mesh alone, not of the partition (1 and N ranks: the same bundle)
-    bundle = canonical_order(bundle)
-    tip = int(bundle.loads.observe[0]) // bs
     mass = float(ops.M[0::bs, 0::bs].sum())
     info = dict(n_dofs=n, n_pairs=contact.n_pairs, mass_kg=mass, volume_fe_m3=mass / _material(material)[2],
-                omega_rad_s=omega, tip_block=tip, tip_position=bundle.coords[tip].tolist(),
+                omega_rad_s=omega, tip_block=tip, tip_position=coords[tip].tolist(),
                 static_force_sum_N=ops.f_static.reshape(-1, bs).sum(axis=0).tolist(),
                 flank_area_m2=float(contact.area.sum()), first_tied_hz=f1,
                 damping=dict(alpha=alpha, beta=beta, beta_modal=b_modal, beta_total=beta + b_modal,

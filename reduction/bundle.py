@@ -135,50 +135,6 @@ def pair_labels(bundle: "Bundle") -> tuple[np.ndarray, np.ndarray]:
     return flank, position
 
 
-def canonical_order(bundle: "Bundle") -> "Bundle":
-    """``bundle`` with its DOF blocks (x, y, z of one node) sorted by node position.
-
-    The assembly numbers DOFs as dolfinx partitions the mesh, so the same mesh
-    assembled on 1 and on N ranks gives bundles that differ by a permutation;
-    the reduction's Krylov start blocks are indexed by DOF, so the two reduced
-    models then agree only to the eigen-solver's tolerance (measured 1.3e-8 in
-    Zr on the quick sector, 6e-8 on its FRF at the tied resonance). Sorted by
-    (x, y, z), coincident nodes by the centroid of their neighbours in K's
-    pattern, the order depends on the mesh alone, and 1 and N ranks give the same
-    bundle to the assembly's round-off. Needs ``coords`` and 3 DOFs a node;
-    returns ``bundle`` unchanged otherwise, or where two nodes still tie.
-    """
-    if bundle.coords is None or bundle.n_dofs != 3 * len(bundle.coords):
-        return bundle
-    x = np.asarray(bundle.coords, dtype=float)
-    # coincident nodes (the two flanks' matched meshes) told apart by where their
-    # neighbours in K lie: the blade's above the flank, the disk's below it
-    pattern = (bundle.K.tocsr()[0::3, 0::3] != 0).astype(float)
-    mid = (pattern @ x) / np.maximum(pattern.sum(axis=1), 1.0)
-    # rounded: a partitioned mesh carries its coordinates to round-off only (−1.6e-18 for 0)
-    grid = 1e-9 * max(float(np.abs(x).max()), 1e-300)
-    keys = np.round(np.column_stack([x, np.asarray(mid)]) / grid)
-    order = np.lexsort(keys.T[::-1])
-    ks = keys[order]
-    if np.any(np.all(ks[1:] == ks[:-1], axis=1)):
-        return bundle                                      # nodes the keys cannot tell apart
-    perm = (3 * order[:, None] + np.arange(3)).ravel()     # new DOF i is old DOF perm[i]
-    inv = np.empty_like(perm)
-    inv[perm] = np.arange(perm.size)
-    new_idx = lambda a: np.where(np.asarray(a) >= 0, inv[np.maximum(a, 0)], a)  # noqa: E731  (−1: grounded)
-    mat = lambda A: A.tocsr()[perm][:, perm].tocsr()                             # noqa: E731
-    c, ld = bundle.contact, bundle.loads
-    loads = Loads(fixed=np.sort(inv[ld.fixed]), static=np.asarray(ld.static)[perm],
-                  harmonic=np.asarray(ld.harmonic)[perm], observe=inv[ld.observe])
-    from dataclasses import replace
-
-    contact = replace(c, blade_dofs=new_idx(c.blade_dofs), disk_dofs=new_idx(c.disk_dofs))
-    cyclic = None if bundle.cyclic is None else replace(bundle.cyclic, low_dofs=inv[bundle.cyclic.low_dofs],
-                                                         high_dofs=inv[bundle.cyclic.high_dofs])
-    return replace(bundle, M=mat(bundle.M), K=mat(bundle.K), C=mat(bundle.C), contact=contact, loads=loads,
-                   coords=x[order], cyclic=cyclic)
-
-
 def write_bundle(bundle: Bundle, path: str | Path, extra_files: dict[str, Path] | None = None) -> Path:
     """Validate and write ``bundle`` to the folder ``path`` atomically.
 

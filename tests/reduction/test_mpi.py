@@ -145,24 +145,6 @@ def test_pipeline_two_ranks_equals_serial(runs):
     assert np.max(np.abs(hp - hs)) / np.max(np.abs(hs)) < 1e-6
 
 
-def test_bundle_of_two_ranks_is_the_serial_one(runs):
-    """The assembly writes its DOFs in an order of the mesh alone (reduction.bundle.canonical_order):
-    the bundle assembled on 2 ranks is the serial one to the assembly's round-off — same node
-    order, same contact and clamp DOFs — not a permutation of it."""
-    from reduction.bundle import read_bundle
-
-    serial, parallel = runs
-    b = [read_bundle(next((d.parent / c / "assembly").glob("*/model"))) for d, c in ((serial, "c1"), (parallel, "c2"))]
-    np.testing.assert_allclose(b[1].coords, b[0].coords, rtol=0, atol=1e-14)
-    for name in ("blade_dofs", "disk_dofs"):
-        np.testing.assert_array_equal(getattr(b[1].contact, name), getattr(b[0].contact, name))
-    np.testing.assert_array_equal(b[1].loads.fixed, b[0].loads.fixed)
-    np.testing.assert_array_equal(b[1].loads.observe, b[0].loads.observe)
-    for name in ("M", "K"):
-        A, B = getattr(b[0], name), getattr(b[1], name)
-        assert abs(A - B).max() <= 1e-12 * abs(A).max(), name
-
-
 def test_sweeps_spread_over_two_ranks_equal_serial(runs):
     """HB variants shared over the ranks and the reference band cut in two: the same FRFs."""
     import csv

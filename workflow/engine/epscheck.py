@@ -109,14 +109,15 @@ def nh_runs(rc, law, static, runs: list, opt) -> dict:
 def reference(rc, cond, law, static, ref, opt) -> dict:
     """The reference's own convergence at its peak: relative change of the
     amplitude with nit × 2, Nh × 1.5 (nit scaled alike) and ε × the ε-check
-    factor; ``max_rel_change`` is the largest (the reference's uncertainty)."""
+    factor; ``max_rel_change`` is the largest of the nit and Nh trials (the reference's
+    uncertainty; the ε trial is reported beside it)."""
     i = _peak_index(ref)
     if i is None:
         return {"max_rel_change": None}
     v, f, a0 = ref.variant, float(ref.freqs_hz[i]), float(ref.amplitude[i])
-    nh2 = int(np.ceil(1.5 * v.nh))
+    nh2, nit2 = finer(v.nh, v.nit)
     trials = {"nit_x2": (law, v.nh, 2 * v.nit),
-              f"nh_{nh2}": (law, nh2, max(2 * nh2 + 1, int(np.ceil(v.nit * nh2 / v.nh)))),
+              f"nh_{nh2}": (law, nh2, nit2),
               "eps_x%g" % opt.eps_check_factor: (penalty.scaled(law, opt.eps_check_factor), v.nh, v.nit)}
     out = {"frequency_hz": f, "variant": v.label}
     fac = opt.eps_check_factor
