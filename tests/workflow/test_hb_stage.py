@@ -74,7 +74,7 @@ def run_stage(tmp: Path, model: ReducedModel, *, mu=0.3, contact=None, **hb) -> 
              "pseudotime": PseudoTime()}
     out = tmp / "out"
     out.mkdir(exist_ok=True)
-    return stage.run(scene, {"reduced": src}, out, RunLog(quiet=True)), out
+    return stage.run(scene, {"reduced": src}, out, RunLog(file=out / "stage.log", quiet=True)), out
 
 
 def read_frf(out: Path) -> list[dict]:
@@ -126,6 +126,11 @@ def test_checks_of_a_default_stage_run(study):
     assert eps["factor"] == 10.0 and len(eps["runs"]) == 4           # three variants and the reference
     moved = [r["rel_change"] for r in eps["runs"] if r["converged"]]
     assert moved and eps["max_rel_change"] == max(moved) and 0.0 <= eps["max_rel_change"] < 0.1
+    # each check says whether it passed (summary and log)
+    for chk in (eps, nc):
+        assert chk["tolerance"] == 1e-3 and chk["within_tolerance"] == (chk["max_rel_change"] <= 1e-3)
+    log = (out / "stage.log").read_text()
+    assert "Nh-check (1.5×Nh, convergence): the worst peak moves by" in log and "ε-check (ε × 10" in log
     conv = summary["reference"]["convergence"]
     assert conv["variant"] == "HBM-9 nit=64"
     parts = [conv[k] for k in ("nit_x2", "nh_14") if conv.get(k) is not None]

@@ -53,6 +53,24 @@ def finer(nh: int, nit: int) -> tuple[int, int]:
     return nh2, max(2 * nh2 + 1, int(np.ceil(nit * nh2 / max(nh, 1))))
 
 
+def judged(check: dict) -> dict:
+    """``check`` with ``tolerance`` (:data:`~workflow.engine.penalty.CHECK_TOL`) and
+    ``within_tolerance`` (None where nothing could be re-solved): every check says
+    whether it passed, in the summary and, through :func:`log_line`, in the log."""
+    ch = check.get("max_rel_change")
+    return {**check, "tolerance": penalty.CHECK_TOL,
+            "within_tolerance": None if ch is None else bool(ch <= penalty.CHECK_TOL)}
+
+
+def log_line(name: str, what: str, check: dict) -> str:
+    """One log line for a :func:`judged` check, e.g. ``ε-check (ε × 10): the peak moves by …``."""
+    ch = check.get("max_rel_change")
+    if ch is None:
+        return f"{name}: {what} could not be re-solved"
+    verdict = "within" if check.get("within_tolerance") else "ABOVE"
+    return f"{name}: {what} moves by {ch:.2e}, {verdict} the tolerance {penalty.CHECK_TOL:g}"
+
+
 def _rel(a, b) -> float | None:
     return None if a is None or b is None or b == 0 else abs(a - b) / abs(b)
 

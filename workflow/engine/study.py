@@ -316,9 +316,15 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
                          reference=ref, tied=tied, sliding=sliding, static=static, law=law,
                          condense_seconds=t_cond)
         if opt.eps_check_factor > 0:
-            study.eps_check = epscheck.frf_runs(rc, cond, law, static, runs + ([ref] if ref else []), opt)
+            study.eps_check = epscheck.judged(epscheck.frf_runs(rc, cond, law, static, runs + ([ref] if ref else []),
+                                                                opt))
+            if log is not None:
+                log.info(epscheck.log_line(f"ε-check (ε × {opt.eps_check_factor:g}, the penalty's sensitivity)",
+                                           "the worst peak", study.eps_check))
         if opt.nh_check:
-            study.nh_check = epscheck.nh_runs(rc, law, static, runs + ([ref] if ref else []), opt)
+            study.nh_check = epscheck.judged(epscheck.nh_runs(rc, law, static, runs + ([ref] if ref else []), opt))
+            if log is not None:
+                log.info(epscheck.log_line("Nh-check (1.5×Nh, convergence)", "the worst peak", study.nh_check))
         if ref is not None and opt.reference_check and opt.sweep == "grid":
             study.reference_convergence = epscheck.reference(rc, cond, law, static, ref, opt)
         if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:

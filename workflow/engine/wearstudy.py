@@ -217,12 +217,18 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
         coarse = _march(wp, base.x, ref, opt, 3 * i0 + 1, 4 * opt.block_tol)
         study.reference_check = reference_check(histories, ref, coarse, opt.block_tol)
     wp.set_wear(np.zeros(wp.p))     # the unworn point: the marches left the worn W in wp
+    from workflow.engine.epscheck import judged, log_line
+
     if opt.eps_check_factor > 0:
-        study.eps_check = eps_check(wp, base.x, opt)
-        study.eps_check["frequency_hz"] = omega / 2 / np.pi
+        study.eps_check = judged({**eps_check(wp, base.x, opt), "frequency_hz": omega / 2 / np.pi})
+        if log is not None:
+            log.info(log_line(f"wear ε-check (ε × {opt.eps_check_factor:g}, the penalty's sensitivity)",
+                              "the unworn wear rates", study.eps_check))
     if opt.nh_check:
-        study.nh_check = nh_check(model, law, wp, base.x, opt, eps_path, rc)
-        study.nh_check["frequency_hz"] = omega / 2 / np.pi
+        study.nh_check = judged({**nh_check(model, law, wp, base.x, opt, eps_path, rc),
+                                 "frequency_hz": omega / 2 / np.pi})
+        if log is not None:
+            log.info(log_line("wear Nh-check (1.5×Nh, convergence)", "the unworn wear rates", study.nh_check))
     return study
 
 
