@@ -76,12 +76,14 @@ SOLVERS = ("newton", "powell", "newton-powell", "pseudo-time")
 #: From this many unknowns up, Newton's linear solve is the structured one
 #: (:mod:`workflow.linsolve`: matrix-free J, GMRES, pair- and harmonic-block
 #: LUs) instead of the LU of the formed (n × n) J; see :func:`linear_solver`.
-#: Measured on the quick sector, HBM Nh = 7 nit = 64, 3 points through the
-#: resonance, loaded 2-core machine: 16 pairs (n = 720) dense 1.6 s a point,
-#: structured 3.7 s; 32 pairs (n = 1440) dense 14.4 s, structured 11.9 s.
-#: The switch sits above 1680 so that the paper's 16-pair scenes (Nh ≤ 17)
-#: keep the dense path they were tuned with.
-STRUCTURED_MIN_UNKNOWNS = 2000
+#: Measured at the automatic penalty on paper-frf's sector (16 pairs, 50 points,
+#: one BLAS thread, one run beside two other jobs), dense / structured sweep:
+#: HBM-7 nit=105 (n = 720) 4.6 / 11.9 s; HBM-11 nit=105 (n = 1104) 16.5 / 13.7 s;
+#: HDHB-11 (n = 1104) 20.7 / 3.9 s; HBM-13 (n = 1296) 11.4 / 6.6 s; HBM-17 nit=35
+#: (n = 1680) 22.3 / 8.5 s, nit=105 23.6 / 9.4 s, HDHB-17 27.8 / 7.0 s — the same
+#: peaks to 7 digits. (At the earlier 10³× penalty GMRES needed more iterations
+#: and the switch sat at 2000.)
+STRUCTURED_MIN_UNKNOWNS = 1000
 
 
 def collocated(prob) -> bool:
