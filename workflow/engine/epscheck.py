@@ -75,27 +75,39 @@ def _rel(a, b) -> float | None:
     return None if a is None or b is None or b == 0 else abs(a - b) / abs(b)
 
 
-def frf_runs(rc, cond, law, static, runs: list, opt) -> dict:
-    """ε-check of each run at its peak: ε × ``opt.eps_check_factor``.
-
-    Returns {"factor", "max_rel_change", "frequency_hz", "runs": [{"label",
-    "frequency_hz", "rel_change"}]} (``max_rel_change`` None if no peak
-    could be re-solved)."""
-    fac = float(opt.eps_check_factor)
-    big = penalty.scaled(law, fac)
+def _at_peaks(rc, static, runs: list, opt, trial) -> dict:
+    """Each run's peak re-solved from its converged harmonics under ``trial(variant)`` →
+    (law, Nh, nit, ε-path, extra row fields); {"max_rel_change", "frequency_hz", "runs"}."""
     rows = []
     for r in runs:
         i = _peak_index(r)
         if i is None:
             continue
         v = r.variant
-        a, ok = resolve(rc, float(r.freqs_hz[i]), r.Ur[i], big, static, method=v.method, nh=v.nh, nit=v.nit,
-                        opt=opt, eps_path=(1.0 / fac, fac ** -0.5))
-        rows.append({"label": v.label, "frequency_hz": float(r.freqs_hz[i]),
+        lw, nh, nit, path, extra = trial(v)
+        try:
+            a, ok = resolve(rc, float(r.freqs_hz[i]), r.Ur[i], lw, static, method=v.method, nh=nh, nit=nit,
+                            opt=opt, eps_path=path)
+        except BundleError:         # a cyclic model reduced for no more harmonics than asked
+            a, ok = None, False
+        rows.append({"label": v.label, **extra, "frequency_hz": float(r.freqs_hz[i]),
                      "rel_change": _rel(a, float(r.amplitude[i])), "converged": ok})
     vals = [(row["rel_change"], row["frequency_hz"]) for row in rows if row["rel_change"] is not None]
     worst = max(vals) if vals else (None, None)
-    return {"factor": fac, "max_rel_change": worst[0], "frequency_hz": worst[1], "runs": rows}
+    return {"max_rel_change": worst[0], "frequency_hz": worst[1], "runs": rows}
+
+
+def frf_runs(rc, cond, law, static, runs: list, opt) -> dict:
+    """ε-check of each run at its peak: ε × ``opt.eps_check_factor``, from the converged
+    state by half a decade then the full step.
+
+    Returns {"factor", "max_rel_change", "frequency_hz", "runs": [{"label",
+    "frequency_hz", "rel_change", "converged"}]} (``max_rel_change`` None if no
+    peak could be re-solved)."""
+    fac = float(opt.eps_check_factor)
+    big = penalty.scaled(law, fac)
+    return {"factor": fac, **_at_peaks(rc, static, runs, opt,
+                                       lambda v: (big, v.nh, v.nit, (1.0 / fac, fac ** -0.5), {}))}
 
 
 def nh_runs(rc, law, static, runs: list, opt) -> dict:
@@ -105,23 +117,11 @@ def nh_runs(rc, law, static, runs: list, opt) -> dict:
     Returns {"max_rel_change", "frequency_hz", "runs": [{"label", "nh", "nit",
     "frequency_hz", "rel_change", "converged"}]} (``max_rel_change`` None if no
     peak could be re-solved)."""
-    rows = []
-    for r in runs:
-        i = _peak_index(r)
-        if i is None:
-            continue
-        v = r.variant
+    def trial(v):
         nh2, nit2 = finer(v.nh, v.nit)
-        try:
-            a, ok = resolve(rc, float(r.freqs_hz[i]), r.Ur[i], law, static, method=v.method, nh=nh2, nit=nit2,
-                            opt=opt, eps_path=opt.eps_path or ())
-        except BundleError:         # a cyclic model reduced for no more harmonics than asked
-            a, ok = None, False
-        rows.append({"label": v.label, "nh": nh2, "nit": nit2, "frequency_hz": float(r.freqs_hz[i]),
-                     "rel_change": _rel(a, float(r.amplitude[i])), "converged": ok})
-    vals = [(row["rel_change"], row["frequency_hz"]) for row in rows if row["rel_change"] is not None]
-    worst = max(vals) if vals else (None, None)
-    return {"max_rel_change": worst[0], "frequency_hz": worst[1], "runs": rows}
+        return law, nh2, nit2, opt.eps_path or (), {"nh": nh2, "nit": nit2}
+
+    return _at_peaks(rc, static, runs, opt, trial)
 
 
 def reference(rc, cond, law, static, ref, opt) -> dict:
