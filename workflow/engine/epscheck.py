@@ -66,9 +66,10 @@ def log_line(name: str, what: str, check: dict) -> str:
     """One log line for a :func:`judged` check, e.g. ``ε-check (ε × 10): the peak moves by …``."""
     ch = check.get("max_rel_change")
     if ch is None:
-        return f"{name}: {what} could not be re-solved"
+        why = next((r["reason"] for r in check.get("runs", []) if r.get("reason")), check.get("reason"))
+        return f"{name}: {what} could not be re-solved" + (f" ({why})" if why else "")
     verdict = "within" if check.get("within_tolerance") else "ABOVE"
-    return f"{name}: {what} moves by {ch:.2e}, {verdict} the tolerance {penalty.CHECK_TOL:g}"
+    return f"{name}: {ch:.2e} change in {what}, {verdict} the tolerance {penalty.CHECK_TOL:g}"
 
 
 def _rel(a, b) -> float | None:
@@ -85,13 +86,15 @@ def _at_peaks(rc, static, runs: list, opt, trial) -> dict:
             continue
         v = r.variant
         lw, nh, nit, path, extra = trial(v)
+        why = None
         try:
             a, ok = resolve(rc, float(r.freqs_hz[i]), r.Ur[i], lw, static, method=v.method, nh=nh, nit=nit,
                             opt=opt, eps_path=path)
-        except BundleError:         # a cyclic model reduced for no more harmonics than asked
-            a, ok = None, False
+        except BundleError as exc:  # a cyclic model reduced for no more harmonics than asked
+            a, ok, why = None, False, f"{exc}; reduction.cyclic_harmonics"
         rows.append({"label": v.label, **extra, "frequency_hz": float(r.freqs_hz[i]),
-                     "rel_change": _rel(a, float(r.amplitude[i])), "converged": ok})
+                     "rel_change": _rel(a, float(r.amplitude[i])), "converged": ok,
+                     **({"reason": why} if why else {})})
     vals = [(row["rel_change"], row["frequency_hz"]) for row in rows if row["rel_change"] is not None]
     worst = max(vals) if vals else (None, None)
     return {"max_rel_change": worst[0], "frequency_hz": worst[1], "runs": rows}

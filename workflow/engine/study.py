@@ -192,8 +192,9 @@ class FRFStudy:
         out = []
         nc = self.nh_check or {}
         if nc and nc.get("max_rel_change") is None:
-            out.append("Nh-check: the peak could not be re-solved with more harmonics "
-                       "(how converged the answer is in Nh is unknown)")
+            why = next((r["reason"] for r in nc.get("runs", []) if r.get("reason")), "the solver gave up")
+            out.append(f"Nh-check: the peak could not be re-solved with more harmonics ({why}; how converged "
+                       "the answer is in Nh is unknown)")
         if nc.get("max_rel_change") is not None and nc["max_rel_change"] > penalty.CHECK_TOL:
             worst = max((r for r in nc["runs"] if r["rel_change"] is not None), key=lambda r: r["rel_change"])
             out.append(f"Nh-check: the peak of {worst['label']} moves by {nc['max_rel_change']:.2e} "

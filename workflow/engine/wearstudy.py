@@ -90,7 +90,7 @@ class WearStudy:
         ch = nc.get("max_rel_change")
         if nc and ch is None:
             return [f"wear Nh-check: the unworn point could not be re-solved at Nh = {nc['nh']} "
-                    "(how converged the wear rates are in Nh is unknown)"]
+                    f"({nc.get('reason') or 'the solver gave up'}; how converged the wear rates are in Nh is unknown)"]
         if ch is not None and ch > penalty.CHECK_TOL:
             return [f"wear Nh-check: the unworn wear rates move by {ch:.2e} (> {penalty.CHECK_TOL:g}) at "
                     f"Nh = {nc['nh']}, nit = {nc['nit']}; raise hb.harmonics"]
@@ -254,8 +254,8 @@ def nh_check(model, law, wp, x, opt: WearOptions, eps_path, rc) -> dict:
     out = {"nh": nh2, "nit": nit2, "max_rel_change": None}
     try:
         fine, _, _ = build_problem(model, law, replace(opt, nh=nh2, nit=nit2), rc=rc)
-    except BundleError:             # a cyclic model reduced for no more harmonics
-        return out
+    except BundleError as exc:      # a cyclic model reduced for no more harmonics
+        return {**out, "reason": f"{exc}; reduction.cyclic_harmonics"}
     U = np.zeros((nh2 + 1, hb.nr), dtype=complex)
     U[: hb.nh + 1] = hb.harmonics(x)
     pr = solve_point(fine, [fine.unknowns_from_harmonics(U)], solver="newton-powell", tol=opt.tol,
