@@ -99,10 +99,11 @@ def unresolved_stiffness(rc, omega: float, harmonics: int = HARMONICS) -> np.nda
     the harmonics a HB leaves unresolved: ``1 / median_h Re(1/Zr_ii(hω))`` over
     h = 2…``harmonics`` at ``omega`` (rad/s), each DOF with the others held (the
     diagonal of the condensed Zr, eq. 3); +inf where that median compliance is ≤ 0
-    (inertia-dominated: Den Hartog's bare mass). Tangential = the stiffer of t1, t2
-    in compliance terms (mean compliance). A cyclic model is sampled on the
-    excitation's nodal diameter. The median ignores the few h that sit on a
-    resonance of the structure with the interface free."""
+    (inertia-dominated: Den Hartog's bare mass). Tangential: the mean of the t1 and
+    t2 compliances. The range does not depend on Nh, so one law serves every variant
+    of a study (on the dovetail the stiffness is flat in h). A cyclic model is
+    sampled on the excitation's nodal diameter. The median ignores the few h that
+    sit on a resonance of the structure with the interface free."""
     from reduction.condense import condense
 
     base = rc.harmonic(1) if hasattr(rc, "by_nd") else rc
