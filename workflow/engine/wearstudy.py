@@ -225,7 +225,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
             log.info(log_line(f"wear ε-check (ε × {opt.eps_check_factor:g}, the penalty's sensitivity)",
                               "the unworn wear rates", study.eps_check))
     if opt.nh_check:
-        study.nh_check = judged({**nh_check(model, law, wp, base.x, opt, eps_path, rc),
+        study.nh_check = judged({**nh_check(rc, omega, wp, base.x, opt, eps_path),
                                  "frequency_hz": omega / 2 / np.pi})
         if log is not None:
             log.info(log_line("wear Nh-check (1.5×Nh, convergence)", "the unworn wear rates", study.nh_check))
@@ -238,24 +238,26 @@ def _rate_change(rate0, rate1) -> float:
     return float(np.max(np.abs(rate1 - rate0)) / top) if top > 0 else 0.0
 
 
-def nh_check(model, law, wp, x, opt: WearOptions, eps_path, rc) -> dict:
-    """The unworn point re-solved with Nh × 1.5 (nit alike,
-    :func:`workflow.engine.epscheck.finer`) from ``x``: relative change of the
-    wear-rate profile, ``max|Δrate| / max rate`` — how converged in Nh what W
-    integrates is."""
-    from dataclasses import replace
-
+def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path) -> dict:
+    """The unworn point at ``omega`` (rad/s) re-solved with Nh × 1.5 (nit alike,
+    :func:`workflow.engine.epscheck.finer`) from ``x``, on the same law and static
+    state: relative change of the wear-rate profile, ``max|Δrate| / max rate`` —
+    how converged in Nh what W integrates is."""
+    from reduction.condense import condense
     from workflow.engine.cascade import solve_point
     from workflow.engine.epscheck import finer
+    from workflow.hb import HBProblem
     from workflow.wear import WearProblem
 
     hb = wp.hb
     nh2, nit2 = finer(hb.nh, hb.nit)
     out = {"nh": nh2, "nit": nit2, "max_rel_change": None}
     try:
-        fine, _, _ = build_problem(model, law, replace(opt, nh=nh2, nit=nit2), rc=rc)
+        c = condense(rc, omega, nh2)
     except BundleError as exc:      # a cyclic model reduced for no more harmonics
         return {**out, "reason": f"{exc}; reduction.cyclic_harmonics"}
+    # the static state does not depend on Nh: the unworn point's is carried over
+    fine = HBProblem(c.Zr, c.Fr, hb.law, nh2, nit2, hb.method, max_passes=hb.max_passes, static=hb.static)
     U = np.zeros((nh2 + 1, hb.nr), dtype=complex)
     U[: hb.nh + 1] = hb.harmonics(x)
     pr = solve_point(fine, [fine.unknowns_from_harmonics(U)], solver="newton-powell", tol=opt.tol,
