@@ -41,7 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from reduction.bundle import matrix_rows, pair_labels, read_bundle
-from reduction.craig_bampton import SparseFactor, _load_vectors, fixed_interface_modes
+from reduction.craig_bampton import MODE_TOL, SparseFactor, _load_vectors, fixed_interface_modes
 from reduction.reduce import MAX_LOAD_DOFS, boundary_dofs, contact_map
 from reduction.reduced import ReducedModel
 from workflow.errors import BundleError, SolverError
@@ -139,7 +139,7 @@ def reduce_root(comm, a):
 
 def reduce_bundle_mpi(folder: str | Path, n_modes: int | None = 30, cutoff_hz: float | None = None, *,
                       comm=None, eigensolver: str = "lanczos", max_load_dofs: int = MAX_LOAD_DOFS,
-                      tol: float = 1e-6) -> ReducedModel | None:
+                      tol: float = MODE_TOL) -> ReducedModel | None:
     """:func:`reduction.reduce.reduce_bundle` of the bundle folder ``folder`` on every rank of ``comm``.
 
     Collective. Returns the :class:`ReducedModel` on rank 0, None elsewhere.

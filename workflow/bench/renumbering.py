@@ -1,0 +1,118 @@
+"""How far a serial run moves when only the DOF numbering changes: the floor for "2 ranks = serial".
+
+``python -m workflow.bench.renumbering [--scene quick] [--orders 3] [--ranks 2] [--out results/bench]``
+
+A run on N MPI ranks numbers the DOFs by partition, so the sparse LU of the
+reduction (MUMPS' fill-reducing ordering follows the numbering) and the block
+Lanczos start blocks see another order than the serial run and round off
+differently. This script measures what that alone does in one process: the
+serial chain (``--fresh``, ``hb.tol = 1e-12``) once as numbered, then
+``--orders`` times with the free DOFs handed to the Craig–Bampton reduction
+in a random order (seeds 1, 2, …; the basis is mapped back, so the model is
+the same up to round-off), and — when ``--ranks`` > 1 and mpirun exists — the
+README's ``mpirun -n N`` command. Each is compared with the first serial run:
+max |ΔA| / max |A| over the FRF amplitude and over the pseudo-time worn depth.
+
+Writes ``renumbering.csv`` (run, frf_rel, wear_rel, seconds) to ``--out``.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+TIGHT = ["--set", "hb.tol=1e-12"]
+
+
+def _column(path: Path, name: str) -> np.ndarray:
+    with open(path) as fh:
+        return np.array([float(r[name]) for r in csv.DictReader(fh)])
+
+
+def _rel(a: Path, b: Path) -> tuple[float, float]:
+    out = []
+    for rel, col in (("hb/frf.csv", "amplitude_m"), ("wear/wear.csv", "W_pseudo-time_m")):
+        x, y = _column(a / rel, col), _column(b / rel, col)
+        out.append(float(np.max(np.abs(x - y)) / np.max(np.abs(x))))
+    return out[0], out[1]
+
+
+def _permuted_reduction(seed: int) -> None:
+    """Make :func:`reduction.reduce.craig_bampton` see the free DOFs in a random order (this process only)."""
+    import reduction.reduce as rr
+
+    plain = rr.craig_bampton
+
+    def permuted(M, K, boundary, *args, loads=None, **kwargs):
+        p = np.random.default_rng(seed).permutation(K.shape[0])
+        back = np.argsort(p)
+        V, omega = plain(M[p][:, p], K[p][:, p], back[boundary], *args,
+                         loads=None if loads is None else loads[p], **kwargs)
+        return V[back], omega
+
+    rr.craig_bampton = permuted
+
+
+def _run(argv: list[str]) -> float:
+    t0 = time.perf_counter()
+    r = subprocess.run(argv, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"{' '.join(argv)} failed ({r.returncode}):\n{r.stderr}")
+    return time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default="quick")
+    ap.add_argument("--orders", type=int, default=3, help="random DOF orders to try")
+    ap.add_argument("--ranks", type=int, default=2, help="also run on this many MPI ranks (≤ 1: no)")
+    ap.add_argument("--out", default="results/bench")
+    ap.add_argument("--seed", type=int, default=None, help=argparse.SUPPRESS)  # internal: one permuted run
+    ap.add_argument("--run-out", default=None, help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.seed is not None:  # child process: the chain with a renumbered reduction
+        _permuted_reduction(a.seed)
+        from workflow.cli import main as cli
+
+        return cli(["run", a.scene, "--out", a.run_out, "--cache", a.run_out + "-cache", "--fresh", "--quiet",
+                    *TIGHT])
+
+    from workflow.mpi import mpirun_command, single_thread_env
+
+    out = Path(a.out)
+    work = out / "renumbering-runs"
+    bin_ = str(Path(sys.executable).parent / "bladewear")
+    base = work / "serial"
+    rows = [("serial", 0.0, 0.0, _run([bin_, "run", a.scene, "--out", str(base), "--cache", str(work / "c0"),
+                                        "--fresh", "--quiet", *TIGHT]))]
+    for s in range(1, a.orders + 1):
+        d = work / f"order{s}"
+        t = _run([sys.executable, "-m", "workflow.bench.renumbering", "--scene", a.scene, "--seed", str(s),
+                  "--run-out", str(d)])
+        rows.append((f"serial, DOF order {s}", *_rel(base, d), t))
+        print(f"{rows[-1][0]}: FRF {rows[-1][1]:.2e}, wear {rows[-1][2]:.2e}")
+    mpirun = mpirun_command(a.ranks) if a.ranks > 1 else None
+    if mpirun:
+        d = work / f"ranks{a.ranks}"
+        import os
+        os.environ.update(single_thread_env())
+        t = _run(mpirun + [bin_, "run", a.scene, "--out", str(d), "--cache", str(work / "cmpi"), "--fresh",
+                           "--quiet", *TIGHT])
+        rows.append((f"{a.ranks} MPI ranks", *_rel(base, d), t))
+        print(f"{rows[-1][0]}: FRF {rows[-1][1]:.2e}, wear {rows[-1][2]:.2e}")
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "renumbering.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["run", "frf_rel", "wear_rel", "seconds"])
+        w.writerows([(r, f"{x:.3e}", f"{y:.3e}", f"{t:.1f}") for r, x, y, t in rows])
+    print(f"wrote {out / 'renumbering.csv'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
