@@ -146,3 +146,24 @@ def test_frf_reports_its_convergence_in_nh():
     nc = study.nh_check
     assert nc["runs"][0]["nh"] == 5 and nc["runs"][0]["converged"]
     assert 0 <= nc["max_rel_change"] < 0.02
+
+
+def test_reference_check_takes_the_nh_and_eps_trials_from_the_checks():
+    """The reference's own Nh and ε trials are the Nh-check's and ε-check's re-solves of the
+    reference: taken from them, they equal a fresh re-solve (and the nit trial is made)."""
+    from reduction.condense import condense, relative_coordinates
+    from workflow.engine import epscheck
+
+    model = oscillator(c=0.2)
+    law = engine.contact_law(model, mu=1.0)
+    opt = engine.FRFOptions(reference=engine.Variant("hbm", 3, 32), refine_peak=False)
+    study = engine.frf(model, law, [engine.Variant("hbm", 1, 32)], band_hz=(0.12, 0.2), points=5, options=opt)
+    got = study.reference_convergence
+    assert set(got) >= {"nit_x2", "nh_5", "eps_x10", "max_rel_change"}
+    rc = relative_coordinates(model)
+    cond = [condense(rc, 2 * np.pi * f, 3) for f in study.freqs_hz]
+    fresh = epscheck.reference(rc, cond, law, study.static, study.reference,
+                               engine.FRFOptions(reference=opt.reference, eps_path=penalty.path_of(
+                                   law, np.real(cond[0].Zr[0]))))
+    for key in ("nit_x2", "nh_5", "eps_x10"):
+        assert got[key] == pytest.approx(fresh[key], rel=1e-9, abs=1e-12), key

@@ -63,6 +63,10 @@ def sliding_frequency(model: ReducedModel) -> float:
 #: what the FRF tests do not look at — ε-check, Nh-check, the reference's own check, the peak
 #: refinement — switched off: they are tested on the ``study`` fixture (test_checks_of_a_default_stage_run)
 LEAN = dict(contact=dict(eps_check=0.0), reference_check=False, refine_peak=False, nh_check=False)
+#: LEAN with ε = the static stiffness: the automatic penalty of this chain is 10³× that (its
+#: contact DOFs carry lumped masses, penalty.CAP), which the arc-length test does not need
+#: (measured: 10.1 → 4.1 s for the test, every traced point converged at both)
+MODERATE = dict(LEAN, contact=dict(eps_check=0.0, penalty_factor=1.0))
 
 
 def run_stage(tmp: Path, model: ReducedModel, *, mu=0.3, contact=None, **hb) -> tuple[dict, Path]:
@@ -329,8 +333,8 @@ def test_arclength_sweep_traces_the_same_frf_as_the_grid(tmp_path):
     model = blade_chain(force=0.2, preload=np.array([2.0, 8.0, 30.0]))
     kw = dict(methods=["hbm"], harmonics=[3], time_samples=[32], reference_harmonics=5, reference_time_samples=32)
     band = dict(f_start_hz=94.0, f_stop_hz=104.0)
-    s_grid, out_grid = run_stage(tmp_path / "grid", model, sweep=dict(points=41, **band), **kw, **LEAN)
-    s_arc, out_arc = run_stage(tmp_path / "arc", model, sweep=dict(method="arclength", **band), **kw, **LEAN)
+    s_grid, out_grid = run_stage(tmp_path / "grid", model, sweep=dict(points=41, **band), **kw, **MODERATE)
+    s_arc, out_arc = run_stage(tmp_path / "arc", model, sweep=dict(method="arclength", **band), **kw, **MODERATE)
     fg, ag, okg = curve(read_frf(out_grid), "hbm", 3, 32)
     fa, aa, oka = curve(read_frf(out_arc), "hbm", 3, 32)
     assert oka.all() and fa[0] == pytest.approx(94.0) and fa[-1] >= 104.0 - 1e-9

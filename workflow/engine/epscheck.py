@@ -127,28 +127,44 @@ def nh_runs(rc, law, static, runs: list, opt) -> dict:
     return _at_peaks(rc, static, runs, opt, trial)
 
 
-def reference(rc, cond, law, static, ref, opt) -> dict:
+def reference(rc, cond, law, static, ref, opt, checks=()) -> dict:
     """The reference's own convergence at its peak: relative change of the
     amplitude with nit × 2, Nh × 1.5 (nit scaled alike) and ε × the ε-check
     factor; ``max_rel_change`` is the largest of the nit and Nh trials (the reference's
-    uncertainty; the ε trial is reported beside it)."""
+    uncertainty; the ε trial is reported beside it).
+
+    ``checks``: the study's Nh-check and ε-check (:func:`nh_runs`, :func:`frf_runs`), whose
+    rows for the reference are the same re-solves as the Nh and ε trials here and are
+    taken from them (on paper-frf the two largest solves of the check: Nh = 38 and 25)."""
     i = _peak_index(ref)
     if i is None:
         return {"max_rel_change": None}
     v, f, a0 = ref.variant, float(ref.freqs_hz[i]), float(ref.amplitude[i])
     nh2, nit2 = finer(v.nh, v.nit)
+    eps_key = "eps_x%g" % opt.eps_check_factor
     trials = {"nit_x2": (law, v.nh, 2 * v.nit),
               f"nh_{nh2}": (law, nh2, nit2),
-              "eps_x%g" % opt.eps_check_factor: (penalty.scaled(law, opt.eps_check_factor), v.nh, v.nit)}
+              eps_key: (penalty.scaled(law, opt.eps_check_factor), v.nh, v.nit)}
     out = {"frequency_hz": f, "variant": v.label}
+    for check in checks:
+        key = eps_key if "factor" in check else f"nh_{nh2}"
+        if "factor" in check and check["factor"] != opt.eps_check_factor:
+            continue
+        row = next((r for r in check.get("runs", ()) if r["label"] == v.label and r["frequency_hz"] == f
+                    and r.get("nh", nh2) == nh2 and r.get("nit", nit2) == nit2), None)
+        if row is not None and row["converged"]:
+            out[key] = row["rel_change"]
     fac = opt.eps_check_factor
     for key, (lw, nh, nit) in trials.items():
+        if key in out:
+            continue
         # ε × fac starts from the converged state; a new Nh or nit starts from a state that is
         # not its root, so it climbs the sweep's ε-path (Newton straight at ε failed at Nh 5 → 8
         # on the MPI test's sector and fell to Powell: 1.55 s of the stage's 5.5 s)
         path = (1.0 / fac, fac ** -0.5) if key.startswith("eps") else opt.eps_path
         a, _ = resolve(rc, f, ref.Ur[i], lw, static, method="hbm", nh=nh, nit=nit, opt=opt, eps_path=path)
         out[key] = _rel(a, a0)
+    out = {"frequency_hz": f, "variant": v.label, **{k: out[k] for k in trials}}
     # the uncertainty is the discretisation's (nit, Nh); the ε trial is the penalty model's
     # sensitivity, reported beside it (module docstring)
     disc = [k for k in trials if not k.startswith("eps")]

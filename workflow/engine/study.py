@@ -327,7 +327,8 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
             if log is not None:
                 log.info(epscheck.log_line("Nh-check (1.5×Nh, convergence)", "the worst peak", study.nh_check))
         if ref is not None and opt.reference_check and opt.sweep == "grid":
-            study.reference_convergence = epscheck.reference(rc, cond, law, static, ref, opt)
+            study.reference_convergence = epscheck.reference(rc, cond, law, static, ref, opt,
+                                                             checks=[c for c in (study.eps_check, study.nh_check) if c])
         if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:
             study.peak = _refined_peak(rc, law, static, ref if ref is not None else _most_harmonics(runs), opt,
                                        reference=ref is not None)
