@@ -107,8 +107,9 @@ class HB:
                           item_choices=("hbm", "tcm", "hdhb"))
     harmonics: list = param([3], "", "numbers of harmonics Nh (≥ 1: harmonic 1 is the response)", min=1)
     time_samples: list = param([0], "", "nit per period; 0 means 2Nh+1 (HDHB always uses 2Nh+1)", min=0)
-    solver: str = param("newton", "", "nonlinear solver; newton-powell: ≤10 Newton steps from the predictor, then "
-                                      "hybrid Powell from the best iterate",
+    solver: str = param("newton", "", "nonlinear solver, first of the cascade (workflow/engine/cascade.py); "
+                                      "newton-powell: ≤30 Newton steps along the ε-path, hybrid Powell from the "
+                                      "best iterate, then pseudo-transient continuation from the best guess",
                         choices=("newton", "powell", "newton-powell", "pseudo-time"))
     tol: float = param(1e-8, "", "residual tolerance relative to ‖F_r‖", min=0.0, min_exclusive=True)
     max_iterations: int = param(100, "", "solver iterations at most", min=1)
