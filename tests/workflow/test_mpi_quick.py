@@ -12,7 +12,7 @@ Two comparisons:
   Lanczos start blocks of the reduction, which round off differently; the
   lightly damped tied resonance amplifies ~1e-10 in the reduced receptance to
   ~1e-8 on the FRF. A *serial* run whose reduction sees its DOFs in another
-  order moves as much (up to 6.1e-8 on the FRF and 3.8e-8 on the worn profile;
+  order moves as much (up to 1.0e-7 on the FRF and 5.6e-8 on the worn profile;
   2 ranks: 0.7–6.8e-8 and 1.2–4.0e-8 in five runs, 2026-11-26;
   ``results/reference/renumbering``): 1e-6 for both, well above that floor.
   (At the previous, 10³× penalty the wear agreed only to 0.3–1.1 %: its

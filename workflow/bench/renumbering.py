@@ -59,8 +59,11 @@ def _permuted_reduction(seed: int) -> None:
 
 
 def _run(argv: list[str]) -> float:
+    """Run ``argv`` with one BLAS thread per process (serial and MPI runs alike); seconds."""
+    from workflow.mpi import single_thread_env
+
     t0 = time.perf_counter()
-    r = subprocess.run(argv, capture_output=True, text=True)
+    r = subprocess.run(argv, capture_output=True, text=True, env=single_thread_env())
     if r.returncode != 0:
         raise SystemExit(f"{' '.join(argv)} failed ({r.returncode}):\n{r.stderr}")
     return time.perf_counter() - t0
@@ -82,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
         return cli(["run", a.scene, "--out", a.run_out, "--cache", a.run_out + "-cache", "--fresh", "--quiet",
                     *TIGHT])
 
-    from workflow.mpi import mpirun_command, single_thread_env
+    from workflow.mpi import mpirun_command
 
     out = Path(a.out)
     work = out / "renumbering-runs"
@@ -99,8 +102,6 @@ def main(argv: list[str] | None = None) -> int:
     mpirun = mpirun_command(a.ranks) if a.ranks > 1 else None
     if mpirun:
         d = work / f"ranks{a.ranks}"
-        import os
-        os.environ.update(single_thread_env())
         t = _run(mpirun + [bin_, "run", a.scene, "--out", str(d), "--cache", str(work / "cmpi"), "--fresh",
                            "--quiet", *TIGHT])
         rows.append((f"{a.ranks} MPI ranks", *_rel(base, d), t))

@@ -145,7 +145,7 @@ def reference(rc, cond, law, static, ref, opt, checks=()) -> dict:
     trials = {"nit_x2": (law, v.nh, 2 * v.nit),
               f"nh_{nh2}": (law, nh2, nit2),
               eps_key: (penalty.scaled(law, opt.eps_check_factor), v.nh, v.nit)}
-    out = {"frequency_hz": f, "variant": v.label}
+    out = {}
     for check in checks:
         key = eps_key if "factor" in check else f"nh_{nh2}"
         if "factor" in check and check["factor"] != opt.eps_check_factor:
@@ -164,7 +164,7 @@ def reference(rc, cond, law, static, ref, opt, checks=()) -> dict:
         path = (1.0 / fac, fac ** -0.5) if key.startswith("eps") else opt.eps_path
         a, _ = resolve(rc, f, ref.Ur[i], lw, static, method="hbm", nh=nh, nit=nit, opt=opt, eps_path=path)
         out[key] = _rel(a, a0)
-    out = {"frequency_hz": f, "variant": v.label, **{k: out[k] for k in trials}}
+    out = {"frequency_hz": f, "variant": v.label, **{k: out[k] for k in trials}}   # in the trials' order
     # the uncertainty is the discretisation's (nit, Nh); the ε trial is the penalty model's
     # sensitivity, reported beside it (module docstring)
     disc = [k for k in trials if not k.startswith("eps")]
