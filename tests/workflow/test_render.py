@@ -100,3 +100,24 @@ def test_renders_safely_after_dolfinx_import(tmp_path):
 
     path = render.render_flank_wear(surfaces()[:1], tmp_path / "one.png", width=1600)
     image_checks(path, 1600)
+
+
+def test_figures_together_share_one_render_process(tmp_path, monkeypatch):
+    """render.together: after dolfinx, several figures come from one child
+    process (one interpreter start), in the order asked, each right."""
+    pytest.importorskip("dolfinx")
+    import subprocess
+
+    import dolfinx  # noqa: F401
+
+    runs = []
+    real_run = subprocess.run
+    monkeypatch.setattr(subprocess, "run", lambda *a, **k: runs.append(a) or real_run(*a, **k))
+    cells, types_, pts, body = sector()
+    p1, p2 = render.together([
+        (render.render_flank_wear, (surfaces()[:1], tmp_path / "one.png"), dict(width=1600)),
+        (render.render_sector, (cells, types_, pts, body, surfaces(), tmp_path / "sector.png"), dict(width=1800))])
+    assert len(runs) == 1
+    assert (p1.name, p2.name) == ("one.png", "sector.png")
+    image_checks(p1, 1600)
+    image_checks(p2, 1800)

@@ -99,10 +99,11 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     cells, types, points = dc.vtk_mesh(mesh)
     body = np.zeros(len(types), dtype=int)
     body[ct.indices] = ct.values
-    figs = [render.render_flank_wear(surfaces, out / FIG_DIR / "wear_flanks.png", rp.image_width,
-                                     title=f"wear depth ({table['method']}) on each flank"),
-            render.render_sector(cells, types, points, body, surfaces, out / FIG_DIR / "wear_sector.png",
-                                 rp.image_width)]
+    figs = render.together([
+        (render.render_flank_wear, (surfaces, out / FIG_DIR / "wear_flanks.png", rp.image_width),
+         dict(title=f"wear depth ({table['method']}) on each flank")),
+        (render.render_sector, (cells, types, points, body, surfaces, out / FIG_DIR / "wear_sector.png",
+                                rp.image_width), {})])
 
     viewer = write_viewer_3d(out / VIEWER, points, cells, types, body, surfaces, table["method"])
     summary = {
