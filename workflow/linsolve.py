@@ -30,8 +30,9 @@ iterations to 10⁻¹⁰: harmonic blocks alone 166–200 (three stalled at
 pair-harmonic-pair 13–18.
 
 The preconditioner is *lagged*: kept across Newton steps (and ε-path steps
-and chord-free trial points) while GMRES converges in ≤ :data:`REFRESH_ITERS`
-iterations, refactored from the current K otherwise. GMRES always solves with
+and chord-free trial points) until the GMRES iterations it has cost beyond
+:data:`REFRESH_ITERS` a solve add up to one factorisation
+(:meth:`StructuredSolve._account`), refactored from the current K then. GMRES always solves with
 the current K, so every step is an (inexact) Newton step, never a chord step.
 Memory: the blocks, (Nh+1)·(6p)² reals — nothing of size n².
 """
@@ -56,8 +57,14 @@ GMRES_RESTART = 100
 STALE_RESIDUAL = 1e-4
 #: LSQR iterations of a Levenberg–Marquardt fallback step (:meth:`StructuredSolve.lm_step`).
 LM_ITERS = 30
-#: refactor the harmonic blocks when GMRES needed more iterations than this.
+#: GMRES iterations per solve that fresh blocks give on easy points; the iterations
+#: beyond it are what lagged blocks cost (:meth:`StructuredSolve._account`).
 REFRESH_ITERS = 25
+#: one factorisation of the harmonic blocks costs about this many GMRES iterations per
+#: contact DOF (3p): LU is O((6p)³) per harmonic, a GMRES iteration O((3p)²) memory-bound
+#: products. Measured on the 128-pair sector (HBM, Nh = 7, one BLAS thread): 0.17 s a
+#: factorisation, 10.8 ms a GMRES iteration, i.e. 16 iterations at 3p = 384.
+FACTOR_ITERS_PER_DOF = 0.04
 
 
 def zb_apply(Zr, y, conj_transpose: bool = False):
@@ -81,6 +88,36 @@ def _pair_apply(G, V, nc, p):
 
 def _harmonic_index(h):
     return [0] if h == 0 else [2 * h - 1, 2 * h]
+
+
+def _bidiagonalise(op, b, steps: int):
+    """Golub–Kahan bidiagonalisation ``op V = U B`` started from ``b``: (V (n, k),
+    B (k+1, k) lower bidiagonal, β₁ = ‖b‖), k ≤ ``steps`` (fewer on breakdown).
+    No reorthogonalisation, as in LSQR."""
+    n = op.shape[1]
+    V = np.zeros((n, steps))
+    B = np.zeros((steps + 1, steps))
+    beta1 = float(np.linalg.norm(b))
+    if not beta1 > 0 or not np.isfinite(beta1):
+        return V[:, :0], B[:1, :0], beta1
+    u = b / beta1
+    w = op.rmatvec(u)
+    alpha = float(np.linalg.norm(w))
+    k = 0
+    while k < steps and alpha > 0 and np.isfinite(alpha):
+        v = w / alpha
+        V[:, k] = v
+        B[k, k] = alpha
+        u = op.matvec(v) - alpha * u
+        beta = float(np.linalg.norm(u))
+        B[k + 1, k] = beta
+        k += 1
+        if k == steps or not beta > 0 or not np.isfinite(beta):
+            break
+        u /= beta
+        w = op.rmatvec(u) - beta * v
+        alpha = float(np.linalg.norm(w))
+    return V[:, :k], B[:k + 1, :k], beta1
 
 
 class ContactJacobian(scipy.sparse.linalg.LinearOperator):
@@ -204,6 +241,8 @@ class StructuredSolve:
         self._lu = None
         self._lu_op = None
         self._refresh = True
+        self._excess = 0.0          # GMRES iterations beyond REFRESH_ITERS since the last factorisation
+        self._gk = None             # (operator, R, V, B, β₁) of the last LM bidiagonalisation
         self.stats = {"factorizations": 0, "gmres_iterations": 0, "solves": 0, "failures": 0}
 
     reusable = True
@@ -231,6 +270,7 @@ class StructuredSolve:
         self._lu = ((op.nc, op.nr), lus)
         self._lu_op = op
         self._refresh = False
+        self._excess = 0.0
         self.stats["factorizations"] += 1
 
     def _harmonic_solve(self, x):
@@ -269,9 +309,19 @@ class StructuredSolve:
         self.stats["gmres_iterations"] += len(hist)
         self.stats["solves"] += 1
         rel = float(hist[-1]) if hist else 0.0
-        if len(hist) > REFRESH_ITERS:
-            self._refresh = True
+        self._account(len(hist))
         return self._precond(w), rel, len(hist)
+
+    def _account(self, its: int) -> None:
+        """Lagged blocks are refactored once the GMRES iterations beyond
+        :data:`REFRESH_ITERS` they have cost add up to one factorisation
+        (:data:`FACTOR_ITERS_PER_DOF`). Refactoring at the first solve over the
+        threshold (the rule before) renewed the blocks at every Newton step of the
+        strongly slipping points, where even fresh blocks need 35–60 iterations,
+        while a factorisation costs 16 (128 pairs) to ~60 (512 pairs) iterations."""
+        self._excess += max(0, its - REFRESH_ITERS)
+        if self._excess >= FACTOR_ITERS_PER_DOF * self._lu[0][1]:
+            self._refresh = True
 
     def solve(self, R):
         """The Newton step dx of ``J dx = −R`` (None if nothing finite came out).
@@ -298,14 +348,27 @@ class StructuredSolve:
         return dx if np.all(np.isfinite(dx)) else None
 
     def lm_step(self, R, nu):
-        """Levenberg–Marquardt step ``min ‖J dx + R‖² + ν‖dx‖²`` by LSQR (matrix-free),
-        approximate: :data:`LM_ITERS` iterations — the step only has to get the
-        iterate off a kink, and unpreconditioned LSQR on this badly scaled J
-        would need thousands (measured: 200 a step were 85 % of a resonance
-        point's time on 64 pairs)."""
-        sol = scipy.sparse.linalg.lsqr(self.op, -np.asarray(R, float), damp=float(np.sqrt(nu)),
-                                       atol=1e-10, btol=1e-10, iter_lim=LM_ITERS)
-        dx = sol[0]
+        """Levenberg–Marquardt step ``min ‖J dx + R‖² + ν‖dx‖²``, matrix-free and
+        approximate: the damped least-squares solution on the Krylov space of
+        :data:`LM_ITERS` Golub–Kahan bidiagonalisation steps of J from R — LSQR's
+        iterate after as many steps (Paige & Saunders 1982, §§3–4). The step only
+        has to get the iterate off a kink, and unpreconditioned LSQR on this badly
+        scaled J would need thousands (measured: 200 a step were 85 % of a
+        resonance point's time on 64 pairs). The bidiagonalisation does not depend
+        on ν, so the growing dampings of one search (:func:`workflow.solvers._lm_search`)
+        share it: 2·LM_ITERS products of J for all of them instead of each."""
+        R = np.asarray(R, float)
+        if self._gk is None or self._gk[0] is not self.op or not np.array_equal(self._gk[1], R):
+            self._gk = (self.op, R.copy(), *_bidiagonalise(self.op, -R, LM_ITERS))
+        _, _, V, B, beta1 = self._gk
+        k = B.shape[1]
+        if k == 0:
+            return np.zeros_like(R)
+        A = np.vstack([B, np.sqrt(nu) * np.eye(k)])
+        rhs = np.zeros(A.shape[0])
+        rhs[0] = beta1
+        y = np.linalg.lstsq(A, rhs, rcond=None)[0]
+        dx = V[:, :k] @ y
         return dx if np.all(np.isfinite(dx)) else None
 
     def lm_scale(self):

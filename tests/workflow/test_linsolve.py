@@ -168,3 +168,60 @@ def test_powell_is_replaced_by_matrix_free_pseudo_time_at_the_structured_size(mo
     res = cascade.run_solver(prob, prob.x0(), "powell", 1e-9, 50)
     assert res.scheme == "block-jacobi-pairs"
     assert prob._dense is None
+
+
+@pytest.mark.parametrize("method", ["hbm", "hdhb"])
+def test_lm_steps_share_one_bidiagonalisation_and_equal_lsqr(method, monkeypatch):
+    """The matrix-free Levenberg–Marquardt step is LSQR's iterate after LM_ITERS
+    steps (the same Krylov space, damped), for every damping of a search; the
+    dampings share one Golub–Kahan bidiagonalisation (2·LM_ITERS products of J);
+    a large damping turns it into the scaled steepest-descent direction −JᵀR/ν."""
+    import scipy.sparse.linalg
+
+    from workflow import linsolve
+
+    prob = _problem(method)
+    x = _slipping_state(prob) * 1.05
+    R, J = prob.residual_jacobian(x)
+    _, op = prob.residual_operator(x)
+    lin = StructuredSolve()
+    assert lin.factor(op)
+    scale = lin.lm_scale()
+    products = []
+    for name in ("_matvec", "_rmatvec"):
+        real = getattr(op, name)
+        monkeypatch.setattr(op, name, lambda v, real=real: products.append(1) or real(v))
+    steps = {nu: lin.lm_step(R, nu * scale) for nu in (1e-2, 1e-1, 1.0, 1e4)}
+    assert len(products) == 2 * linsolve.LM_ITERS
+    monkeypatch.undo()
+    for nu, dx in steps.items():
+        ref = scipy.sparse.linalg.lsqr(op, -R, damp=np.sqrt(nu * scale), atol=0, btol=0,
+                                       iter_lim=linsolve.LM_ITERS)[0]
+        assert np.linalg.norm(dx - ref) <= 1e-6 * np.linalg.norm(ref)
+    sd = -J.T @ R / (1e4 * scale)
+    assert np.linalg.norm(steps[1e4] - sd) <= 1e-3 * np.linalg.norm(sd)
+
+
+def test_lagged_blocks_are_renewed_when_their_extra_gmres_iterations_cost_a_factorisation(monkeypatch):
+    """The preconditioner's blocks are refactored once the GMRES iterations beyond
+    REFRESH_ITERS add up to one factorisation's cost (FACTOR_ITERS_PER_DOF · 3p),
+    not at the first slow solve; a fresh factorisation starts the count again."""
+    from workflow import linsolve
+
+    prob = _problem("hbm")
+    _, op = prob.residual_operator(_slipping_state(prob) * 1.05)
+    # this 6-pair model's blocks cost < 1 iteration; give them the 128-pair sector's ~10
+    monkeypatch.setattr(linsolve, "FACTOR_ITERS_PER_DOF", 10.0 / op.nr)
+    lin = StructuredSolve()
+    assert lin.factor(op) and lin.stats["factorizations"] == 1
+    budget = linsolve.FACTOR_ITERS_PER_DOF * op.nr
+    extra = max(1, int(np.ceil(budget / 3)))
+    over = linsolve.REFRESH_ITERS + extra
+    lin._account(linsolve.REFRESH_ITERS)            # at the threshold: free
+    for _ in range(int(np.ceil(budget / extra)) - 1):
+        lin._account(over)
+        assert lin.factor(op) and lin.stats["factorizations"] == 1    # blocks kept
+    lin._account(over)                               # the excess reaches one factorisation
+    assert lin.factor(op) and lin.stats["factorizations"] == 2
+    lin._account(over)
+    assert lin.factor(op) and lin.stats["factorizations"] == 2
