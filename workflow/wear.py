@@ -47,7 +47,7 @@ import scipy.linalg
 
 from workflow import fourier
 from workflow.errors import SolverError
-from workflow.solvers import newton, powell
+from workflow.solvers import newton
 
 #: times the reference march halves a block whose HB solve fails before it stops
 MAX_BLOCK_HALVINGS = 4
@@ -204,7 +204,9 @@ class WearProblem:
 
     # solves --------------------------------------------------------------
     def solve_hb(self, x0, W, *, tol, maxiter=50) -> tuple:
-        """Newton on R(x; W) = 0 from x0 (warm start). Returns (SolveResult, WearState)."""
+        """R(x; W) = 0 from x0 (warm start): Newton (along the ε-path if any), else the
+        engine's whole cascade (:func:`workflow.engine.cascade.solve_point`) from
+        Newton's best iterate and x0. Returns (SolveResult, WearState)."""
         self.set_wear(W)
         hb = self.hb
         res = newton(hb.residual_jacobian, x0, fun=hb.residual, tol=tol, scale=hb.residual_scale(),
@@ -217,11 +219,17 @@ class WearProblem:
                 res = alt
         if not res.converged:
             # The DLFT residual is non-smooth where pairs sit on the Coulomb cone
-            # (shakedown): Newton can cycle there, MINPACK's Powell gets through.
-            start = res.x if np.all(np.isfinite(res.x)) else np.asarray(x0, dtype=float)
-            alt = powell(hb.residual, hb.residual_jacobian, start, tol=tol, scale=hb.residual_scale(),
-                         maxfev=40 * maxiter)
-            alt.iterations += res.iterations
+            # (shakedown) and Newton can cycle there; the cascade has Powell, pseudo-
+            # transient continuation and continuation in ε and Nh (measured on the quick
+            # sector at 2 N, W = 25 µm: Newton and Powell stalled, the cascade converged
+            # by Nh-continuation from the stalled iterate, by PTC from the stuck state).
+            from workflow.engine.cascade import solve_point
+
+            start = res.x if np.all(np.isfinite(res.x)) else None
+            pr = solve_point(hb, [start, np.asarray(x0, dtype=float)], solver="newton-powell", tol=tol,
+                             maxiter=maxiter, eps_path=self.eps_path)
+            alt = pr.result
+            alt.iterations = res.iterations + pr.iterations
             alt.jacobian_evaluations += res.jacobian_evaluations
             if alt.converged or (np.isfinite(alt.residual_norm) and alt.residual_norm < res.residual_norm):
                 res = alt
@@ -238,6 +246,11 @@ def _solvable(J) -> bool:
         return np.linalg.cond(J) < 1e14
     except np.linalg.LinAlgError:
         return False
+
+
+#: A march whose wear rate is still ≥ this fraction of its mean along the path
+#: (max W / cycles) has no worn steady state (:func:`_trend`).
+PERSISTENT_RATE = 0.5
 
 
 # ------------------------------------------------------------------ history
@@ -278,6 +291,36 @@ class WearHistory:
                 "steady": bool(self.steady), "hb_solves": self.hb_solves,
                 "jacobian_evaluations": self.jacobian_evaluations,
                 "cycles": float(self.cycles[-1]) if self.cycles else 0.0, "reason": self.reason}
+
+
+def _trend(hist: WearHistory, rate) -> tuple[bool, str]:
+    """(persistent, text): is the wear still running at its mean speed? The largest wear
+    rate now (``rate``, m/cycle) against max W / cycles, its mean over the path. Archard
+    under persistent slip wears at a constant rate (the flanks sink as a body, the contact
+    forces do not change): ratio 1, no worn steady state, and the relative criterion of
+    :func:`_steady` is met only because W has grown (after 1/steady_tol blocks). A decay
+    rate ∝ t^−α has ratio 1 − α; measured on the quick sector (0.5 N), 100× decay along
+    the path: 0.16–0.22; at 2 N, 1.6 (growing). A march that ends by a contact state change
+    (a pair separating or sticking) has its rate fall to zero: not persistent."""
+    c, w = np.asarray(hist.cycles, float), np.asarray(hist.max_wear, float)
+    if len(c) < 4 or not (c[-1] > 0 and w[-1] > 0):
+        return False, ""
+    mean = w[-1] / c[-1]
+    now = float(np.max(rate)) if np.size(rate) else 0.0
+    if now >= PERSISTENT_RATE * mean:
+        return True, (f"the wear rate is not decaying ({now:.3g} m/cycle now, {mean:.3g} on average along "
+                      "the path): persistent slip, no worn steady state")
+    return False, f"the wear rate is decaying ({now:.3g} m/cycle now, {mean:.3g} on average along the path)"
+
+
+def _steady_or_persistent(hist: WearHistory, rate, W, cycles_per_block, steady_tol) -> tuple[bool, str | None]:
+    """(steady, stop reason or None) at a candidate end of a march: :func:`_steady`, unless
+    the wear rate has not decayed along the path (:func:`_trend`) — then the march stops,
+    not steady, saying so."""
+    if not _steady(rate, W, cycles_per_block, steady_tol):
+        return False, None
+    persistent, text = _trend(hist, rate)
+    return (False, text) if persistent else (True, "steady")
 
 
 def _steady(rate, W, cycles_per_block, steady_tol) -> bool:
@@ -362,10 +405,12 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     steady = False
     k = 0
     for k in range(1, max_blocks + 1):
-        if _steady(st.rate, W, Nref, steady_tol) and (k > 1 or st.rate.max() == 0):
-            steady, reason = True, "steady"
-            k -= 1
-            break
+        if k > 1 or st.rate.max() == 0:
+            steady, why = _steady_or_persistent(hist, st.rate, W, Nref, steady_tol)
+            if why is not None:
+                reason = why
+                k -= 1
+                break
         N = Nref
         if block_tol > 0:
             N = block_tol * _wscale(W, pen) / max(float(st.rate.max()), 1e-300)
@@ -390,6 +435,8 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     hist.iterations = len(hist.cycles) - 1
     hist.hb_solves, hist.jacobian_evaluations = solves, nje
     hist.reason = reason
+    if not steady and "persistent" not in reason:
+        hist.reason = "; ".join(filter(None, (reason, _trend(hist, st.rate)[1])))
     hist.seconds = time.perf_counter() - t0
     return hist
 
@@ -453,9 +500,8 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     worn steady state is a manifold — any W where every pair sticks or
     separates — and the profile reached is the end of the path). Stops at
     the steady state of :func:`march_reference` after a final HB solve to
-    ``tol`` at the reached W. This is the one integrator of the wear system
-    (``pseudotime.scheme = "ser"``); ``dt_max_blocks`` > 0 caps h
-    at that many ``cycles_per_block``.
+    ``tol`` at the reached W. The one integrator of the wear system (``pseudotime.scheme
+    = "ser"``); ``dt_max_blocks`` > 0 caps h at that many ``cycles_per_block``.
     """
     t0 = time.perf_counter()
     N = float(cycles_per_block)
@@ -473,16 +519,21 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
         return hist
     hmax = dt_max_blocks * N if dt_max_blocks else np.inf
     h = min(math.sqrt(rtol) * _wscale(W, pen) / rmax, hmax)
-    t, steps, rejected, count = 0.0, 0, 0, {"nje": 0, "corrections": 0}
+    t, steps, rejected, count = 0.0, 0, 0, {"nje": 0, "corrections": 0, "reanchored": 0}
     steady, reason = False, f"max steps ({max_steps})"
+    failed = 0          # consecutive steps refused by the vibration (not by the wear error)
     while steps + rejected < max_steps:
-        if _steady(st.rate, W, N, steady_tol) and steps > 0:
-            steady, reason = True, "steady"
+        steady, why = _steady_or_persistent(hist, st.rate, W, N, steady_tol) if steps else (False, None)
+        if why is None and failed == 2:
+            (x, st, why), failed = _resolve_vibration(wp, x, st, W, tol, count), 0
+        if why:
+            reason = why
             break
         xn, Wn, stn, ok = _wear_step(wp, x, W, st, h, x_tol, x_corrections, count)
         err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))
         ws = _wscale(Wn, pen)
         fac = 0.9 * math.sqrt(rtol * ws / err) if err > 0 else 4.0
+        failed = 0 if ok else failed + 1
         if ok and err <= rtol * ws:
             if order == 2:
                 xn, Wn, stn = _trapezoidal(wp, W, st, xn, Wn, stn, h, count)
@@ -495,7 +546,8 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             rejected += 1
             h *= min(0.5, max(0.1, fac)) if ok else 0.25
     _finish(hist, wp, x, W, st, steady, reason, count, (N, steady_tol, tol))
-    hist.reason += f" ({steps} steps, {rejected} rejected, {count['corrections']} vibration corrections)"
+    hist.reason += (f" ({steps} steps, {rejected} rejected, {count['corrections']} vibration corrections, "
+                    f"{count['reanchored']} vibration re-solves)")
     hist.iterations = steps
     hist.seconds = time.perf_counter() - t0
     return hist
@@ -517,8 +569,26 @@ def _finish(hist: WearHistory, wp: WearProblem, x, W, st: WearState, steady: boo
     hist.W, hist.x, hist.steady = W, x, steady
     hist.final_rate = st.rate
     hist.reason = reason
+    if not steady and "persistent" not in reason:
+        hist.reason = "; ".join(filter(None, (reason, _trend(hist, st.rate)[1])))
     hist.hb_solves = 2
     hist.jacobian_evaluations += count["nje"]
+
+
+def _resolve_vibration(wp: WearProblem, x, st: WearState, W, tol: float, count: dict):
+    """(x, state, "") back on R(x; W) = 0 at the reached W — or (x, st, why) if not solvable.
+
+    After two steps refused by the vibration in a row, the state carried forward sits
+    too far off the vibration manifold (accepted at the relaxed tolerance, then shifted
+    by the trapezoidal correction) for the corrections of any step, however short
+    (measured on the quick sector at 2 N: 169 of 200 steps refused at W = 25 µm, h
+    shrinking to 1e-18 cycles); the whole cascade re-solves it (:meth:`WearProblem.solve_hb`)."""
+    res, stx = wp.solve_hb(x, W, tol=tol)
+    count["nje"] += res.jacobian_evaluations
+    count["reanchored"] += 1
+    if not res.converged:
+        return x, st, f"vibration not solvable at the reached wear ({res.reason})"
+    return res.x, stx, ""
 
 
 def _record(hist: WearHistory, wp: WearProblem, cycles: float, x, W, track: int) -> None:

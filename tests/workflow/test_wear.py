@@ -52,6 +52,47 @@ def test_jenkins_gross_slip_matches_archard_closed_form_through_dlft(nit):
     assert err <= 2.0 * (np.pi / nit) ** 2 + 1e-9, (nit, rate, exact)
 
 
+def _jenkins_pair(nit=64, nh=3):
+    """The gross-slip Jenkins pair of the test above with the normal load N applied
+    through a 1 kN/m spring: force-controlled (W = 20 µm unloads it by 0.2 %)."""
+    k, kn, N, a, mu = 1e5, 1e6, 10.0, 1e-4, 0.5
+    Zr = np.zeros((nh + 1, 3, 3), dtype=complex)
+    Zr[:] = np.diag([1e3, k, k])
+    Fr = np.zeros((nh + 1, 3), dtype=complex)
+    Fr[0, 0] = -N
+    Fr[1, 1] = k * a
+    return HBProblem(Zr, Fr, ContactLaw(mu=np.array([mu]), eps_n=kn, eps_t=k, gap=np.zeros(1)), nh, nit, "hbm")
+
+
+@pytest.mark.parametrize("march", ["pseudo-time", "explicit", "implicit"])
+def test_persistent_gross_slip_wears_at_a_constant_rate_and_has_no_steady_state(march):
+    """Under a force-controlled normal load the worn Jenkins pair sinks as a body: its
+    contact forces never change, so Archard wears it at the closed-form rate
+    k_w (N/A)·4(a − μN/k) for ever — W = rate·t along the path and no worn steady
+    state. Both marches follow W = rate·t and stop saying so (not steady), long
+    where the relative criterion (N·rate ≤ steady_tol·W) alone would call the
+    constant-rate wear "steady"."""
+    hb = _jenkins_pair()
+    sol = hb.solve(tol=1e-11)
+    A, kw = 1e-6, 1e-16
+    wp = WearProblem(hb, area=[A], k_w=kw)
+    rate = wp.evaluate(sol.x).rate[0]
+    exact = kw * 10.0 / A * 4 * (1e-4 - 0.5 * 10.0 / 1e5)
+    assert rate == pytest.approx(exact, rel=2 * (np.pi / 64) ** 2)
+    wp.set_wear(np.zeros(1))
+    # steps of at most one block of 1e5 cycles; steady_tol = 0.05: the relative criterion
+    # N·rate ≤ steady_tol·W is met after 20 blocks of constant-rate wear
+    if march == "pseudo-time":
+        h = pseudo_time_wear(wp, sol.x, cycles_per_block=1e5, max_steps=400, dt_max_blocks=1.0, steady_tol=0.05)
+    else:
+        h = march_reference(wp, sol.x, scheme=march, cycles_per_block=1e5, max_blocks=400, block_tol=0.0,
+                            steady_tol=0.05)
+    assert not h.steady and "persistent slip" in h.reason, h.reason
+    assert 20 <= h.iterations < 100                 # stopped by the diagnosis, not by the cap
+    c, w = np.asarray(h.cycles), np.asarray(h.max_wear)
+    np.testing.assert_allclose(w[1:], rate * c[1:], rtol=3e-3)     # the 0.2 % unloading
+
+
 def test_fully_stuck_interface_does_not_wear():
     hb = hb_problem(12.0, nh=2, nit=32, force=0.5)
     sol = hb.solve(tol=1e-11)
