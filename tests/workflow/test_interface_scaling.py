@@ -127,3 +127,20 @@ def test_structured_equals_dense_on_the_quick_sector(tmp_path, monkeypatch):
     for i in np.flatnonzero(both):
         # roots to ‖R‖ ≤ 1e-8‖F‖ each: the amplitudes agree far below the FRF's accuracy
         assert abs(s.amplitude[i] - d.amplitude[i]) <= 1e-5 * d.amplitude[i]
+
+
+def test_structured_split_accounts_for_the_linear_solves(tmp_path):
+    """workflow.bench.structured_split on the 8-pair sector: the factorisations and GMRES
+    iterations it counts are those of the sequence it records, their seconds lie
+    within the sweep's, and the sweep is the worker's (structured solve forced)."""
+    from workflow.bench import structured_split
+    from workflow.scene import load_scene
+
+    path = bench.reduced_model(load_scene("interface-scaling"), 8, tmp_path, tmp_path / "cache", log=lambda s: None)
+    row = structured_split.split(path, "hbm", nh=1, nit=16, points=2)
+    seq = row["sequence"].split()
+    assert row["linear_solver"] == "structured" and row["converged"] >= 1
+    assert row["factorizations"] == seq.count("F") >= 1
+    assert row["gmres_iterations"] == sum(int(s) for s in seq if s != "F") and row["solves"] == len(seq) - seq.count("F")
+    assert 0 < row["factor_s"] + row["gmres_s"] <= row["seconds"]
+    assert row["s_per_iteration"] == pytest.approx(row["seconds"] / row["iterations"])
