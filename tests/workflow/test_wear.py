@@ -91,6 +91,12 @@ def test_persistent_gross_slip_wears_at_a_constant_rate_and_has_no_steady_state(
     assert 20 <= h.iterations < 100                 # stopped by the diagnosis, not by the cap
     c, w = np.asarray(h.cycles), np.asarray(h.max_wear)
     np.testing.assert_allclose(w[1:], rate * c[1:], rtol=3e-3)     # the 0.2 % unloading
+    # the run's unconverged line says so, and does not ask for more steps that cannot help
+    from workflow.engine import WearStudy
+
+    line, = WearStudy(omega=1.0, hb=hb, rc=None, base=sol, unworn={}, histories={march: h},
+                      tracked_pair=0).unconverged()
+    assert "no worn steady state at this load and friction" in line and "max_steps" not in line and "max_blocks" not in line
 
 
 def test_fully_stuck_interface_does_not_wear():

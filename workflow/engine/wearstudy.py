@@ -78,9 +78,16 @@ class WearStudy:
     nh_check: dict = field(default_factory=dict)
 
     def unconverged(self) -> list[str]:
-        """One line per wear method that did not reach the steady state."""
-        return [f"wear {m}: NOT steady after {h.iterations} iterations ({h.reason}); raise "
-                f"{'wear.max_blocks' if m in ('explicit', 'implicit') else 'pseudotime.max_steps'}"
+        """One line per wear method that did not reach the steady state, with what to change:
+        the step or block budget — unless the wear rate is not decaying (persistent slip),
+        where no budget reaches a worn steady state."""
+        def hint(m, h):
+            if "persistent slip" in h.reason:
+                return ("no worn steady state at this load and friction: more steps or blocks "
+                        "only wear deeper")
+            return f"raise {'wear.max_blocks' if m in ('explicit', 'implicit') else 'pseudotime.max_steps'}"
+
+        return [f"wear {m}: NOT steady after {h.iterations} iterations ({h.reason}); {hint(m, h)}"
                 for m, h in self.histories.items() if not h.steady]
 
     def warnings(self) -> list[str]:
