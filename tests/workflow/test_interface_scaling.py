@@ -137,7 +137,11 @@ def test_structured_split_accounts_for_the_linear_solves(tmp_path):
     from workflow.scene import load_scene
 
     path = bench.reduced_model(load_scene("interface-scaling"), 8, tmp_path, tmp_path / "cache", log=lambda s: None)
+    from workflow.engine import cascade
+
+    threshold = cascade.STRUCTURED_MIN_UNKNOWNS
     row = structured_split.split(path, "hbm", nh=1, nit=16, points=2)
+    assert cascade.STRUCTURED_MIN_UNKNOWNS == threshold      # forced for the sweep only
     seq = row["sequence"].split()
     assert row["linear_solver"] == "structured" and row["converged"] >= 1
     assert row["factorizations"] == seq.count("F") >= 1

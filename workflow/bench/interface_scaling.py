@@ -83,14 +83,18 @@ def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: i
     from workflow.engine import FRFOptions, Variant, cascade, contact_law, frf
     from workflow.solvers import blas_threads
 
-    if linear != "auto":
-        cascade.STRUCTURED_MIN_UNKNOWNS = 0 if linear == "structured" else 10 ** 12
     model = ReducedModel.load(reduced)
     law = contact_law(model, mu=mu)
     v = Variant(method, nh, nit)
-    with blas_threads(1):
-        st = frf(model, law, [v], points=points, options=FRFOptions(solver=solver, eps_check_factor=0.0, refine_peak=False,
-                                                                    reference=None, max_iterations=maxiter))
+    threshold = cascade.STRUCTURED_MIN_UNKNOWNS
+    if linear != "auto":        # forced for this sweep only (the worker may run in a caller's process)
+        cascade.STRUCTURED_MIN_UNKNOWNS = 0 if linear == "structured" else 10 ** 12
+    try:
+        with blas_threads(1):
+            st = frf(model, law, [v], points=points, options=FRFOptions(
+                solver=solver, eps_check_factor=0.0, refine_peak=False, reference=None, max_iterations=maxiter))
+    finally:
+        cascade.STRUCTURED_MIN_UNKNOWNS = threshold
     r = st.runs[0]
     conv = r.converged_points
     return dict(pairs=int(model.n_pairs), unknowns=(2 * nh + 1) * 3 * int(model.n_pairs), method=method, nh=nh,
