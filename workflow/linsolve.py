@@ -60,11 +60,13 @@ LM_ITERS = 30
 #: GMRES iterations per solve that fresh blocks give on easy points; the iterations
 #: beyond it are what lagged blocks cost (:meth:`StructuredSolve._account`).
 REFRESH_ITERS = 25
-#: one factorisation of the harmonic blocks costs about this many GMRES iterations per
-#: contact DOF (3p): LU is O((6p)³) per harmonic, a GMRES iteration O((3p)²) memory-bound
-#: products. Measured on the 128-pair sector (HBM, Nh = 7, one BLAS thread): 0.17 s a
-#: factorisation, 10.8 ms a GMRES iteration, i.e. 16 iterations at 3p = 384.
-FACTOR_ITERS_PER_DOF = 0.04
+#: one factorisation of the harmonic blocks costs about as many GMRES iterations as
+#: ``FACTOR_ITERS[1]·(3p / FACTOR_ITERS[0])^FACTOR_ITERS[2]`` (3p contact DOFs): LU is
+#: O((6p)³) per harmonic, a GMRES iteration O((3p)²) memory-bound products, and the LU
+#: leaves the cache sooner. Measured on the sector, HBM, Nh = 7, one BLAS thread: 0.17 s
+#: a factorisation against 10.8 ms an iteration at 128 pairs (16), 12.2 s against 109 ms
+#: at 512 pairs (112).
+FACTOR_ITERS = (384.0, 16.0, 1.4)
 
 
 def zb_apply(Zr, y, conj_transpose: bool = False):
@@ -315,12 +317,13 @@ class StructuredSolve:
     def _account(self, its: int) -> None:
         """Lagged blocks are refactored once the GMRES iterations beyond
         :data:`REFRESH_ITERS` they have cost add up to one factorisation
-        (:data:`FACTOR_ITERS_PER_DOF`). Refactoring at the first solve over the
+        (:data:`FACTOR_ITERS`). Refactoring at the first solve over the
         threshold (the rule before) renewed the blocks at every Newton step of the
         strongly slipping points, where even fresh blocks need 35–60 iterations,
         while a factorisation costs 16 (128 pairs) to ~60 (512 pairs) iterations."""
         self._excess += max(0, its - REFRESH_ITERS)
-        if self._excess >= FACTOR_ITERS_PER_DOF * self._lu[0][1]:
+        dofs, at, power = FACTOR_ITERS
+        if self._excess >= at * (self._lu[0][1] / dofs) ** power:
             self._refresh = True
 
     def solve(self, R):

@@ -204,17 +204,17 @@ def test_lm_steps_share_one_bidiagonalisation_and_equal_lsqr(method, monkeypatch
 
 def test_lagged_blocks_are_renewed_when_their_extra_gmres_iterations_cost_a_factorisation(monkeypatch):
     """The preconditioner's blocks are refactored once the GMRES iterations beyond
-    REFRESH_ITERS add up to one factorisation's cost (FACTOR_ITERS_PER_DOF · 3p),
+    REFRESH_ITERS add up to one factorisation's cost (FACTOR_ITERS, by 3p),
     not at the first slow solve; a fresh factorisation starts the count again."""
     from workflow import linsolve
 
     prob = _problem("hbm")
     _, op = prob.residual_operator(_slipping_state(prob) * 1.05)
     # this 6-pair model's blocks cost < 1 iteration; give them the 128-pair sector's ~10
-    monkeypatch.setattr(linsolve, "FACTOR_ITERS_PER_DOF", 10.0 / op.nr)
+    monkeypatch.setattr(linsolve, "FACTOR_ITERS", (float(op.nr), 10.0, 1.4))
     lin = StructuredSolve()
     assert lin.factor(op) and lin.stats["factorizations"] == 1
-    budget = linsolve.FACTOR_ITERS_PER_DOF * op.nr
+    budget = 10.0
     extra = max(1, int(np.ceil(budget / 3)))
     over = linsolve.REFRESH_ITERS + extra
     lin._account(linsolve.REFRESH_ITERS)            # at the threshold: free
