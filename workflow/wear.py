@@ -251,6 +251,7 @@ def _solvable(J) -> bool:
 #: A march whose wear rate is still ≥ this fraction of its mean along the path
 #: (max W / cycles) has no worn steady state (:func:`_trend`).
 PERSISTENT_RATE = 0.5
+PERSISTENT = ": persistent slip, no worn steady state"
 
 
 # ------------------------------------------------------------------ history
@@ -269,6 +270,8 @@ class WearHistory:
     harmonic1     (k,) |first harmonic| of the tracked tangential DOF [m] (Fig. 12)
     W_history     (k, p) W at each iteration
     reason        why it stopped
+    persistent_slip  stopped because the wear rate does not decay (:func:`_trend`):
+                  no worn steady state at this load
     """
 
     method: str
@@ -285,12 +288,14 @@ class WearHistory:
     W_history: list = field(default_factory=list)
     final_rate: np.ndarray | None = None
     reason: str = ""
+    persistent_slip: bool = False
 
     def summary(self) -> dict:
         return {"seconds": self.seconds, "iterations": self.iterations, "max_wear_m": float(np.max(self.W)),
                 "steady": bool(self.steady), "hb_solves": self.hb_solves,
                 "jacobian_evaluations": self.jacobian_evaluations,
-                "cycles": float(self.cycles[-1]) if self.cycles else 0.0, "reason": self.reason}
+                "cycles": float(self.cycles[-1]) if self.cycles else 0.0, "reason": self.reason,
+                "persistent_slip": bool(self.persistent_slip)}
 
 
 def _trend(hist: WearHistory, rate) -> tuple[bool, str]:
@@ -309,7 +314,7 @@ def _trend(hist: WearHistory, rate) -> tuple[bool, str]:
     now = float(np.max(rate)) if np.size(rate) else 0.0
     if now >= PERSISTENT_RATE * mean:
         return True, (f"the wear rate is not decaying ({now:.3g} m/cycle now, {mean:.3g} on average along "
-                      "the path): persistent slip, no worn steady state")
+                      f"the path){PERSISTENT}")
     return False, f"the wear rate is decaying ({now:.3g} m/cycle now, {mean:.3g} on average along the path)"
 
 
@@ -321,6 +326,16 @@ def _steady_or_persistent(hist: WearHistory, rate, W, cycles_per_block, steady_t
         return False, None
     persistent, text = _trend(hist, rate)
     return (False, text) if persistent else (True, "steady")
+
+
+def _close(hist: WearHistory, steady: bool, reason: str, rate) -> None:
+    """``hist.steady`` and ``hist.reason`` at the end of a march; one stopped short of the
+    steady state (steps or blocks spent) says whether its wear rate was still decaying
+    (:func:`_trend`) and is flagged ``persistent_slip`` if not."""
+    hist.steady, hist.reason = steady, reason
+    if not (steady or hist.persistent_slip):
+        hist.persistent_slip, text = _trend(hist, rate)
+        hist.reason = "; ".join(filter(None, (reason, text)))
 
 
 def _steady(rate, W, cycles_per_block, steady_tol) -> bool:
@@ -408,7 +423,7 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
         if k > 1 or st.rate.max() == 0:
             steady, why = _steady_or_persistent(hist, st.rate, W, Nref, steady_tol)
             if why is not None:
-                reason = why
+                reason, hist.persistent_slip = why, not steady
                 k -= 1
                 break
         N = Nref
@@ -430,13 +445,11 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
         W, x, st = np.maximum(Wn, W), res.x, stn
         cyc += N
         _record(hist, wp, cyc, x, W, track)
-    hist.W, hist.x, hist.steady = W, x, steady
+    hist.W, hist.x = W, x
     hist.final_rate = st.rate
     hist.iterations = len(hist.cycles) - 1
     hist.hb_solves, hist.jacobian_evaluations = solves, nje
-    hist.reason = reason
-    if not steady and "persistent" not in reason:
-        hist.reason = "; ".join(filter(None, (reason, _trend(hist, st.rate)[1])))
+    _close(hist, steady, reason, st.rate)
     hist.seconds = time.perf_counter() - t0
     return hist
 
@@ -527,7 +540,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
         if why is None and failed == 2:
             (x, st, why), failed = _resolve_vibration(wp, x, st, W, tol, count), 0
         if why:
-            reason = why
+            reason, hist.persistent_slip = why, why.endswith(PERSISTENT)
             break
         xn, Wn, stn, ok = _wear_step(wp, x, W, st, h, x_tol, x_corrections, count)
         err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))
@@ -566,11 +579,9 @@ def _finish(hist: WearHistory, wp: WearProblem, x, W, st: WearState, steady: boo
         x, st = res.x, stf
         if steady and not _steady(st.rate, W, N, steady_tol):
             steady, reason = False, "not steady after the final vibration solve"
-    hist.W, hist.x, hist.steady = W, x, steady
+    hist.W, hist.x = W, x
     hist.final_rate = st.rate
-    hist.reason = reason
-    if not steady and "persistent" not in reason:
-        hist.reason = "; ".join(filter(None, (reason, _trend(hist, st.rate)[1])))
+    _close(hist, steady, reason, st.rate)
     hist.hb_solves = 2
     hist.jacobian_evaluations += count["nje"]
 

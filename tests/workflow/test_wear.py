@@ -87,7 +87,8 @@ def test_persistent_gross_slip_wears_at_a_constant_rate_and_has_no_steady_state(
     else:
         h = march_reference(wp, sol.x, scheme=march, cycles_per_block=1e5, max_blocks=400, block_tol=0.0,
                             steady_tol=0.05)
-    assert not h.steady and "persistent slip" in h.reason, h.reason
+    assert not h.steady and h.persistent_slip and "persistent slip" in h.reason, h.reason
+    assert h.summary()["persistent_slip"] is True
     assert 20 <= h.iterations < 100                 # stopped by the diagnosis, not by the cap
     c, w = np.asarray(h.cycles), np.asarray(h.max_wear)
     np.testing.assert_allclose(w[1:], rate * c[1:], rtol=3e-3)     # the 0.2 % unloading

@@ -82,7 +82,7 @@ class WearStudy:
         the step or block budget — unless the wear rate is not decaying (persistent slip),
         where no budget reaches a worn steady state."""
         def hint(m, h):
-            if "persistent slip" in h.reason:
+            if h.persistent_slip:
                 return ("no worn steady state at this load and friction: more steps or blocks "
                         "only wear deeper")
             return f"raise {'wear.max_blocks' if m in ('explicit', 'implicit') else 'pseudotime.max_steps'}"
