@@ -320,7 +320,7 @@ class StructuredSolve:
         (:data:`FACTOR_ITERS`). Refactoring at the first solve over the
         threshold (the rule before) renewed the blocks at every Newton step of the
         strongly slipping points, where even fresh blocks need 35–60 iterations,
-        while a factorisation costs 16 (128 pairs) to ~60 (512 pairs) iterations."""
+        while a factorisation costs 16 (128 pairs) to 112 (512 pairs) iterations."""
         self._excess += max(0, its - REFRESH_ITERS)
         dofs, at, power = FACTOR_ITERS
         if self._excess >= at * (self._lu[0][1] / dofs) ** power:
