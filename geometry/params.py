@@ -40,7 +40,7 @@ MAX_ELEMENTS = 2_000_000
 #: Largest aspect ratio of the flank's structured cells (along x vs across).
 MAX_FLANK_ASPECT = 10.0
 #: Contact-node layouts of ``contact_nodes`` (the same as reduction.pairs.NODE_LAYOUTS; geometry stays light).
-CONTACT_NODES = ("vertices", "all")
+CONTACT_NODES = ("vertices", "all", "linear")
 
 
 @dataclass(frozen=True)
@@ -89,10 +89,13 @@ class SectorParams:
         nodes_along: contact vertices per flank along x (leading → trailing).
         nodes_across: contact vertices per flank across the flank.
         contact_nodes: which flank nodes are contact nodes: "vertices" (the
-            nodes_along × nodes_across corner nodes, the paper's layout) or
+            nodes_along × nodes_across corner nodes, midside nodes free),
             "all" (vertices and midside nodes of the quadratic facets,
             (2·nodes_along − 1)(2·nodes_across − 1) per flank, with a linear
-            contact layer; reduction/pairs.py, docs/contact-layout.md).
+            contact layer) or "linear" (the vertices, every flank midside
+            node tied to its edge's midpoint: a linear contact surface, the
+            paper's node count without interpenetration between vertices);
+            reduction/pairs.py, docs/contact-layout.md.
         element_order: 1 or 2 (Lagrange tetrahedra).
 
     Cyclic symmetry
@@ -191,6 +194,11 @@ def _check_types(p: SectorParams) -> None:
         _fail("nodes_across", f"must be ≥ 2, got {p.nodes_across}")
     if p.element_order not in (1, 2):
         _fail("element_order", f"must be 1 or 2, got {p.element_order}")
+    if p.contact_nodes != "vertices" and p.element_order != 2:
+        _fail("contact_nodes", f"{p.contact_nodes!r} needs midside nodes (element_order = 2)")
+    if p.contact_nodes == "linear" and p.cyclic:
+        _fail("contact_nodes", "'linear' (tied midside nodes) is not implemented with cyclic = true; "
+                               "use 'vertices' or 'all'")
     # The flank's structured cells are faces of tetrahedra: very elongated
     # cells leave only slivers to attach to them.
     da, dc = p.axial_length / (p.nodes_along - 1), p.flank_length / (p.nodes_across - 1)

@@ -277,7 +277,7 @@ def _measure(msh_file: Path, p: SectorParams) -> dict:
                                     f"({len(bv)} vs {len(dv)} vertices) or share nodes")
             dmax = max(dmax, _match_distance(gm.node_coords(bv), gm.node_coords(dv)))
             dmax_all = max(dmax_all, _match_distance(gm.node_coords(ball), gm.node_coords(dall)))
-            pairs += len(bv) if p.contact_nodes == "vertices" else len(ball)
+            pairs += len(ball) if p.contact_nodes == "all" else len(bv)
             per_flank[side] = len(bv)
         for name in ("blade", "disk"):
             vert_total.update(gm.group_nodes(*GROUPS[name])[0].tolist())

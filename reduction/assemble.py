@@ -157,7 +157,7 @@ def _facet_area(mesh, ds, tag) -> float:
 
 def assemble_operators(mesh, cell_tags, facet_tags, material, omega: float = 0.0, *, stress_stiffening=True,
                        spin_softening=True, static_force: float = 0.0, fixed=None, blade_dofs=None,
-                       disk_dofs=None, V=None, prestress_iterations: int = 0,
+                       disk_dofs=None, tie=None, V=None, prestress_iterations: int = 0,
                        cyclic: Cyclic | None = None) -> tuple[Operators, object]:
     """M, K(Ω) and the static load of the mesh; returns ``(Operators, V)``.
 
@@ -200,7 +200,7 @@ def assemble_operators(mesh, cell_tags, facet_tags, material, omega: float = 0.0
             n = K0.shape[0]
             bd = np.zeros((0, 3), np.int64) if blade_dofs is None else blade_dofs
             dd = np.zeros((0, 3), np.int64) if disk_dofs is None else disk_dofs
-            T = tie_map(n, fixed, bd, dd, tied=True)
+            T = tie_map(n, fixed, bd, dd, tied=True, tie=tie)
             if cyclic is not None:
                 from reduction.cyclic import constrain_map
 
@@ -276,7 +276,8 @@ def build_bundle(mesh, cell_tags, facet_tags, geometry_info: dict, material, rot
         spin_softening=bool(_get(rotation, "spin_softening", True)),
         static_force=float(_get(excitation, "static_force", 0.0)), fixed=fixed,
         prestress_iterations=int(_get(rotation, "prestress_iterations", 0)),
-        blade_dofs=pairs["blade_dofs"] if root else None, disk_dofs=pairs["disk_dofs"] if root else None, V=V,
+        blade_dofs=pairs["blade_dofs"] if root else None, disk_dofs=pairs["disk_dofs"] if root else None,
+        tie=pairs.get("tie") if root else None, V=V,
         cyclic=cyclic)
     t.update(ops.timings)
     bundle = None

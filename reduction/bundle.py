@@ -21,7 +21,7 @@ from workflow.io import atomic_dir
 MATRICES = ("M", "K", "C")
 CONTACT_KEYS = ("blade_dofs", "disk_dofs", "normal", "t1", "t2", "area", "gap")
 LOAD_KEYS = ("fixed", "static", "harmonic", "observe")
-OPTIONAL_CONTACT_KEYS = ("flank", "position", "mu")
+OPTIONAL_CONTACT_KEYS = ("flank", "position", "mu", "tie")
 #: Largest |A − Aᵀ| accepted, relative to the largest |A| (assembly round-off is ~1e-16).
 SYMMETRY_TOL = 1e-8
 #: Tied stiffnesses up to this size are checked densely (eigenvalues); larger ones by LDLᵀ inertia.
@@ -39,6 +39,10 @@ class Contact:
     0 intrados, 1 extrados. ``position``: (p, 3) pair coordinates [m].
     ``mu``: optional (p,) Coulomb friction coefficient of each pair (absent:
     the scene's ``contact.mu`` applies; see ``ReducedModel.friction``).
+    ``tie``: optional (k, 3) int rows ``(dependent DOF, master a, master b)``:
+    ``u_dep = (u_a + u_b)/2`` — the midside nodes of a linear contact surface
+    (``geometry.contact_nodes = "linear"``); masters are contact DOFs, the
+    reduction eliminates the dependent ones (:mod:`reduction.tie`).
     """
 
     blade_dofs: np.ndarray
@@ -51,6 +55,7 @@ class Contact:
     flank: np.ndarray | None = None
     position: np.ndarray | None = None
     mu: np.ndarray | None = None
+    tie: np.ndarray | None = None
 
     @property
     def n_pairs(self) -> int:
@@ -273,6 +278,26 @@ def _stored_array(f: Path, key: str):
     return np.memmap(f, dtype=dtype, mode="r", shape=shape, offset=offset, order="F" if fortran else "C")
 
 
+def _check_tie(c: Contact, n: int, fixed, at: str) -> None:
+    """``contact.tie``: (k, 3) DOFs in range; masters are contact DOFs; a dependent DOF is
+    no contact DOF, no master, not clamped and tied once."""
+    t = np.asarray(c.tie)
+    if t.ndim != 2 or t.shape[1] != 3 or t.dtype.kind not in "iu":
+        raise BundleError(f"{at}contact.npz: tie must be (k, 3) integer DOF rows, got shape {t.shape}")
+    if t.size and (t.min() < 0 or t.max() >= n):
+        raise BundleError(f"{at}contact.npz: tie indexes outside 0..{n - 1}")
+    contact = np.concatenate([c.blade_dofs.ravel(), c.disk_dofs.ravel()])
+    dep = t[:, 0]
+    u, counts = np.unique(dep, return_counts=True)
+    bad = (np.isin(dep, contact) | np.isin(dep, t[:, 1:]) | np.isin(dep, np.asarray(fixed))
+           | np.isin(dep, u[counts > 1]))
+    if np.any(bad):
+        raise BundleError(f"{at}contact.npz: tie row {int(np.flatnonzero(bad)[0])} has a dependent DOF that is "
+                          "a contact DOF, a master, clamped or tied twice")
+    if not np.all(np.isin(t[:, 1:], contact)):
+        raise BundleError(f"{at}contact.npz: a tie master is not a contact DOF (blade_dofs / disk_dofs)")
+
+
 def validate(b: Bundle) -> None:
     """Raise :class:`BundleError` naming the first inconsistent array.
 
@@ -313,6 +338,8 @@ def validate(b: Bundle) -> None:
         if mu.shape != (p,) or mu.dtype.kind not in "fiu" or not np.all(np.isfinite(mu)) or np.any(mu < 0):
             raise BundleError(f"{at}contact.npz: mu must be ({p},) finite friction coefficients ≥ 0, got "
                               f"shape {mu.shape}" + (f", min {mu.min():.3g}" if mu.size and mu.dtype.kind in "fiu" else ""))
+    if c.tie is not None:
+        _check_tie(c, n, b.loads.fixed, at)
     if p and not np.allclose(np.einsum("pij,pkj->pik", c.frames(), c.frames()), np.eye(3), atol=1e-8):
         raise BundleError("bundle contact frames (normal, t1, t2) are not orthonormal")
     if np.any(c.area <= 0) or not np.all(np.isfinite(c.area)):

@@ -2,9 +2,13 @@
 
 ``u = T v``: ``T`` keeps the free DOFs and, when tying, writes every blade
 contact DOF as its disk partner's (or 0 for a grounded partner). Then
-``TᵀKT``, ``TᵀMT`` are the constrained operators.
+``TᵀKT``, ``TᵀMT`` are the constrained operators. A bundle's tied midside
+DOFs (``contact.tie``, the ``"linear"`` contact layout) always follow their
+edge, ``u_dep = (u_a + u_b)/2``: they are part of the structure.
 """
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 import numpy as np
 import scipy.sparse as sp
@@ -20,6 +24,9 @@ def constraint_map(bundle: Bundle, tied: bool) -> sp.csr_matrix:
     body, the paper's "tied" limit).
     """
     n = bundle.n_dofs
+    tie = getattr(bundle.contact, "tie", None)
+    if tie is not None and len(tie):
+        return _with_ties(bundle, tied)
     follow = np.arange(n)  # DOF i takes the value of DOF follow[i]; -1 → zero
     follow[bundle.loads.fixed] = -1
     if tied:
@@ -40,3 +47,23 @@ def constraint_map(bundle: Bundle, tied: bool) -> sp.csr_matrix:
 def constrain(A: sp.spmatrix, T: sp.spmatrix) -> sp.csr_matrix:
     """``Tᵀ A T`` as CSR."""
     return (T.T @ A @ T).tocsr()
+
+
+def _with_ties(bundle: Bundle, tied: bool) -> sp.csr_matrix:
+    """:func:`constraint_map` of a bundle with ``contact.tie``: the map of the
+    structure without the dependent DOFs, composed with ``u_dep = (u_a + u_b)/2``."""
+    n = bundle.n_dofs
+    tie = np.asarray(bundle.contact.tie, dtype=np.int64)
+    dep = tie[:, 0]
+    kept = np.setdiff1d(np.arange(n), dep)
+    col = -np.ones(n, dtype=np.int64)
+    col[kept] = np.arange(kept.size)
+    rows = np.concatenate([kept, dep, dep])
+    cols = np.concatenate([col[kept], col[tie[:, 1]], col[tie[:, 2]]])
+    vals = np.concatenate([np.ones(kept.size), np.full(2 * dep.size, 0.5)])
+    T_tie = sp.csr_matrix((vals, (rows, cols)), shape=(n, kept.size))
+    c, L = bundle.contact, bundle.loads
+    renum = lambda d: np.where(np.asarray(d) >= 0, col[np.maximum(np.asarray(d), 0)], -1)  # noqa: E731
+    inner = SimpleNamespace(n_dofs=int(kept.size), loads=SimpleNamespace(fixed=col[np.asarray(L.fixed, np.int64)]),
+                            contact=SimpleNamespace(blade_dofs=renum(c.blade_dofs), disk_dofs=renum(c.disk_dofs)))
+    return (T_tie @ constraint_map(inner, tied)).tocsr()

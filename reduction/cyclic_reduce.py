@@ -258,6 +258,10 @@ def reduce_cyclic(bundle, engine_order: int, nh_max: int, n_modes: int = 30) -> 
     if cy is None:
         raise BundleError(f"model bundle {bundle.path}: no cyclic.npz — a cyclic run needs the sector's cyclic "
                           "faces (the assembly writes them for a [cyclic] scene)")
+    if bundle.contact.tie is not None and len(bundle.contact.tie):
+        raise BundleError(f"model bundle {bundle.path}: tied midside nodes (geometry.contact_nodes = \"linear\") "
+                          "are not implemented with cyclic symmetry; use geometry.contact_nodes = \"vertices\" "
+                          "or \"all\" in a [cyclic] scene")
     t_all = time.perf_counter()
     bnd = boundary_dofs(bundle)
     faces = np.concatenate([np.asarray(cy.low_dofs).ravel(), np.asarray(cy.high_dofs).ravel()])

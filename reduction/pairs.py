@@ -16,6 +16,17 @@ Two layouts of the contact nodes (``nodes`` argument, scene key
   and moment. The consistent P2 weights ``∫ N_i dA`` would give the vertices
   zero area (0 at corners, A/3 at midsides), so p_N = −λ_N/A is undefined
   at vertex pairs that carry load: measured in ``docs/contact-layout.md``.
+* ``"linear"``: a linear contact *surface* over the quadratic interior. The
+  contact nodes are the vertices, and every midside node of a flank facet
+  is tied to the midpoint of its edge, ``u_m = (u_a + u_b)/2``, on the blade
+  and on the disk (:func:`tie_midsides`; the bundle's ``contact.tie``,
+  applied by the reduction, :mod:`reduction.tie`). Both flank surfaces are
+  then piecewise linear on the same triangles, so their gap is linear
+  between the vertex pairs: no interpenetration anywhere when the vertex
+  pairs are closed or open. Areas are the P1 ones ``∫ φ_i ds`` (A/3 per
+  facet and vertex) — the row sums of the layer above with each midside's
+  share split between its edge's ends. This is the paper's node count
+  (``nodes_along × nodes_across``) on a consistent scheme.
 
 Blade nodes (groups 11, 12) are matched to disk nodes (21, 22) by
 coordinates — the flanks are meshed identically (``setPeriodic``) so every
@@ -46,7 +57,7 @@ FLANKS = ((11, 21), (12, 22))
 #: Coordinates closer than this fraction of the smallest flank-vertex spacing coincide.
 MATCH_TOL_REL = 1e-3
 #: Contact-node layouts (module docstring); "vertices" is the paper's node-to-node layout.
-NODE_LAYOUTS = ("vertices", "all")
+NODE_LAYOUTS = ("vertices", "all", "linear")
 
 
 def layout_of(geometry_info: dict | None) -> str:
@@ -255,14 +266,23 @@ def contact_pairs(V, facet_tags, flanks=FLANKS, bs: int = 3, nodes: str = "verti
             area, nsum, vertex = area[ip], nsum[iw], np.ones(len(xd), bool)
         else:
             area, nsum, vertex = _layer_area_normal(xd, *data["facets"][gd], tol)
+        tie = None
+        if nodes == "linear":
+            keep, tie, area, nsum = tie_midsides(xd, vertex, area, nsum, data["facets"][gd][0], tol)
+            mid_blocks = np.column_stack([bb[ib][tie[:, 0]], bd[tie[:, 0]]])
+            xd, bd, ib, vertex = xd[keep], bd[keep], ib[keep], vertex[keep]
         n, t1, t2 = frames(nsum)
         # Order along x, then across the flank (along the flank's mean t2).
         t2m = t2.mean(axis=0)
         key_x = np.round((xd[:, 0] - xd[:, 0].min()) / max(tol, 1e-15)).astype(np.int64)
         order = np.lexsort((xd @ t2m, key_x))
-        parts.append(dict(blade=bb[ib][order], disk=bd[order], normal=n[order], t1=t1[order], t2=t2[order],
-                          area=area[order], flank=np.full(len(order), f), position=xd[order],
-                          vertex=vertex[order]))
+        part = dict(blade=bb[ib][order], disk=bd[order], normal=n[order], t1=t1[order], t2=t2[order],
+                    area=area[order], flank=np.full(len(order), f), position=xd[order], vertex=vertex[order])
+        if tie is not None:   # (midside blade block, midside disk block, pair a, pair b), pairs numbered globally
+            rank = np.empty_like(order)
+            rank[order] = np.arange(len(order)) + sum(len(q["area"]) for q in parts)
+            part["ties"] = np.column_stack([mid_blocks, rank[tie[:, 1]], rank[tie[:, 2]]])
+        parts.append(part)
     if not parts:
         z = np.zeros((0, 3))
         return dict(blade_dofs=np.zeros((0, 3), np.int64), disk_dofs=np.zeros((0, 3), np.int64), normal=z, t1=z,
@@ -270,9 +290,62 @@ def contact_pairs(V, facet_tags, flanks=FLANKS, bs: int = 3, nodes: str = "verti
                     vertex=np.zeros(0, bool))
     cat = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     comp = np.arange(bs)
-    return dict(blade_dofs=bs * cat["blade"][:, None] + comp, disk_dofs=bs * cat["disk"][:, None] + comp,
-                normal=cat["normal"], t1=cat["t1"], t2=cat["t2"], area=cat["area"], gap=np.zeros(len(cat["area"])),
-                flank=cat["flank"].astype(np.int64), position=cat["position"], vertex=cat["vertex"])
+    out = dict(blade_dofs=bs * cat["blade"][:, None] + comp, disk_dofs=bs * cat["disk"][:, None] + comp,
+               normal=cat["normal"], t1=cat["t1"], t2=cat["t2"], area=cat["area"], gap=np.zeros(len(cat["area"])),
+               flank=cat["flank"].astype(np.int64), position=cat["position"], vertex=cat["vertex"])
+    if "ties" in cat:
+        out["tie"] = tie_dofs(cat["ties"], out["blade_dofs"], out["disk_dofs"], bs)
+    return out
+
+
+def tie_midsides(x: np.ndarray, vertex: np.ndarray, area: np.ndarray, nsum: np.ndarray, tri6: np.ndarray,
+                 tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The ``"linear"`` layout of one flank from its every-node layer data.
+
+    ``x`` (k, 3) every flank node [m], ``vertex`` (k,) its corner mask,
+    ``area``, ``nsum`` the linear layer's areas and normal sums
+    (:func:`_layer_area_normal`), ``tri6`` the flank facets (t, 6, 3).
+    Returns ``keep`` (the vertex indices into ``x``), ``tie`` (k_m, 3) int
+    (midside index into ``x``, its edge's two ends as indices into
+    ``x[keep]``), and the vertices' areas and normal sums with each
+    midside's share split equally between its edge's ends: A/12 + 2·(A/4)/2
+    = A/3 per facet and vertex, the P1 areas ``∫ φ_i ds``.
+    """
+    tree = cKDTree(x)
+    ends = {}
+    for a, b, m in ((0, 1, 3), (1, 2, 4), (2, 0, 5)):
+        dm, im = tree.query(tri6[:, m])
+        da, ia = tree.query(tri6[:, a])
+        db, ib = tree.query(tri6[:, b])
+        if max(dm.max(initial=0), da.max(initial=0), db.max(initial=0)) > tol:
+            raise GeometryError("a flank facet node is not a contact node (linear layout)")
+        for i, j, k in zip(im, ia, ib):
+            ends[int(i)] = (int(j), int(k))
+    mids = np.flatnonzero(~vertex)
+    if set(mids.tolist()) != set(ends):
+        raise GeometryError("linear contact layout: the flank's midside nodes are not the facets' edge midpoints")
+    keep = np.flatnonzero(vertex)
+    new = -np.ones(len(x), np.int64)
+    new[keep] = np.arange(len(keep))
+    tie = np.array([(m, new[ends[m][0]], new[ends[m][1]]) for m in mids], dtype=np.int64).reshape(-1, 3)
+    if np.any(tie[:, 1:] < 0):
+        raise GeometryError("linear contact layout: an edge ends at a midside node")
+    W = np.zeros((len(x), len(keep)))
+    W[keep, np.arange(len(keep))] = 1.0
+    np.add.at(W, (tie[:, 0], tie[:, 1]), 0.5)
+    np.add.at(W, (tie[:, 0], tie[:, 2]), 0.5)
+    return keep, tie, W.T @ area, W.T @ nsum
+
+
+def tie_dofs(ties: np.ndarray, blade_dofs: np.ndarray, disk_dofs: np.ndarray, bs: int = 3) -> np.ndarray:
+    """Bundle ``contact.tie`` rows (dependent DOF, master a, master b), weights ½ ½:
+    per tie (midside blade block, midside disk block, pair a, pair b) and
+    component, one row for the blade and one for the disk."""
+    rows = []
+    for c in range(bs):
+        for body, dofs in ((0, blade_dofs), (1, disk_dofs)):
+            rows.append(np.column_stack([bs * ties[:, body] + c, dofs[ties[:, 2], c], dofs[ties[:, 3], c]]))
+    return np.concatenate(rows).astype(np.int64) if rows else np.zeros((0, 3), np.int64)
 
 
 def bundle_keys(pairs: dict) -> dict:

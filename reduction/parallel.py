@@ -181,7 +181,7 @@ def reduce_bundle_mpi(folder: str | Path, n_modes: int | None = 30, cutoff_hz: f
         "eigensolver": eigensolver, "eigen_stats": {k[8:]: v for k, v in timings.items() if k.startswith("lanczos_")},
         "seconds": seconds, "bundle": str(Path(folder)), "mpi_ranks": int(comm.Get_size()),
     }
-    return _model(r.sk, red, info)
+    return _model(r.sk, red, info, r.bnd)
 
 
 def _read_rows(folder: Path, comm, pcomm, max_load_dofs: int):
@@ -310,8 +310,9 @@ def _project(r, comm, Psi, Phi, X) -> dict:
     return out
 
 
-def _model(sk, red: dict, info: dict) -> ReducedModel:
-    """Rank 0: the symmetric reduced matrices from :func:`_project`'s sums and the :class:`ReducedModel`."""
+def _model(sk, red: dict, info: dict, bnd: np.ndarray) -> ReducedModel:
+    """Rank 0: the symmetric reduced matrices from :func:`_project`'s sums and the :class:`ReducedModel`
+    (tied midside DOFs eliminated, :mod:`reduction.tie`; ``bnd`` the boundary DOFs)."""
     m, nb = red["m"], red["nb"]
     Kr = np.empty((m, m))
     Kr[:nb, :nb] = red["Kr_bb"]
@@ -328,6 +329,10 @@ def _model(sk, red: dict, info: dict) -> ReducedModel:
                          position=np.asarray(position, float), info=info,
                          mu=None if c.mu is None else np.asarray(c.mu, float))  # per-pair μ (#18)
     model.validate()
+    if c.tie is not None:
+        from reduction.tie import eliminate
+
+        model = eliminate(model, bnd, c)[0]
     return model
 
 

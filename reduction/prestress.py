@@ -21,15 +21,17 @@ from workflow.errors import SolverError
 
 
 def tie_map(n_dofs: int, fixed: np.ndarray, blade_dofs: np.ndarray, disk_dofs: np.ndarray,
-            tied: bool = True) -> sp.csr_matrix:
-    """``T`` with ``u = T v``: clamped DOFs dropped, blade contact DOFs following the disk's.
+            tied: bool = True, tie: np.ndarray | None = None) -> sp.csr_matrix:
+    """``T`` with ``u = T v``: clamped DOFs dropped, blade contact DOFs following the disk's,
+    tied midside DOFs (``tie``, bundle ``contact.tie``) following their edges.
 
     Thin wrapper so callers without a :class:`~reduction.bundle.Bundle` yet can
     use :func:`reduction.constraints.constraint_map`.
     """
     like = SimpleNamespace(n_dofs=int(n_dofs), loads=SimpleNamespace(fixed=np.asarray(fixed, dtype=np.int64)),
                            contact=SimpleNamespace(blade_dofs=np.asarray(blade_dofs, dtype=np.int64).reshape(-1, 3),
-                                                   disk_dofs=np.asarray(disk_dofs, dtype=np.int64).reshape(-1, 3)))
+                                                   disk_dofs=np.asarray(disk_dofs, dtype=np.int64).reshape(-1, 3),
+                                                   tie=tie))
     return constraint_map(like, tied=tied)
 
 

@@ -69,10 +69,13 @@ def contact_map(bundle: Bundle) -> sp.csr_matrix:
 
 
 def boundary_dofs(bundle: Bundle, max_load_dofs: int = MAX_LOAD_DOFS) -> np.ndarray:
-    """Sorted unclamped DOFs kept physically: contact (both bodies), a concentrated
-    harmonic load (≤ ``max_load_dofs`` DOFs), observed DOFs."""
+    """Sorted unclamped DOFs kept physically: contact (both bodies), tied
+    midside DOFs (``contact.tie``), a concentrated harmonic load (≤
+    ``max_load_dofs`` DOFs), observed DOFs."""
     c, L = bundle.contact, bundle.loads
     parts = [c.blade_dofs.ravel(), c.disk_dofs.ravel(), np.asarray(L.observe).ravel()]
+    if c.tie is not None:  # tied midside DOFs stay physical until reduction.tie eliminates them
+        parts.append(np.asarray(c.tie)[:, 0])
     loaded = np.flatnonzero(L.harmonic)
     if loaded.size <= max_load_dofs:
         parts.append(loaded)
@@ -139,6 +142,12 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
                          gap=np.asarray(c.gap, float), flank=np.asarray(flank), position=np.asarray(position, float),
                          info=info, mu=None if c.mu is None else np.asarray(c.mu, float))
     model.validate()
+    if c.tie is not None:
+        from reduction.tie import eliminate
+
+        model, T = eliminate(model, bnd, c)
+        V = np.asarray(V @ T)
+        bnd = np.setdiff1d(bnd, np.asarray(c.tie)[:, 0])
     return model, Basis(V=V, free=free, boundary=bnd, n_modes=nm, n_load=nl, n_dofs=n)
 
 

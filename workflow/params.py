@@ -270,7 +270,7 @@ class Verification:
 @dataclass
 class ContactConvergence:
     nodes_along: list = param([4, 7, 10], "", "flank vertices along x of each contact mesh, coarse to fine "
-                                              "(geometry.contact_nodes chooses vertices or every node)", min=2)
+                                              "(geometry.contact_nodes chooses the layout)", min=2)
     nodes_across: list = param([2, 3, 4], "", "flank vertices across the flank, one entry per contact mesh", min=2)
     harmonics: int = param(1, "", "Nh of the FRF peak and wear solves (dense Newton cost grows like "
                                   "((2Nh+1)·3·pairs)³)", min=0)
@@ -283,6 +283,9 @@ class ContactConvergence:
     profile_points: list = param([41, 9], "", "common flank points (along, across) per flank where the worn "
                                               "profiles of all meshes are compared", min=2)
     wear: bool = param(True, "", "also compute the worn profile (pseudo-time wear) of every mesh")
+    wear_amplitude: float = param(0.0, "N", "tip force of the wear solves (0: excitation.amplitude, the same "
+                                            "as the FRF peak); the model is linear in the load, so its harmonic "
+                                            "load vector is scaled", min=0.0)
     penalty_per_area: float = param(0.0, "N/m³", "DLFT penalties ε_N = ε_T = this × the pair's tributary area, "
                                                   "the same interface stiffness per unit area on every mesh (0: the "
                                                   "automatic per-pair penalty of [contact])", min=0.0)

@@ -104,7 +104,10 @@ def static_gaps(model, law, vertex: np.ndarray, max_passes: int, rc=None) -> dic
     midside pairs (``~vertex``) — negative is interpenetration — with every
     pair active and with only the vertex pairs active (midside pairs opened
     by :data:`OPEN_GAP`); the vertex pairs' share of the normal load; pairs
-    in contact."""
+    in contact. A model with tied midside nodes (``info["tie_pairs"]``, the
+    ``"linear"`` layout) has no midside pairs: its midside gaps are the mean
+    of the gaps at the edge's two ends (the two flank surfaces are linear
+    between the vertices; exact on the planar dovetail flanks)."""
     from reduction.condense import condense, relative_coordinates
     from workflow.engine.study import static_state
 
@@ -117,6 +120,10 @@ def static_gaps(model, law, vertex: np.ndarray, max_passes: int, rc=None) -> dic
     out["pairs_in_contact"] = int(np.count_nonzero(st.state))
     lam_n = np.maximum(-st.lam[:, 0], 0.0)
     out["vertex_load_share"] = float(lam_n[vertex].sum() / max(lam_n.sum(), 1e-300))
+    ties = np.asarray(model.info.get("tie_pairs") or np.zeros((0, 2)), dtype=np.int64).reshape(-1, 2)
+    if ties.size:
+        g = st.u[:, 0] + gap
+        out["midside_gap_min_m"] = float((0.5 * (g[ties[:, 0]] + g[ties[:, 1]])).min())
     mids = ~np.asarray(vertex, bool)
     if mids.any():
         out["midside_gap_min_m"] = float((st.u[mids, 0] + gap[mids]).min())

@@ -83,7 +83,8 @@ def _static_gaps(model, contact, vertex: np.ndarray) -> dict:
 
 def _worn_profile(model, scene, cc) -> dict:
     """:func:`workflow.engine.meshstudy.worn_profile`: the scene's contact, wear
-    and pseudotime sections, pseudo-time only, HBM with the stage's Nh and nit."""
+    and pseudotime sections, pseudo-time only, HBM with the stage's Nh and nit,
+    at the tip force ``cc.wear_amplitude`` when it is set."""
     from reduction.condense import relative_coordinates
     from workflow.engine.meshstudy import worn_profile
     from workflow.stages.wear import options
@@ -92,6 +93,8 @@ def _worn_profile(model, scene, cc) -> dict:
           "hb": replace(scene["hb"], methods=["hbm"], harmonics=[int(cc.harmonics)],
                         time_samples=[int(cc.time_samples)])}
     opt = replace(options(sc), methods=("pseudo-time",), eps_check_factor=0.0, compare_unworn=False)
+    if cc.wear_amplitude > 0:
+        model = replace(model, f_harmonic=model.f_harmonic * (cc.wear_amplitude / scene["excitation"].amplitude))
     law, path = _law(model, scene["contact"], cc, relative_coordinates(model))
     return worn_profile(model, law, path, opt)
 
@@ -145,6 +148,7 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
            "peak_amplitude_m": pk["peak_amplitude_m"], "energy_J": pk["energy_J"],
            "max_wear_m": float(worn["W"].max()) if worn else None,
            "wear_steady": worn["steady"] if worn else None, "wear_hz": worn["frequency_hz"] if worn else None,
+           "wear_force_N": (cc.wear_amplitude or scene["excitation"].amplitude) if worn else None,
            "area_sum_rel_err": abs(float(model.area.sum()) - info["flank_area_m2"]) / info["flank_area_m2"],
            **static, "eps_n": pk["eps_n"], "eps_t": pk["eps_t"], "peak_evaluations": pk["evaluations"], "peak_at_band_edge": pk["at_band_edge"],
            "build_seconds": t_build, "peak_seconds": t_peak, "wear_seconds": t_wear,

@@ -1,0 +1,74 @@
+"""Tied midside nodes of a linear contact surface, eliminated from a reduced model.
+
+The bundle's ``contact.tie`` rows ``(dep, a, b)`` ask ``u_dep = (u_a + u_b)/2``
+(``geometry.contact_nodes = "linear"``: every midside node of a flank facet
+follows its edge, :func:`reduction.pairs.tie_midsides`). The reduction keeps
+the dependent DOFs as Craig–Bampton boundary DOFs and eliminates them after
+the projection, ``q = T q'``:
+
+    M' = Tᵀ M T,  K' = Tᵀ K T,  C' = Tᵀ C T,  B' = B T,  O' = O T,  f' = Tᵀ f.
+
+This *is* the Craig–Bampton reduction of the constrained structure, not an
+approximation of it: its fixed-interface modes hold every boundary DOF, the
+dependent ones included, so they are the same; its constraint mode for a
+master DOF is the static response to that DOF with the others held and the
+dependent ones following, ``Ψ_a + ½ Σ Ψ_dep`` — the columns of ``V T``
+(test: ``tests/reduction/test_tie.py`` against the reduction of the
+explicitly constrained full model).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from workflow.errors import BundleError
+
+
+def tie_map(boundary: np.ndarray, tie: np.ndarray, m: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``(T, keep)``: the (m, m − k) map ``q = T q'`` and the kept coordinates of q.
+
+    ``boundary``: the sorted full DOF indices of the first coordinates of q
+    (:func:`reduction.reduce.boundary_dofs`); ``tie``: (k, 3) DOF rows.
+    """
+    tie = np.asarray(tie, dtype=np.int64).reshape(-1, 3)
+    pos = np.searchsorted(boundary, tie)
+    if np.any(pos >= len(boundary)) or np.any(boundary[np.minimum(pos, len(boundary) - 1)] != tie):
+        raise BundleError("contact.tie: a tied or master DOF is not a boundary DOF of the reduction")
+    dep = pos[:, 0]
+    keep = np.setdiff1d(np.arange(m), dep)
+    col = -np.ones(m, dtype=np.int64)
+    col[keep] = np.arange(keep.size)
+    rows = np.concatenate([keep, dep, dep])
+    cols = np.concatenate([col[keep], col[pos[:, 1]], col[pos[:, 2]]])
+    vals = np.concatenate([np.ones(keep.size), np.full(2 * dep.size, 0.5)])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(m, keep.size)), keep
+
+
+def tie_pairs(contact) -> np.ndarray:
+    """(k_m, 2) pair indices of the edge ends of each tied blade midside node
+    (the x-component rows of the blade side), for checks and reports."""
+    t = np.asarray(contact.tie, dtype=np.int64)
+    of = {int(d): i for i, d in enumerate(np.asarray(contact.blade_dofs)[:, 0])}
+    rows = [r for r in t if int(r[1]) in of and int(r[2]) in of]
+    return np.array([(of[int(r[1])], of[int(r[2])]) for r in rows], dtype=np.int64).reshape(-1, 2)
+
+
+def eliminate(model, boundary: np.ndarray, contact):
+    """``model`` with the DOFs of ``contact.tie`` eliminated (module docstring);
+    returns ``(model', T)``. ``info`` gains ``tied_dofs`` and ``tie_pairs``."""
+    T, keep = tie_map(boundary, contact.tie, model.size)
+    nb = int(model.info.get("boundary_dofs", boundary.size))
+
+    def proj(A):
+        A = np.asarray(T.T @ (T.T @ A).T)
+        return 0.5 * (A + A.T)
+
+    info = dict(model.info, tied_dofs=int(model.size - keep.size), size=int(keep.size),
+                boundary_dofs=int(nb - (model.size - keep.size)), tie_pairs=tie_pairs(contact).tolist())
+    out = replace(model, M=proj(model.M), K=proj(model.K), C=proj(model.C), B=np.asarray(model.B @ T),
+                  O=np.asarray(model.O @ T), f_static=T.T @ model.f_static, f_harmonic=T.T @ model.f_harmonic,
+                  info=info)
+    out.validate()
+    return out, T
