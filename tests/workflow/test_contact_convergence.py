@@ -86,7 +86,8 @@ def scene():
 
     return load_scene("contact-convergence", ["contact_convergence.nodes_along=[3, 4]",
                                               "contact_convergence.nodes_across=[2, 2]",
-                                              "contact_convergence.points=5", "contact_convergence.wear=false"])
+                                              "contact_convergence.points=5", "contact_convergence.wear=false",
+                                              'geometry.contact_nodes="all"'])
 
 
 @pytest.fixture(scope="module")
@@ -106,6 +107,24 @@ def test_every_node_layout_closes_the_midside_interpenetration(scene, quick_mode
     assert s["midside_gap_min_m"] >= -1e-15
     assert s["vertex_only_midside_gap_min_m"] < -1e-7
     assert 0.0 < s["vertex_load_share"] < 1.0
+
+
+def test_linear_layout_closes_the_midside_interpenetration_with_the_vertex_pairs(tmp_path_factory):
+    """The scene's layout ("linear"): the vertex pairs only, P1 areas summing to the flank area, and
+    under the preload the midside gaps — the means of their edges' vertex gaps — are ≥ 0 to round-off
+    where the vertex-only layout interpenetrates by µm."""
+    from workflow.scene import load_scene
+
+    scene = load_scene("contact-convergence")
+    assert scene["geometry"].contact_nodes == "linear"
+    model, vertex, info = cc.build_model(scene, 4, 2, tmp_path_factory.mktemp("lin"))
+    assert model.n_pairs == 2 * 4 * 2 and vertex.all()
+    assert abs(model.area.sum() - info["flank_area_m2"]) <= 1e-12 * info["flank_area_m2"]
+    assert len(model.info["tie_pairs"]) == 2 * (7 * 3 - 4 * 2)      # every midside node of both flanks
+    s = cc._static_gaps(model, scene["contact"], vertex)
+    assert s["pairs_in_contact"] > 0
+    assert s["midside_gap_min_m"] >= -1e-15
+    assert s["vertex_only_midside_gap_min_m"] is None
 
 
 @pytest.mark.slow
