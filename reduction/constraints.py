@@ -52,16 +52,11 @@ def constrain(A: sp.spmatrix, T: sp.spmatrix) -> sp.csr_matrix:
 def _with_ties(bundle: Bundle, tied: bool) -> sp.csr_matrix:
     """:func:`constraint_map` of a bundle with ``contact.tie``: the map of the
     structure without the dependent DOFs, composed with ``u_dep = (u_a + u_b)/2``."""
-    n = bundle.n_dofs
-    tie = np.asarray(bundle.contact.tie, dtype=np.int64)
-    dep = tie[:, 0]
-    kept = np.setdiff1d(np.arange(n), dep)
-    col = -np.ones(n, dtype=np.int64)
+    from reduction.tie import tie_matrix
+
+    T_tie, kept = tie_matrix(bundle.n_dofs, bundle.contact.tie)
+    col = -np.ones(bundle.n_dofs, dtype=np.int64)
     col[kept] = np.arange(kept.size)
-    rows = np.concatenate([kept, dep, dep])
-    cols = np.concatenate([col[kept], col[tie[:, 1]], col[tie[:, 2]]])
-    vals = np.concatenate([np.ones(kept.size), np.full(2 * dep.size, 0.5)])
-    T_tie = sp.csr_matrix((vals, (rows, cols)), shape=(n, kept.size))
     c, L = bundle.contact, bundle.loads
     renum = lambda d: np.where(np.asarray(d) >= 0, col[np.maximum(np.asarray(d), 0)], -1)  # noqa: E731
     inner = SimpleNamespace(n_dofs=int(kept.size), loads=SimpleNamespace(fixed=col[np.asarray(L.fixed, np.int64)]),

@@ -26,6 +26,21 @@ import scipy.sparse as sp
 from workflow.errors import BundleError
 
 
+def tie_matrix(m: int, tie_pos: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``(T, keep)`` for ``m`` unknowns and tie rows given as positions among
+    them, ``(dep, a, b)``: ``T`` (m, m − k) keeps every other unknown and
+    writes ``x_dep = (x_a + x_b)/2``; ``keep`` lists the kept unknowns."""
+    tie_pos = np.asarray(tie_pos, dtype=np.int64).reshape(-1, 3)
+    dep = tie_pos[:, 0]
+    keep = np.setdiff1d(np.arange(m), dep)
+    col = -np.ones(m, dtype=np.int64)
+    col[keep] = np.arange(keep.size)
+    rows = np.concatenate([keep, dep, dep])
+    cols = np.concatenate([col[keep], col[tie_pos[:, 1]], col[tie_pos[:, 2]]])
+    vals = np.concatenate([np.ones(keep.size), np.full(2 * dep.size, 0.5)])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(m, keep.size)), keep
+
+
 def tie_map(boundary: np.ndarray, tie: np.ndarray, m: int) -> tuple[sp.csr_matrix, np.ndarray]:
     """``(T, keep)``: the (m, m − k) map ``q = T q'`` and the kept coordinates of q.
 
@@ -36,14 +51,7 @@ def tie_map(boundary: np.ndarray, tie: np.ndarray, m: int) -> tuple[sp.csr_matri
     pos = np.searchsorted(boundary, tie)
     if np.any(pos >= len(boundary)) or np.any(boundary[np.minimum(pos, len(boundary) - 1)] != tie):
         raise BundleError("contact.tie: a tied or master DOF is not a boundary DOF of the reduction")
-    dep = pos[:, 0]
-    keep = np.setdiff1d(np.arange(m), dep)
-    col = -np.ones(m, dtype=np.int64)
-    col[keep] = np.arange(keep.size)
-    rows = np.concatenate([keep, dep, dep])
-    cols = np.concatenate([col[keep], col[pos[:, 1]], col[pos[:, 2]]])
-    vals = np.concatenate([np.ones(keep.size), np.full(2 * dep.size, 0.5)])
-    return sp.csr_matrix((vals, (rows, cols)), shape=(m, keep.size)), keep
+    return tie_matrix(m, pos)
 
 
 def tie_pairs(contact) -> np.ndarray:
