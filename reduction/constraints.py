@@ -8,8 +8,6 @@ edge, ``u_dep = (u_a + u_b)/2``: they are part of the structure.
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 import scipy.sparse as sp
 
@@ -17,20 +15,34 @@ from reduction.bundle import Bundle
 
 
 def constraint_map(bundle: Bundle, tied: bool) -> sp.csr_matrix:
-    """(n, n_kept) sparse 0/1 map from kept DOFs to all DOFs.
+    """(n, n_kept) sparse map from kept DOFs to all DOFs.
 
     Clamped DOFs are dropped. With ``tied``, blade contact DOFs are dropped and
     follow their disk partners (node-to-node bonding: the interface as one
-    body, the paper's "tied" limit).
+    body, the paper's "tied" limit). Tied midside DOFs (``contact.tie``) are
+    dropped and follow their edges in every case.
     """
-    n = bundle.n_dofs
-    tie = getattr(bundle.contact, "tie", None)
-    if tie is not None and len(tie):
-        return _with_ties(bundle, tied)
+    n, c = bundle.n_dofs, bundle.contact
+    fixed = np.asarray(bundle.loads.fixed, dtype=np.int64)
+    tie = getattr(c, "tie", None)
+    if tie is None or not len(tie):
+        return _follow_map(n, fixed, c.blade_dofs, c.disk_dofs, tied)
+    from reduction.tie import tie_matrix
+
+    T_tie, kept = tie_matrix(n, tie)
+    col = -np.ones(n, dtype=np.int64)
+    col[kept] = np.arange(kept.size)
+    renum = lambda d: np.where(np.asarray(d) >= 0, col[np.maximum(np.asarray(d), 0)], -1)  # noqa: E731
+    return (T_tie @ _follow_map(kept.size, col[fixed], renum(c.blade_dofs), renum(c.disk_dofs), tied)).tocsr()
+
+
+def _follow_map(n: int, fixed: np.ndarray, blade_dofs: np.ndarray, disk_dofs: np.ndarray,
+                tied: bool) -> sp.csr_matrix:
+    """The 0/1 map of :func:`constraint_map` on ``n`` DOFs without ties."""
     follow = np.arange(n)  # DOF i takes the value of DOF follow[i]; -1 → zero
-    follow[bundle.loads.fixed] = -1
+    follow[fixed] = -1
     if tied:
-        b, d = bundle.contact.blade_dofs.ravel(), bundle.contact.disk_dofs.ravel()
+        b, d = np.asarray(blade_dofs).ravel(), np.asarray(disk_dofs).ravel()
         on_blade = b >= 0
         follow[b[on_blade]] = np.where(d[on_blade] >= 0, follow[np.maximum(d[on_blade], 0)], -1)
     kept = np.flatnonzero(follow == np.arange(n))
@@ -47,18 +59,3 @@ def constraint_map(bundle: Bundle, tied: bool) -> sp.csr_matrix:
 def constrain(A: sp.spmatrix, T: sp.spmatrix) -> sp.csr_matrix:
     """``Tᵀ A T`` as CSR."""
     return (T.T @ A @ T).tocsr()
-
-
-def _with_ties(bundle: Bundle, tied: bool) -> sp.csr_matrix:
-    """:func:`constraint_map` of a bundle with ``contact.tie``: the map of the
-    structure without the dependent DOFs, composed with ``u_dep = (u_a + u_b)/2``."""
-    from reduction.tie import tie_matrix
-
-    T_tie, kept = tie_matrix(bundle.n_dofs, bundle.contact.tie)
-    col = -np.ones(bundle.n_dofs, dtype=np.int64)
-    col[kept] = np.arange(kept.size)
-    c, L = bundle.contact, bundle.loads
-    renum = lambda d: np.where(np.asarray(d) >= 0, col[np.maximum(np.asarray(d), 0)], -1)  # noqa: E731
-    inner = SimpleNamespace(n_dofs=int(kept.size), loads=SimpleNamespace(fixed=col[np.asarray(L.fixed, np.int64)]),
-                            contact=SimpleNamespace(blade_dofs=renum(c.blade_dofs), disk_dofs=renum(c.disk_dofs)))
-    return (T_tie @ constraint_map(inner, tied)).tocsr()
