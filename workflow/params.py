@@ -119,7 +119,9 @@ class HB:
                                             "report how much it moves (its own uncertainty: the nit and Nh trials)")
     nh_check: bool = param(True, "", "re-solve each variant's peak (and the wear's unworn point) with 1.5×Nh and "
                                      "report how much it moves: the convergence measure of every FRF and wear "
-                                     "result (a warning above 1e-3)")
+                                     "result (a warning above 1e-3); with a reference (hb.reference_harmonics "
+                                     "> 0) the variants are measured by their error against it and only the "
+                                     "reference is re-solved")
     refine_peak: bool = param(True, "", "refine the headline peak between its grid neighbours (bounded scalar "
                                         "search to 1e-6 of f, ~10–25 extra solves of one variant); false: the "
                                         "grid's largest point is the headline peak")

@@ -29,9 +29,11 @@ def test_observed_order_recovers_the_exponent_for_uneven_ratios():
 def test_summarise_reports_the_two_finest_meshes():
     h = [0.02, 0.01, 0.005]
     rows = [dict(h_contact_m=x, peak_hz=100 + x, peak_amplitude_m=1e-3 * (1 + x ** 2), energy_J=1e-4 * (1 + x),
-                 max_wear_m=1e-6 * (1 + 10 * x)) for x in h]
+                 max_wear_m=1e-6 * (1 + 10 * x), wear_volume_m3=1e-11 * (1 + x ** 1.5)) for x in h]
     W = np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 2.1]])
     s = summarise(rows, W)
+    assert s["observed_order"]["wear_volume_m3"] == pytest.approx(1.5, rel=1e-9)
+    assert s["wear_volume_change_last"] == pytest.approx(abs(h[1] ** 1.5 - h[2] ** 1.5) / (1 + h[2] ** 1.5))
     assert s["peak_change_last"] == pytest.approx(abs(h[1] ** 2 - h[2] ** 2) / (1 + h[2] ** 2))
     assert s["observed_order"]["peak_amplitude_m"] == pytest.approx(2.0, rel=1e-9)
     assert s["observed_order"]["energy_J"] == pytest.approx(1.0, rel=1e-9)

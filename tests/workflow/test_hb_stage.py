@@ -117,15 +117,18 @@ def collocated(tmp_path_factory):
 
 
 def test_checks_of_a_default_stage_run(study):
-    """With the scene defaults the stage re-solves each run's peak at 1.5×Nh (the convergence
-    measure) and at 10 ε (the penalty's sensitivity), checks the reference in nit, Nh and ε,
-    and refines the headline peak between grid points."""
+    """With the scene defaults the stage measures each variant against the reference (its
+    convergence measure), re-solves the reference's peak at 1.5×Nh and every run's at 10 ε
+    (the penalty's sensitivity), checks the reference in nit, Nh and ε, and refines the
+    headline peak between grid points."""
     _, summary, out = study
     nc = summary["nh_check"]
-    assert [r["nh"] for r in nc["runs"]] == [2, 5, 8, 14] and all(r["converged"] for r in nc["runs"])
-    moved = {r["nh"]: r["rel_change"] for r in nc["runs"]}
-    # convergence in Nh: the change to 1.5×Nh shrinks as Nh grows (the reference's is the smallest)
-    assert moved[14] < moved[2] and nc["max_rel_change"] == max(moved.values()) < 0.1
+    assert [r["nh"] for r in nc["runs"]] == [14] and nc["runs"][0]["converged"]
+    assert nc["variants"] == "against the reference (error)"
+    # convergence in Nh: the variants' errors against the reference shrink as Nh grows
+    err = {r["harmonics"]: r["error"] for r in summary["runs"]}
+    assert err[5] < err[1] and nc["max_rel_change"] < 0.1
+    assert summary["reference"]["convergence"]["nh_14"] == nc["runs"][0]["rel_change"]
     eps = summary["eps_check"]
     assert eps["factor"] == 10.0 and len(eps["runs"]) == 4           # three variants and the reference
     moved = [r["rel_change"] for r in eps["runs"] if r["converged"]]

@@ -2,9 +2,11 @@
 
 The README's contract: a run that finishes with results that did not
 converge exits 3 and says which (summary.json "unconverged", log, report).
-The end-to-end case is the issue's: μ = 0 on the quick scene, where HB
-misses 2 of 15 frequencies and the wear march does not reach its steady
-state within pseudotime.max_steps.
+The end-to-end case is the issue's: μ = 0 on the quick scene, where the
+wear march has no worn steady state (HB missed 2 of 15 frequencies there
+until the continuation in Nh ran the whole cascade at each level; it now
+converges at all 15, and an unconverged HB line is checked in
+test_cache_integrity and by :func:`test_hb_lines_name_variant_and_frequencies`).
 """
 from __future__ import annotations
 
@@ -56,15 +58,14 @@ def test_frictionless_quick_scene_exits_3(tmp_path):
     assert r.returncode == 3, r.stderr
     assert "Traceback" not in r.stderr and "exit status 3" in r.stderr
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert set(s["unconverged"]) == {"hb", "wear"}
-    assert "frequencies did not converge" in s["unconverged"]["hb"][0]
+    assert set(s["unconverged"]) == {"wear"}
     # μ = 0: the pairs slide freely and Archard wears them at a constant rate — no worn
     # steady state, which the line says instead of asking for more pseudo-time steps
     line = s["unconverged"]["wear"][0]
     assert "NOT steady" in line and "persistent slip" in line and "raise pseudotime.max_steps" not in line
     # what the lines say agrees with the stage's own numbers
     run = s["hb"]["runs"][0]
-    assert f"{run['points'] - run['converged_points']}/{run['points']}" in s["unconverged"]["hb"][0]
+    assert run["converged_points"] == run["points"] == 15
     assert not s["wear"]["methods"]["pseudo-time"]["steady"]
 
 

@@ -300,3 +300,44 @@ def test_hb_pad_chain_slip_band_against_time_integration():
     rows = runner.compare(model, spec, ws / 2 / np.pi, [7])
     assert all(r["converged"] for r in rows)
     assert max(r["error"] for r in rows) < 0.002
+
+
+def test_stop_regime_point_without_neighbours_converges_by_continuation_in_nh():
+    """The first point of a sweep has no neighbour to start from. On the Coulomb oscillator in
+    the stop regime (μN/F0 = 0.7, c = 0, β = 0.5: the mass sticks twice a period, ε = 10³k)
+    Newton, Powell, PTC and the ε-continuation all fail from the linear guess at Nh = 7, and
+    so did the Nh = 3 seed's own Newton; the continuation in Nh now solves each level through
+    the whole cascade (Nh = 3 by the forcing homotopy, Nh = 7 by PTC from that seed). Measured
+    against the event-driven integrator: 11 % (the HB truncation at Nh = 7 in the stop regime;
+    the grid's other stop points at Nh = 7 are 2–13 % off, docs/verification.md)."""
+    from workflow import engine
+
+    r, beta = 0.7, 0.5
+    model, spec = models.coulomb(M, K, 0.0, 1.0, 1.0, r)
+    f = beta / 2 / np.pi
+    law = engine.contact_law(model, mu=r, omega_hz=f)
+    study = engine.frf(model, law, [engine.Variant("hbm", 7, 64)], freqs_hz=[f],
+                       options=engine.FRFOptions(max_iterations=100, eps_check_factor=0.0, nh_check=False))
+    run = study.runs[0]
+    assert run.converged[0] and run.how[0] == "nh-continuation"
+    ref = runner.reference(spec, beta)
+    assert ref.stops and abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.15
+
+
+def test_a_point_lost_upwards_is_found_downwards_from_its_upper_neighbour():
+    """The sweep's second pass. Coulomb oscillator, μN/F0 = 0.7, ζ = 0.02, ε = 10⁴k, Nh = 15:
+    the first point (β = 0.5, stops) is lost from the linear guess through the whole cascade,
+    and found from its converged upper neighbour (β = 0.61) by the pass downwards. The root it
+    finds is the oscillator's: within the HB truncation of its stop-regime reference (measured
+    3.5 %)."""
+    from workflow import engine
+
+    r = 0.7
+    model, spec = models.coulomb(M, K, 2 * 0.02, 1.0, 1.0, r)
+    betas = np.array([0.5, 0.5 + 1.0 / 9.0])
+    law = engine.contact_law(model, mu=r, eps_n=1e4 * K, eps_t=1e4 * K, omega_hz=1.0 / 2 / np.pi)
+    run = engine.frf(model, law, [engine.Variant("hbm", 15, 128)], freqs_hz=betas / 2 / np.pi,
+                     options=engine.FRFOptions(max_iterations=100, eps_check_factor=0.0, nh_check=False)).runs[0]
+    assert run.converged.all() and run.how[0].startswith("downwards-")
+    ref = runner.reference(spec, betas[0])
+    assert ref.stops and abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.06

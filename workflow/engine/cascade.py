@@ -23,7 +23,8 @@ usual first; each later attempt exists because a measured case needed it):
    easily and each decade moves the root a little (Den Hartog, Nh = 7:
    158 direct iterations → 16; Nh = 15, ε = 10⁴k: no convergence → 34);
 6. **continuation in Nh**: the same point at Nh//2 (recursively, through
-   this cascade) seeds the full problem;
+   this cascade) seeds the full problem, solved from that seed through this
+   cascade again;
 7. a homotopy in the excitation from the stuck state (forcing ×0.2…1);
 8. Powell from the best iterate.
 
@@ -280,7 +281,15 @@ def eps_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Be
 
 
 def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Best) -> bool:
-    """Attempt 6: the point at Nh//2 (HBM, through this cascade) seeds Nh."""
+    """Attempt 6: the point at Nh//2 (HBM, through the whole cascade) seeds Nh, which then
+    goes through the whole cascade again from that seed (all but this attempt).
+
+    Why the whole cascade at Nh: in the stop regime the seeded Newton alone is not enough.
+    Measured on the Coulomb oscillator (μN/F0 = 0.7, ζ = 0, β = 0.5, the mass sticking twice
+    a period, ε = 10³k, Nh = 7, nit = 64): Newton and the ε-continuation from the Nh = 3
+    seed failed, and Nh = 3 itself failed from its Nh = 1 seed, so the point was lost;
+    with the cascade at each level, Nh = 3 converges by the forcing homotopy and Nh = 7 by
+    pseudo-transient continuation (each seed is then a point the cascade's own attempts reach)."""
     from workflow.hb import HBProblem
 
     nh_low = prob.nh // 2
@@ -288,15 +297,17 @@ def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Bes
         return False
     low = HBProblem(prob.Zr, prob.Fr, prob.law, nh_low, prob.nit, "hbm", max_passes=prob.max_passes,
                     stick_anchor=prob.stick_anchor, static=prob.static)
-    pr = solve_point(low, [low.x0()], solver=solver, tol=tol, maxiter=maxiter, pseudo=run.pseudo)
+    pr = solve_point(low, [low.x0()], solver=run.solver, tol=tol, maxiter=run.maxiter, eps_path=run.eps_path,
+                     pseudo=run.pseudo)
     best.total += pr.iterations
     if not pr.converged:
         return False
     U = np.zeros((prob.nh + 1, prob.nr), dtype=complex)
     U[: nh_low + 1] = low.harmonics(pr.result.x)
-    x = prob.unknowns_from_harmonics(U)
-    return best.keep(run(prob, x, solver, maxiter)) or eps_continuation(prob, run, solver, tol, maxiter,
-                                                                              best, x=x)
+    seeded = _cascade(prob, [prob.unknowns_from_harmonics(U)], run.solver, tol, run.maxiter, None, run.eps_path,
+                      run.pseudo, with_nh=False)
+    best.total += seeded.iterations
+    return best.keep(seeded.result, count=False)
 
 
 def homotopy(prob, run, solver: str, tol: float, maxiter: int, best: _Best) -> bool:
@@ -370,15 +381,18 @@ def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=
     return _cascade(prob, guesses, solver, tol, maxiter, smooth, eps_path, pseudo)
 
 
-def _cascade(prob, guesses, solver: str, tol: float, maxiter: int, smooth, eps_path, pseudo) -> PointResult:
-    """Attempts 1–8 of the module docstring (:func:`solve_point` has the arguments)."""
+def _cascade(prob, guesses, solver: str, tol: float, maxiter: int, smooth, eps_path, pseudo,
+             with_nh: bool = True) -> PointResult:
+    """Attempts 1–8 of the module docstring (:func:`solve_point` has the arguments;
+    ``with_nh`` False leaves attempt 6 out, for the seeded solve it makes itself)."""
     done, k, norms = _satisfied(prob, guesses, tol)
     if done is not None:
         return PointResult(done, 0, f"guess{k}")
     def run(q, x, how: str, iterations: int):
         return run_solver(q, x, how, tol, iterations, pseudo)
 
-    run.pseudo = pseudo
+    # what attempt 6 needs to run the whole cascade again
+    run.pseudo, run.solver, run.maxiter, run.eps_path = pseudo, solver, maxiter, eps_path
     best = _Best()
     short = min(maxiter, max(15, maxiter // 4))
     inner = "newton" if solver == "newton-powell" else solver
@@ -404,7 +418,8 @@ def _cascade(prob, guesses, solver: str, tol: float, maxiter: int, smooth, eps_p
         best.total += its
         if xs is not None and best.keep(run(prob, xs, solver, short)):
             return PointResult(best.res, best.total, "smooth")
-    attempts = (("eps-continuation", eps_continuation), ("nh-continuation", nh_continuation),
+    attempts = (("eps-continuation", eps_continuation),
+                *((("nh-continuation", nh_continuation),) if with_nh else ()),
                 ("homotopy", homotopy))
     for how, attempt in attempts:
         if attempt(prob, run, inner, tol, short, best):

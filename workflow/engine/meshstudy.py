@@ -181,8 +181,9 @@ def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
            "peak_hz_change_last": rel_change(rows[-2]["peak_hz"], rows[-1]["peak_hz"]),
            "energy_change_last": rel_change(rows[-2]["energy_J"], rows[-1]["energy_J"]),
            "max_wear_change_last": rel_change(rows[-2]["max_wear_m"], rows[-1]["max_wear_m"]),
-           "observed_order": {k: observed_order(h, [r[k] for r in rows])
-                              for k in ("peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m")}}
+           "wear_volume_change_last": rel_change(rows[-2].get("wear_volume_m3"), rows[-1].get("wear_volume_m3")),
+           "observed_order": {k: observed_order(h, [r.get(k) for r in rows])
+                              for k in ("peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m", "wear_volume_m3")}}
     for k in ("midside_gap_min_m", "vertex_only_midside_gap_min_m"):
         vals = [r[k] for r in rows if r.get(k) is not None]
         out[f"worst_{k}"] = min(vals) if vals else None  # < 0: the flank meshes interpenetrate

@@ -147,6 +147,8 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
            "h_contact_m": L / (na - 1), "dofs": info["dofs"], "tied_hz": pk["tied_hz"], "peak_hz": pk["peak_hz"],
            "peak_amplitude_m": pk["peak_amplitude_m"], "energy_J": pk["energy_J"],
            "max_wear_m": float(worn["W"].max()) if worn else None,
+           # Σ W_i A_i: the worn volume, an integral of the profile (the maximum is a nodal value)
+           "wear_volume_m3": float(np.dot(worn["W"], model.area)) if worn else None,
            "wear_steady": worn["steady"] if worn else None, "wear_hz": worn["frequency_hz"] if worn else None,
            "wear_force_N": (cc.wear_amplitude or scene["excitation"].amplitude) if worn else None,
            "area_sum_rel_err": abs(float(model.area.sum()) - info["flank_area_m2"]) / info["flank_area_m2"],
