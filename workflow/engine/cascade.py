@@ -281,8 +281,11 @@ def eps_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Be
 
 
 def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Best) -> bool:
-    """Attempt 6: the point at Nh//2 (HBM, through the whole cascade) seeds Nh, which then
-    goes through the whole cascade again from that seed (all but this attempt).
+    """Attempt 6: the point at Nh//2 (HBM, through the whole cascade) seeds Nh: Newton and
+    the ε-continuation from that seed, and if both fail the whole cascade again from it (all
+    but this attempt; its best iterate is kept only if it converges, so that attempt 8 still
+    starts from the best of the attempts before — a TCM test point converged there by Powell
+    and was lost when the nested cascade's stuck iterate replaced it).
 
     Why the whole cascade at Nh: in the stop regime the seeded Newton alone is not enough.
     Measured on the Coulomb oscillator (μN/F0 = 0.7, ζ = 0, β = 0.5, the mass sticking twice
@@ -304,10 +307,13 @@ def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Bes
         return False
     U = np.zeros((prob.nh + 1, prob.nr), dtype=complex)
     U[: nh_low + 1] = low.harmonics(pr.result.x)
-    seeded = _cascade(prob, [prob.unknowns_from_harmonics(U)], run.solver, tol, run.maxiter, None, run.eps_path,
-                      run.pseudo, with_nh=False)
+    x = prob.unknowns_from_harmonics(U)
+    if best.keep(run(prob, x, solver, maxiter)) or eps_continuation(prob, run, solver, tol, maxiter, best, x=x):
+        return True
+    seeded = _cascade(prob, [x], run.solver, tol, run.maxiter, None, run.eps_path, run.pseudo, with_nh=False)
     best.total += seeded.iterations
-    return best.keep(seeded.result, count=False)
+    # a failed nested cascade leaves the best iterate alone: attempt 8 starts from it
+    return seeded.converged and best.keep(seeded.result, count=False)
 
 
 def homotopy(prob, run, solver: str, tol: float, maxiter: int, best: _Best) -> bool:
