@@ -40,6 +40,17 @@ def test_summarise_reports_the_two_finest_meshes():
     assert s["profile_change_last"] == pytest.approx(0.1 / 2.1)
 
 
+def test_unconverged_lines_name_the_mesh_and_the_key():
+    """A wear march that stopped short of its steady state, or peak-bracket points that did
+    not converge, are listed (the pipeline's exit status 3) with the key to raise."""
+    rows = [dict(pairs=16, grid_converged=9, grid_points=9, wear_steady=True),
+            dict(pairs=192, grid_converged=8, grid_points=9, wear_steady=False),
+            dict(pairs=42, grid_converged=9, grid_points=9, wear_steady=None)]      # no wear study
+    lines = cc.unconverged(rows)
+    assert len(lines) == 2 and lines[0].startswith("192 pairs: 1/9 ") and "hb.max_iterations" in lines[0]
+    assert "pseudotime.max_steps" in lines[1] and cc.unconverged(rows[:1]) == []
+
+
 def _flank_grid(na, nc):
     """Two planar 40 mm × 5 mm flanks inclined at ±45° (positions, flank ids)."""
     u, v = np.meshgrid(np.linspace(0, 0.04, na), np.linspace(0, 0.005, nc), indexing="ij")
@@ -142,5 +153,6 @@ def test_stage_writes_table_and_figures(scene, tmp_path):
         assert 0.9 * r["tied_hz"] < r["peak_hz"] <= r["tied_hz"] * (1 + 1e-3)
     assert s["peak_change_last"] is not None
     assert s["worst_midside_gap_min_m"] >= -1e-15 > s["worst_vertex_only_midside_gap_min_m"]
+    assert all(r["grid_converged"] == r["grid_points"] == 5 for r in s["table"]) and s["unconverged"] == []
     for f in s["figures"] + [s["csv"]]:
         assert (tmp_path / f).is_file()

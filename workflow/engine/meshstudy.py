@@ -54,7 +54,8 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
     """Friction-damped peak of ``model``: ``peak_hz``, ``peak_amplitude_m`` (first
     harmonic at the observed DOFs), ``energy_J`` (friction, per cycle, at the
     peak, :func:`workflow.dissipation.energy_per_cycle` on the DLFT slip path),
-    ``grid_hz``/``grid_m`` (the coarse sweep), ``evaluations``, ``tied_hz``,
+    ``grid_hz``/``grid_m`` (the coarse sweep; ``grid_converged`` of its points
+    converged), ``evaluations``, ``tied_hz``,
     the mean penalties and whether the coarse maximum sat at the band's edge.
 
     A coarse grid of ``points`` frequencies over ± ``band`` (fraction) of the
@@ -83,7 +84,8 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
     f_pk, a_pk, U_pk, c_pk, i = pk.hz, pk.amplitude, pk.Ur, pk.cond, pk.grid_index
     energy = _energy(model, law, variant, c_pk, U_pk, static, solver_kw["max_passes"])
     return {"peak_hz": float(f_pk), "peak_amplitude_m": float(a_pk), "energy_J": energy,
-            "grid_hz": grid, "grid_m": sw.amplitude, "evaluations": pk.evaluations, "tied_hz": float(f_tied),
+            "grid_hz": grid, "grid_m": sw.amplitude, "grid_converged": int(sw.converged.sum()),
+            "evaluations": pk.evaluations, "tied_hz": float(f_tied),
             "eps_n": float(np.mean(law.eps_n)), "eps_t": float(np.mean(law.eps_t)),
             "at_band_edge": bool(i in (0, len(grid) - 1))}
 

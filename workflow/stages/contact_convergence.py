@@ -153,6 +153,7 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
            "wear_force_N": (cc.wear_amplitude or scene["excitation"].amplitude) if worn else None,
            "area_sum_rel_err": abs(float(model.area.sum()) - info["flank_area_m2"]) / info["flank_area_m2"],
            **static, "eps_n": pk["eps_n"], "eps_t": pk["eps_t"], "peak_evaluations": pk["evaluations"], "peak_at_band_edge": pk["at_band_edge"],
+           "grid_converged": pk["grid_converged"], "grid_points": len(pk["grid_hz"]),
            "build_seconds": t_build, "peak_seconds": t_peak, "wear_seconds": t_wear,
            "seconds": time.perf_counter() - t0}
     log.info(f"contact mesh {na}×{nc}: {row['pairs']} pairs, {row['dofs']} DOFs; peak {row['peak_hz']:.4f} Hz "
@@ -161,6 +162,21 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
              + f"; midside gap min {static['midside_gap_min_m']}; {row['seconds']:.1f} s "
                f"(model {t_build:.1f}, peak {t_peak:.1f}, wear {t_wear:.1f})")
     return row, {"model": model, "W": worn["W"] if worn else None, "flank_area_m2": info["flank_area_m2"]}
+
+
+def unconverged(rows: list[dict]) -> list[str]:
+    """The pipeline's ``unconverged`` lines (exit status 3): per contact mesh, points of
+    the peak bracket that did not converge, and a wear march that did not reach its worn
+    steady state (its profile is then where the march stopped, not the steady state)."""
+    out = []
+    for r in rows:
+        if r["grid_converged"] < r["grid_points"]:
+            out.append(f"{r['pairs']} pairs: {r['grid_points'] - r['grid_converged']}/{r['grid_points']} "
+                       "frequencies of the peak bracket did not converge (raise hb.max_iterations)")
+        if r["wear_steady"] is False:
+            out.append(f"{r['pairs']} pairs: the wear march did not reach its worn steady state "
+                       "(raise pseudotime.max_steps); its profile is where the march stopped")
+    return out
 
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
@@ -194,6 +210,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
              + ", ".join(f"{k} {v:.3%}" for k, v in summary.items() if k.endswith("change_last") and v is not None))
     return {"rows": [{k: r[k] for k in ("pairs", "peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m", "seconds")}
                      for r in rows],
+            "unconverged": unconverged(rows),
             "table": rows, "layout": scene["geometry"].contact_nodes, "harmonics": int(cc.harmonics),
             "time_samples": int(cc.time_samples), **summary, "csv": CSV,
             "profiles": PROFILES if profiles is not None else None, "figures": figures}
