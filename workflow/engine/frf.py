@@ -131,15 +131,26 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
             prev = (prev + [(c.omega, pr.result.x)])[-2:]
             xs[i] = pr.result.x
         out.dlft_max_passes = max(out.dlft_max_passes, prob.stats["max_passes"])
-    # downwards, each point lost on the way up again from its converged upper neighbours
+    if prob is not None:
+        _downwards(out, rc, cond, xs, prob, solver=solver, tol=tol, maxiter=maxiter, eps_path=eps_path,
+                   pseudo=pseudo)
+    out.total_seconds = time.perf_counter() - t_all
+    out.cpu_seconds = time.process_time() - c_all
+    return out
+
+
+def _downwards(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> None:
+    """The sweep's second pass: from the top down, each point lost on the way up solved
+    again from its converged upper neighbours (``xs``: converged unknowns per point, updated);
+    ``solve_kw``: :func:`~workflow.engine.cascade.solve_point`'s options."""
+    n = len(cond)
     for i in range(n - 2, -1, -1):
         if out.converged[i] or xs[i + 1] is None:
             continue
         c, t0 = cond[i], time.perf_counter()
         above = [(cond[j].omega, xs[j]) for j in (i + 2, i + 1) if j < n and xs[j] is not None]
         prob = prob.with_linear(c.Zr, c.Fr)
-        pr = solve_point(prob, _predicted(above, c.omega), solver=solver, tol=tol, maxiter=maxiter,
-                         eps_path=eps_path, pseudo=pseudo)
+        pr = solve_point(prob, _predicted(above, c.omega), **solve_kw)
         if pr.converged:
             pr = replace(pr, how=f"downwards-{pr.how}")
             _record(out, i, rc, prob, c.omega, pr, out.seconds[i] + time.perf_counter() - t0,
@@ -148,9 +159,6 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
         else:
             out.iterations[i] += pr.iterations
             out.seconds[i] += time.perf_counter() - t0
-    out.total_seconds = time.perf_counter() - t_all
-    out.cpu_seconds = time.process_time() - c_all
-    return out
 
 
 def _predicted(prev: list, omega: float) -> list:

@@ -318,31 +318,38 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
                          tied_mode=None if mode_index is None else mode_index + 1, runs=runs,
                          reference=ref, tied=tied, sliding=sliding, static=static, law=law,
                          condense_seconds=t_cond)
-        if opt.eps_check_factor > 0:
-            study.eps_check = epscheck.judged(epscheck.frf_runs(rc, cond, law, static, runs + ([ref] if ref else []),
-                                                                opt))
-            if log is not None:
-                log.info(epscheck.log_line(f"ε-check (ε × {opt.eps_check_factor:g}, the penalty's sensitivity)",
-                                           "the worst peak", study.eps_check))
-        if opt.nh_check:
-            # with a reference, a variant's error against it is its convergence measure (and a
-            # stronger one than 1.5×Nh): only the reference is re-solved. On paper-frf the 20
-            # variants' re-solves took 60 of the stage's 130 s, the collocated Nh = 26 ones
-            # 11–20 s each where Newton creeps at ‖R‖/‖F‖ ≈ 1e-4 (session 10)
-            checked = [ref] if ref is not None else runs
-            study.nh_check = epscheck.judged(epscheck.nh_runs(rc, law, static, checked, opt))
-            if ref is not None:
-                study.nh_check["variants"] = "against the reference (error)"
-            if log is not None:
-                log.info(epscheck.log_line("Nh-check (1.5×Nh, convergence)", "the worst peak", study.nh_check))
-        if ref is not None and opt.reference_check and opt.sweep == "grid":
-            study.reference_convergence = epscheck.reference(rc, cond, law, static, ref, opt,
-                                                             checks=[c for c in (study.eps_check, study.nh_check) if c])
+        _check(study, rc, cond, opt, log)
         if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:
             study.peak = _refined_peak(rc, law, static, ref if ref is not None else _most_harmonics(runs), opt,
                                        reference=ref is not None)
     study.seconds = time.perf_counter() - t0
     return study
+
+
+def _check(study: FRFStudy, rc, cond, opt, log) -> None:
+    """The study's convergence checks, in place: the ε-check of every run, the Nh-check, the
+    reference's own check (:mod:`workflow.engine.epscheck`)."""
+    law, static, runs, ref = study.law, study.static, study.runs, study.reference
+    if opt.eps_check_factor > 0:
+        every = runs + ([ref] if ref is not None else [])
+        study.eps_check = epscheck.judged(epscheck.frf_runs(rc, cond, law, static, every, opt))
+        if log is not None:
+            log.info(epscheck.log_line(f"ε-check (ε × {opt.eps_check_factor:g}, the penalty's sensitivity)",
+                                       "the worst peak", study.eps_check))
+    if opt.nh_check:
+        # with a reference, a variant's error against it is its convergence measure (and a
+        # stronger one than 1.5×Nh): only the reference is re-solved. On paper-frf the 20
+        # variants' re-solves took 60 of the stage's 130 s, the collocated Nh = 26 ones
+        # 11–20 s each where Newton creeps at ‖R‖/‖F‖ ≈ 1e-4 (session 10)
+        checked = [ref] if ref is not None else runs
+        study.nh_check = epscheck.judged(epscheck.nh_runs(rc, law, static, checked, opt))
+        if ref is not None:
+            study.nh_check["variants"] = "against the reference (error)"
+        if log is not None:
+            log.info(epscheck.log_line("Nh-check (1.5×Nh, convergence)", "the worst peak", study.nh_check))
+    if ref is not None and opt.reference_check and opt.sweep == "grid":
+        study.reference_convergence = epscheck.reference(rc, cond, law, static, ref, opt,
+                                                         checks=[c for c in (study.eps_check, study.nh_check) if c])
 
 
 def _most_harmonics(runs):
