@@ -100,7 +100,6 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
                     and solver == "pseudo-time" else ""))
     t_all = time.perf_counter()
     c_all = time.process_time()
-    prev: list[tuple[float, np.ndarray]] = []   # (ω, x) of the last converged points
     xs: list = [None] * n                       # the converged unknowns, per point
     prob = None
     idx = range(n)
@@ -115,7 +114,8 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
             m = min(len(seeds[i]), v.nh + 1)
             U[:m] = seeds[i][:m]
             guesses.append(prob.unknowns_from_harmonics(U))
-        guesses += _predicted(prev, c.omega) or [prob.x0()]     # no neighbour: static + tied linear response
+        below = [(cond[j].omega, xs[j]) for j in range(i) if xs[j] is not None][-2:]
+        guesses += _predicted(below, c.omega) or [prob.x0()]     # no neighbour: static + tied linear response
         smooth = None
         if v.nit < smooth_nit:
             def smooth(c=c, guess=guesses[-1], prob=prob):
@@ -128,7 +128,6 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
                          pseudo=pseudo)
         _record(out, i, rc, prob, c.omega, pr, time.perf_counter() - t0)
         if pr.converged:
-            prev = (prev + [(c.omega, pr.result.x)])[-2:]
             xs[i] = pr.result.x
         out.dlft_max_passes = max(out.dlft_max_passes, prob.stats["max_passes"])
     if prob is not None:
