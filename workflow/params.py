@@ -95,7 +95,8 @@ class Contact:
                                            "up to 1e3× it on inertia-dominated contacts; workflow/engine/penalty.py); "
                                            "> 0: this many times each pair's static condensed stiffness",
                                   min=0.0)
-    eps_check: float = param(10.0, "", "re-solve each result's peak with ε multiplied by this and report the "
+    eps_check: float = param(10.0, "", "re-solve each result's peak (march the wear again) with ε multiplied by "
+                                       "this and report the "
                                        "change (0: off)", min=0.0)
     gap: float = param(0.0, "m", "initial normal gap added to every pair (<0: interference)")
     max_passes: int = param(20, "", "DLFT periodic passes at most (stick reference convergence)", min=1)
@@ -117,7 +118,7 @@ class HB:
     reference_time_samples: int = param(256, "", "nit of the reference", min=3)
     reference_check: bool = param(True, "", "re-solve the reference's peak with 2×nit, 1.5×Nh and a larger ε and "
                                             "report how much it moves (its own uncertainty: the nit and Nh trials)")
-    nh_check: bool = param(True, "", "re-solve each variant's peak (and the wear's unworn point) with 1.5×Nh and "
+    nh_check: bool = param(True, "", "re-solve each variant's peak (and march the wear again) with 1.5×Nh and "
                                      "report how much it moves: the convergence measure of every FRF and wear "
                                      "result (a warning above 1e-3); with a reference (hb.reference_harmonics "
                                      "> 0) the variants are measured by their error against it and only the "
@@ -186,14 +187,16 @@ class Wear:
     methods: list = param(["pseudo-time", "implicit"], "", "wear methods",
                           item_choices=("pseudo-time", "explicit", "implicit"))
     cycles_per_block: float = param(1e5, "cycles", "physical cycles per reference block (fixed blocks, "
-                                                   "block_tol = 0) and the steady-state test's horizon",
+                                                   "block_tol = 0); past cycles_per_block/steady_tol cycles a "
+                                                   "march whose wear grows as under persistent slip stops",
                                     min=0.0, min_exclusive=True)
     max_blocks: int = param(400, "", "reference marching blocks at most", min=1)
     block_tol: float = param(0.01, "", "reference: adaptive blocks wearing at most this fraction of "
                                        "max(max W, normal interpenetration) each (resolves the wear dynamics; "
                                        "0: fixed blocks of cycles_per_block)", min=0.0)
-    steady_tol: float = param(1e-4, "", "steady state: max wear rate × cycles_per_block below this fraction of "
-                                        "the max wear", min=0.0, min_exclusive=True)
+    steady_tol: float = param(1e-4, "", "steady state: the wear still to come, extrapolated from the decay of "
+                                        "the largest wear rate over the last doubling of cycles, below this "
+                                        "fraction of the max wear", min=0.0, min_exclusive=True)
     reference_check: bool = param(False, "", "also march the reference with 4 × block_tol: its own convergence "
                                              "and, by Richardson extrapolation (first order in the block), the "
                                              "error of every method against its CPU time")
@@ -285,6 +288,9 @@ class ContactConvergence:
     profile_points: list = param([41, 9], "", "common flank points (along, across) per flank where the worn "
                                               "profiles of all meshes are compared", min=2)
     wear: bool = param(True, "", "also compute the worn profile (pseudo-time wear) of every mesh")
+    wear_max_pairs: int = param(0, "", "compute the worn profile only on the meshes with at most this many "
+                                       "pairs (0: every mesh); the wear is compared between the finest meshes "
+                                       "that have it", min=0)
     wear_amplitude: float = param(0.0, "N", "tip force of the wear solves (0: excitation.amplitude, the same "
                                             "as the FRF peak); the model is linear in the load, so its harmonic "
                                             "load vector is scaled", min=0.0)

@@ -40,6 +40,33 @@ def test_summarise_reports_the_two_finest_meshes():
     assert s["profile_change_last"] == pytest.approx(0.1 / 2.1)
 
 
+def test_wear_changes_are_between_the_finest_meshes_that_have_it():
+    """contact_convergence.wear_max_pairs: the wear stops short of the finest mesh; its
+    changes and order come from the meshes that have it, the peak's from all."""
+    h = [0.04, 0.02, 0.01, 0.005]
+    rows = [dict(h_contact_m=x, pairs=int(1 / x), peak_hz=100.0, peak_amplitude_m=1e-3 * (1 + x ** 2),
+                 energy_J=1e-4, max_wear_m=1e-6 * (1 + x) if x > 0.005 else None,
+                 wear_volume_m3=1e-11 * (1 + x) if x > 0.005 else None) for x in h]
+    s = summarise(rows, np.array([[1.0], [2.0], [2.1]]))
+    assert s["max_wear_change_last"] == pytest.approx(0.01 / 1.01)
+    assert s["wear_pairs_last"] == [50, 100]
+    assert s["observed_order"]["max_wear_m"] == pytest.approx(1.0, rel=1e-9)
+    assert s["peak_change_last"] == pytest.approx(abs(h[2] ** 2 - h[3] ** 2) / (1 + h[3] ** 2))
+    assert summarise(rows[-2:], None)["max_wear_change_last"] is None
+
+
+def test_figures_with_the_wear_on_the_coarser_meshes_only(tmp_path):
+    from workflow.report.convergence import plot
+
+    pts, pf = _flank_grid(5, 3)
+    rows = [dict(h_contact_m=x, pairs=n, peak_hz=100.0 + x, peak_amplitude_m=1e-3 * (1 + x), energy_J=1e-4 * (1 + x),
+                 max_wear_m=None if n == 130 else 1e-6 * (1 + x)) for x, n in ((0.02, 16), (0.01, 42), (0.005, 130))]
+    W = np.vstack([1e-6 * (1 + pts[:, 0]), 1.1e-6 * (1 + pts[:, 0])])
+    files = plot(tmp_path, rows, pts, pf, W)
+    assert sorted(files) == ["convergence.png", "profiles.png"]
+    assert all((tmp_path / f).stat().st_size > 0 for f in files)
+
+
 def test_unconverged_lines_name_the_mesh_and_the_key():
     """A wear march that stopped short of its steady state, or peak-bracket points that did
     not converge, are listed (the pipeline's exit status 3) with the key to raise."""

@@ -89,17 +89,22 @@ def test_unbounded_undamped_resonance_is_diagnosed_not_a_traceback():
     assert r.converged[0] and r.converged[2]
 
 
-def test_wear_eps_check_is_made_at_the_unworn_point():
-    """The wear ε-check compares the unworn wear rates at ε and 10ε; run after the
-    marches it once saw the worn W (rates ≈ 0) and reported a change of 1e15."""
+def test_wear_checks_without_a_worn_steady_state_compare_the_unworn_rates():
+    """On this synthetic model the wear slips persistently (no worn steady state): the ε-
+    and Nh-checks then compare the unworn wear rates at ε and 10ε, 1.5×Nh, instead of
+    marching again. (Run after the marches, the rate comparison once saw the worn W,
+    rates ≈ 0, and reported a change of 1e15.)"""
     from workflow import extreme as X
 
     model = X.synthetic_model(2)
     study = engine.worn_steady_state(model, engine.contact_law(model, mu=0.3),
                                      engine.WearOptions(methods=("pseudo-time",), nh=2, nit=32, max_steps=400,
                                                         compare_unworn=False))
-    ch = study.eps_check["max_rel_change"]
-    assert ch is not None and 0 <= ch < 0.05, study.eps_check
+    assert not study.histories["pseudo-time"].steady and study.histories["pseudo-time"].persistent_slip
+    for chk in (study.eps_check, study.nh_check):
+        assert chk["measure"] == "unworn wear rates", chk
+        assert 0 <= chk["max_rel_change"] == chk["unworn_rate_change"] < 0.05, chk
+    assert study.nh_check["nh"] == 3
 
 
 def test_automatic_penalty_is_the_stiffness_of_the_unresolved_harmonics():

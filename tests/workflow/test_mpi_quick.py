@@ -12,9 +12,11 @@ Two comparisons:
   Lanczos start blocks of the reduction, which round off differently; the
   lightly damped tied resonance amplifies ~1e-10 in the reduced receptance to
   ~1e-8 on the FRF. A *serial* run whose reduction sees its DOFs in another
-  order moves as much (up to 1.0e-7 on the FRF and 5.6e-8 on the worn profile;
-  2 ranks: 0.7–6.8e-8 and 1.2–4.0e-8 in five runs, 2026-11-26;
-  ``results/reference/renumbering``): 1e-6 for both, well above that floor.
+  order moves as much (up to 2.2e-7 on the FRF; 2 ranks 0.7–9.3e-8 in six runs,
+  ``results/reference/renumbering``): 1e-6, well above that floor. The worn
+  profile, marched to its worn steady state (~2e10 cycles since session 11),
+  amplifies it further: 0.58–1.6e-6 under serial renumbering, 1.0e-6 on 2 ranks
+  (2026-11-27): 1e-5.
   (At the previous, 10³× penalty the wear agreed only to 0.3–1.1 %: its
   pseudo-time steps were rejected and retried on round-off.)
 * hb, wear and remap on 2 ranks from the *serial* reduced model (cache copied,
@@ -96,7 +98,7 @@ def test_readme_command_two_ranks_finishes_and_matches_serial(runs):
     tmp, serial = runs
     par = tmp / "fresh2"
     _run(MPIRUN + [BIN, "run", "quick", "--out", par, "--cache", tmp / "c2", "--fresh", "--quiet", *TIGHT])
-    _compare(serial, par, 1e-6)
+    _compare(serial, par, 1e-6, rel_wear=1e-5)
 
 
 def test_serial_stages_on_two_ranks_same_reduced_model(runs):

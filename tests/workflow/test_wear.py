@@ -52,6 +52,58 @@ def test_jenkins_gross_slip_matches_archard_closed_form_through_dlft(nit):
     assert err <= 2.0 * (np.pi / nit) ** 2 + 1e-9, (nit, rate, exact)
 
 
+def test_remaining_wear_extrapolates_power_law_and_exponential_tails():
+    """remaining_wear on synthetic paths: exact for a rate ∝ t^−α (α > 1: r·t/(α − 1)),
+    within 1.7× above the truth for an exponential tail at t = 10τ, ∞ while the rate decays no faster
+    than 1/t, 0 once it is 0."""
+    from workflow.wear import WearHistory, remaining_wear
+
+    def hist(t, r):
+        return WearHistory(method="x", W=np.zeros(1), x=np.zeros(1), steady=False, seconds=0.0, iterations=0,
+                           hb_solves=0, jacobian_evaluations=0, cycles=list(t), max_wear=[1.0] * len(t),
+                           max_rate=list(r))
+
+    t = np.geomspace(1e3, 1e9, 40)
+    for alpha in (1.2, 2.0, 3.0):
+        r = 1e-12 * t ** -alpha
+        assert remaining_wear(hist(t, r)) == pytest.approx(r[-1] * t[-1] / (alpha - 1), rel=1e-9)
+    for alpha in (0.0, 0.5, 1.0):
+        assert remaining_wear(hist(t, 1e-12 * t ** -alpha)) == np.inf
+    tau, t = 1e7, np.linspace(0.0, 1e8, 200)
+    r = 1e-12 * np.exp(-t / tau)
+    est, true = remaining_wear(hist(t, r)), r[-1] * tau
+    assert true <= est <= 1.7 * true          # 2 ln 2 · t/(t − 2τ ln 2): 1.6 at t = 10τ
+    assert remaining_wear(hist(t, np.r_[r[:-1], 0.0])) == 0.0
+
+
+@pytest.mark.parametrize("march", ["pseudo-time", "implicit"])
+def test_wear_relieving_its_own_preload_stops_at_separation(march):
+    """A gross-slip Jenkins pair whose normal load comes through a stiff preloaded spring
+    (kn0 = 1e7 N/m, N0 = 10 N): wear unloads it, N = kn0 (W∞ − W), and the worn steady state
+    is separation at W∞ = N0/kn0 = 1 µm exactly. The last approach is exponential with a
+    time constant τ = A/(4 a kn0 k_w) = 3e7 cycles: a test on the rate alone (N·r ≤ 1e-4·W,
+    N = 1e5 cycles) stopped 3 % short of W∞; the extrapolated remainder stops within 1e-3."""
+    k, kn0, N0, a, mu, nh, nit = 1e5, 1e7, 10.0, 1e-4, 0.5, 3, 64
+    A = 1e-6
+    kw = A / (4 * a * kn0 * 3e7)
+    Zr = np.zeros((nh + 1, 3, 3), dtype=complex)
+    Zr[:] = np.diag([kn0, k, k])
+    Fr = np.zeros((nh + 1, 3), dtype=complex)
+    Fr[0, 0] = -N0
+    Fr[1, 1] = k * a
+    hb = HBProblem(Zr, Fr, ContactLaw(mu=np.array([mu]), eps_n=kn0, eps_t=k, gap=np.zeros(1)), nh, nit, "hbm")
+    sol = hb.solve(tol=1e-11)
+    wp = WearProblem(hb, area=[A], k_w=kw)
+    wp.set_wear(np.zeros(1))
+    kw_m = dict(cycles_per_block=1e5, steady_tol=1e-4, tol=1e-10)
+    if march == "pseudo-time":
+        h = pseudo_time_wear(wp, sol.x, max_steps=400, **kw_m)
+    else:
+        h = march_reference(wp, sol.x, scheme="implicit", max_blocks=400, block_tol=0.01, **kw_m)
+    assert h.steady, h.reason
+    assert h.W[0] == pytest.approx(N0 / kn0, rel=1e-3), (h.W[0], h.reason)
+
+
 def _jenkins_pair(nit=64, nh=3):
     """The gross-slip Jenkins pair of the test above with the normal load N applied
     through a 1 kN/m spring: force-controlled (W = 20 µm unloads it by 0.2 %)."""
@@ -69,9 +121,8 @@ def test_persistent_gross_slip_wears_at_a_constant_rate_and_has_no_steady_state(
     """Under a force-controlled normal load the worn Jenkins pair sinks as a body: its
     contact forces never change, so Archard wears it at the closed-form rate
     k_w (N/A)·4(a − μN/k) for ever — W = rate·t along the path and no worn steady
-    state. Both marches follow W = rate·t and stop saying so (not steady), long
-    where the relative criterion (N·rate ≤ steady_tol·W) alone would call the
-    constant-rate wear "steady"."""
+    state. Both marches follow W = rate·t and stop saying so (not steady) once past
+    their horizon of cycles_per_block/steady_tol cycles, not at the step cap."""
     hb = _jenkins_pair()
     sol = hb.solve(tol=1e-11)
     A, kw = 1e-6, 1e-16
@@ -80,8 +131,7 @@ def test_persistent_gross_slip_wears_at_a_constant_rate_and_has_no_steady_state(
     exact = kw * 10.0 / A * 4 * (1e-4 - 0.5 * 10.0 / 1e5)
     assert rate == pytest.approx(exact, rel=2 * (np.pi / 64) ** 2)
     wp.set_wear(np.zeros(1))
-    # steps of at most one block of 1e5 cycles; steady_tol = 0.05: the relative criterion
-    # N·rate ≤ steady_tol·W is met after 20 blocks of constant-rate wear
+    # steps of at most one block of 1e5 cycles; steady_tol = 0.05: the horizon is 20 blocks
     if march == "pseudo-time":
         h = pseudo_time_wear(wp, sol.x, cycles_per_block=1e5, max_steps=400, dt_max_blocks=1.0, steady_tol=0.05)
     else:
@@ -244,6 +294,10 @@ def test_wear_stage_on_a_reduced_model(tmp_path):
     assert errs["explicit coarse"] > errs["explicit"]
     assert chk["self_diff"] == pytest.approx(3 * errs["explicit"], rel=0.05)   # normalised by different maxima
     assert len(list(csv.DictReader(open(out / "error_vs_time.csv")))) == 3
+    # the ε- and Nh-checks march again to the worn steady state and compare profiles
+    for chk in (s["eps_check"], s["nh_check"]):
+        assert chk["measure"] == "worn profile" and chk["steady"], chk
+        assert 0 <= chk["max_rel_change"] < 0.05 and chk["unworn_rate_change"] >= 0, chk
 
 
 def test_reference_check_recovers_a_first_order_limit():

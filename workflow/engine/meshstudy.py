@@ -177,15 +177,19 @@ def rel_change(a, b) -> float | None:
 
 
 def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
-    """Relative changes between the two finest meshes and observed orders."""
-    h = [r["h_contact_m"] for r in rows]
+    """Relative changes between the two finest meshes and observed orders; for the
+    wear, between the two finest meshes that have a worn profile (``profiles``:
+    one per such mesh, coarse to fine)."""
+    worn = [r for r in rows if r.get("max_wear_m") is not None]
+    last = (lambda k: rel_change(worn[-2][k], worn[-1][k])) if len(worn) >= 2 else (lambda k: None)
     out = {"peak_change_last": rel_change(rows[-2]["peak_amplitude_m"], rows[-1]["peak_amplitude_m"]),
            "peak_hz_change_last": rel_change(rows[-2]["peak_hz"], rows[-1]["peak_hz"]),
            "energy_change_last": rel_change(rows[-2]["energy_J"], rows[-1]["energy_J"]),
-           "max_wear_change_last": rel_change(rows[-2]["max_wear_m"], rows[-1]["max_wear_m"]),
-           "wear_volume_change_last": rel_change(rows[-2].get("wear_volume_m3"), rows[-1].get("wear_volume_m3")),
-           "observed_order": {k: observed_order(h, [r.get(k) for r in rows])
-                              for k in ("peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m", "wear_volume_m3")}}
+           "max_wear_change_last": last("max_wear_m"), "wear_volume_change_last": last("wear_volume_m3"),
+           "wear_pairs_last": [r.get("pairs") for r in worn[-2:]] if len(worn) >= 2 else None,
+           "observed_order": {k: observed_order([r["h_contact_m"] for r in rs], [r.get(k) for r in rs])
+                              for rs, ks in ((rows, ("peak_hz", "peak_amplitude_m", "energy_J")),
+                                             (worn, ("max_wear_m", "wear_volume_m3"))) for k in ks}}
     for k in ("midside_gap_min_m", "vertex_only_midside_gap_min_m"):
         vals = [r[k] for r in rows if r.get(k) is not None]
         out[f"worst_{k}"] = min(vals) if vals else None  # < 0: the flank meshes interpenetrate

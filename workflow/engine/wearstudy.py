@@ -95,11 +95,12 @@ class WearStudy:
         (the ε-check is reported, not tested: :mod:`workflow.engine.epscheck`)."""
         nc = self.nh_check or {}
         ch = nc.get("max_rel_change")
+        what = nc.get("measure", "unworn wear rates")
         if nc and ch is None:
-            return [f"wear Nh-check: the unworn point could not be re-solved at Nh = {nc['nh']} "
-                    f"({nc.get('reason') or 'the solver gave up'}; how converged the wear rates are in Nh is unknown)"]
+            return [f"wear Nh-check: the {what} could not be computed at Nh = {nc['nh']} "
+                    f"({nc.get('reason') or 'the solver gave up'}); how converged the wear is in Nh is unknown"]
         if ch is not None and ch > penalty.CHECK_TOL:
-            return [f"wear Nh-check: the unworn wear rates move by {ch:.2e} (> {penalty.CHECK_TOL:g}) at "
+            return [f"wear Nh-check: the {what} moves by {ch:.2e} (> {penalty.CHECK_TOL:g}) at "
                     f"Nh = {nc['nh']}, nit = {nc['nit']}; raise hb.harmonics"]
         return []
 
@@ -227,16 +228,27 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     from workflow.engine.epscheck import judged, log_line
 
     if opt.eps_check_factor > 0:
-        study.eps_check = judged({**eps_check(wp, base.x, opt), "frequency_hz": omega / 2 / np.pi})
+        worn = _steady_history(histories)
+        study.eps_check = judged({**eps_check(wp, base.x, opt, worn=worn, track=3 * i0 + 1),
+                                  "frequency_hz": omega / 2 / np.pi})
         if log is not None:
             log.info(log_line(f"wear ε-check (ε × {opt.eps_check_factor:g}, the penalty's sensitivity)",
-                              "the unworn wear rates", study.eps_check))
+                              f"the {study.eps_check['measure']}", study.eps_check))
     if opt.nh_check:
-        study.nh_check = judged({**nh_check(rc, omega, wp, base.x, opt, eps_path),
+        worn = _steady_history(histories)
+        study.nh_check = judged({**nh_check(rc, omega, wp, base.x, opt, eps_path, worn=worn, track=3 * i0 + 1),
                                  "frequency_hz": omega / 2 / np.pi})
         if log is not None:
-            log.info(log_line("wear Nh-check (1.5×Nh, convergence)", "the unworn wear rates", study.nh_check))
+            log.info(log_line("wear Nh-check (1.5×Nh, convergence)", f"the {study.nh_check['measure']}",
+                              study.nh_check))
     return study
+
+
+def _steady_history(histories: dict):
+    """The march the ε- and Nh-checks compare with (pseudo-time first), or None when it
+    did not reach a worn steady state — the checks then compare the unworn wear rates."""
+    h = histories.get("pseudo-time") or next(iter(histories.values()), None)
+    return h if h is not None and h.steady else None
 
 
 def _rate_change(rate0, rate1) -> float:
@@ -245,11 +257,18 @@ def _rate_change(rate0, rate1) -> float:
     return float(np.max(np.abs(rate1 - rate0)) / top) if top > 0 else 0.0
 
 
-def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path) -> dict:
-    """The unworn point at ``omega`` (rad/s) re-solved with Nh × 1.5 (nit alike,
-    :func:`workflow.engine.epscheck.finer`) from ``x``, on the same law and static
-    state: relative change of the wear-rate profile, ``max|Δrate| / max rate`` —
-    how converged in Nh what W integrates is."""
+def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path, *, worn=None, track: int = 1) -> dict:
+    """The wear at ``omega`` (rad/s) with Nh × 1.5 (nit alike,
+    :func:`workflow.engine.epscheck.finer`), on the same law and static state.
+
+    The unworn point is re-solved from ``x``; ``unworn_rate_change`` is the change of
+    the wear-rate profile, ``max|Δrate| / max rate``. With ``worn`` (a
+    :class:`~workflow.wear.WearHistory` of this study) the pseudo-time march then runs
+    to the worn steady state at the finer Nh and ``max_rel_change`` is the change of
+    the worn profile, :func:`workflow.wear.profile_rel_diff` — the convergence of the
+    result itself. Measured on the quick sector (16 pairs): the unworn rates move 2.1 %
+    from Nh = 5 to 8, the worn steady state 1.3133 → 1.3144 µm (Nh = 7); without
+    ``worn``, ``max_rel_change`` is the unworn rates' change."""
     from reduction.condense import condense
     from workflow.engine.cascade import solve_point
     from workflow.engine.epscheck import finer
@@ -269,16 +288,18 @@ def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path) -> dict:
     U[: hb.nh + 1] = hb.harmonics(x)
     pr = solve_point(fine, [fine.unknowns_from_harmonics(U)], solver="newton-powell", tol=opt.tol,
                      maxiter=opt.max_iterations, eps_path=eps_path)
-    if pr.converged:
-        rate1 = WearProblem(fine, wp.area, wp.k_w, wp.share).evaluate(pr.result.x).rate
-        out["max_rel_change"] = _rate_change(wp.evaluate(x).rate, rate1)
-    return out
+    if not pr.converged:
+        return {**out, "measure": "unworn wear rates"}
+    wfine = WearProblem(fine, wp.area, wp.k_w, wp.share, eps_path=wp.eps_path)
+    return {**out, **_changes(wp.evaluate(x).rate, wfine, pr.result.x, opt, worn, track, f"at Nh = {nh2}")}
 
 
-def eps_check(wp, x, opt: WearOptions) -> dict:
-    """The unworn point re-solved with ε × ``opt.eps_check_factor`` from ``x``:
-    relative change of the wear-rate profile (what W integrates),
-    ``max|Δrate| / max rate``."""
+def eps_check(wp, x, opt: WearOptions, *, worn=None, track: int = 1) -> dict:
+    """The wear with ε × ``opt.eps_check_factor``: the unworn point re-solved from
+    ``x`` (``unworn_rate_change``: ``max|Δrate| / max rate``) and, with ``worn`` (a
+    :class:`~workflow.wear.WearHistory` of this study), the pseudo-time march to the
+    worn steady state at that ε (``max_rel_change``: the worn profile's change,
+    :func:`workflow.wear.profile_rel_diff`; without ``worn`` the unworn rates')."""
     from workflow.engine.cascade import solve_point
 
     fac = float(opt.eps_check_factor)
@@ -289,11 +310,31 @@ def eps_check(wp, x, opt: WearOptions) -> dict:
     pr = solve_point(big, [x], solver="newton-powell", tol=opt.tol, maxiter=opt.max_iterations,
                      eps_path=(1.0 / fac, fac ** -0.5))
     out = {"factor": fac, "max_rel_change": None}
-    if pr.converged:
-        from workflow.wear import WearProblem
+    if not pr.converged:
+        return {**out, "measure": "unworn wear rates"}
+    from workflow.wear import WearProblem
 
-        out["max_rel_change"] = _rate_change(rate0, WearProblem(big, wp.area, wp.k_w, wp.share).evaluate(
-            pr.result.x).rate)
+    wbig = WearProblem(big, wp.area, wp.k_w, wp.share, eps_path=(1.0 / fac, fac ** -0.5))
+    return {**out, **_changes(rate0, wbig, pr.result.x, opt, worn, track, f"at ε × {fac:g}")}
+
+
+def _changes(rate0, wp2, x2, opt: WearOptions, worn, track: int, where: str) -> dict:
+    """The check's measures on the modified problem ``wp2`` solved at ``x2``: the unworn
+    rates' change against ``rate0`` and, with ``worn``, the worn profile's change after a
+    pseudo-time march of ``wp2`` from ``x2`` (``max_rel_change``: the worn profile's
+    when there is one, else the rates')."""
+    from workflow.wear import profile_rel_diff
+
+    rates = _rate_change(rate0, wp2.evaluate(x2).rate)
+    if worn is None:
+        return {"measure": "unworn wear rates", "max_rel_change": rates, "unworn_rate_change": rates}
+    h = _march(wp2, x2, "pseudo-time", opt, track, opt.block_tol)
+    wp2.set_wear(np.zeros(wp2.p))
+    out = {"measure": "worn profile", "unworn_rate_change": rates, "seconds": h.seconds, "steady": bool(h.steady)}
+    if h.steady:
+        out["max_rel_change"] = profile_rel_diff(worn.W, h.W)
+    else:
+        out["reason"] = f"the march {where} did not reach its worn steady state ({h.reason})"
     return out
 
 

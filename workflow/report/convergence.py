@@ -19,11 +19,12 @@ def plot(out: Path, rows: list[dict], points, pflank, profiles) -> list[str]:
 
     keys = [("peak_hz", "peak frequency (Hz)"), ("peak_amplitude_m", "peak amplitude (m)"),
             ("energy_J", "energy per cycle at the peak (J)"), ("max_wear_m", "max wear depth (m)")]
-    keys = [(k, lab) for k, lab in keys if all(r[k] is not None for r in rows)]
-    h = np.array([r["h_contact_m"] for r in rows])
+    keys = [(k, lab) for k, lab in keys if sum(r[k] is not None for r in rows) >= 2]
     fig, axs = plt.subplots(2, len(keys), figsize=(3.6 * len(keys), 6.4), squeeze=False)
     for j, (k, lab) in enumerate(keys):
-        q = np.array([r[k] for r in rows], dtype=float)
+        rs = [r for r in rows if r[k] is not None]      # the wear may stop short of the finest mesh
+        h = np.array([r["h_contact_m"] for r in rs])
+        q = np.array([r[k] for r in rs], dtype=float)
         axs[0, j].plot(1e3 * h, q, "o-")
         axs[0, j].set_title(lab, fontsize=9)
         d = np.abs(q[:-1] - q[-1]) / abs(q[-1])
@@ -36,7 +37,8 @@ def plot(out: Path, rows: list[dict], points, pflank, profiles) -> list[str]:
     fig.suptitle("contact-mesh convergence: " + ", ".join(f"{r['pairs']}" for r in rows) + " pairs")
     files = [write_figure(fig, out / "convergence.png")]
     if profiles is not None:
-        files.append(plot_profiles(out / "profiles.png", rows, points, pflank, profiles))
+        files.append(plot_profiles(out / "profiles.png", [r for r in rows if r["max_wear_m"] is not None],
+                                   points, pflank, profiles))
     return [str(Path(f).relative_to(out)) for f in files]
 
 

@@ -304,7 +304,7 @@ def wear_headline(wear: dict, folder: Path | None, method: str | None) -> tuple[
         checks.append(Check("wear", f"steady state ({name})", st, f"{name}: {m.get('reason', '')}"))
     for line in wear.get("unconverged") or []:
         checks.append(Check("wear", "convergence", "red", line))
-    checks.append(nh_check("wear", "unworn wear rates", wear))
+    checks.append(nh_check("wear", (wear.get("nh_check") or {}).get("measure", "unworn wear rates"), wear))
     d = wear.get("profile_max_rel_diff")
     if d is not None:
         checks.append(Check("wear", "pseudo-time vs reference", "green" if d <= PROFILE_TOL else "amber",

@@ -92,7 +92,8 @@ def _worn_profile(model, scene, cc) -> dict:
     sc = {"wear": scene["wear"], "contact": scene["contact"], "pseudotime": scene["pseudotime"],
           "hb": replace(scene["hb"], methods=["hbm"], harmonics=[int(cc.harmonics)],
                         time_samples=[int(cc.time_samples)])}
-    opt = replace(options(sc), methods=("pseudo-time",), eps_check_factor=0.0, compare_unworn=False)
+    # the study is over the contact mesh: no ε- or Nh-check marches per mesh (each a second wear march)
+    opt = replace(options(sc), methods=("pseudo-time",), eps_check_factor=0.0, nh_check=False, compare_unworn=False)
     if cc.wear_amplitude > 0:
         model = replace(model, f_harmonic=model.f_harmonic * (cc.wear_amplitude / scene["excitation"].amplitude))
     law, path = _law(model, scene["contact"], cc, relative_coordinates(model))
@@ -140,7 +141,8 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
     t_peak = time.perf_counter() - t1
     static = _static_gaps(model, scene["contact"], vertex)
     t2 = time.perf_counter()
-    worn = _worn_profile(model, scene, cc) if cc.wear else None
+    with_wear = cc.wear and (cc.wear_max_pairs == 0 or model.n_pairs <= cc.wear_max_pairs)
+    worn = _worn_profile(model, scene, cc) if with_wear else None
     t_wear = time.perf_counter() - t2
     L = scene["geometry"].axial_length
     row = {"nodes_along": int(na), "nodes_across": int(nc), "pairs": int(model.n_pairs),
@@ -199,11 +201,12 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     profiles = None
     m0 = raws[0]["model"]
     points, pflank = common_points(np.asarray(m0.position), np.asarray(m0.flank), cc.profile_points)
-    if cc.wear:
-        profiles = np.array([profile_at(points, pflank, np.asarray(r["model"].position), np.asarray(r["model"].flank),
-                                        r["W"]) for r in raws])
+    worn = [(row, raw) for row, raw in zip(rows, raws) if raw["W"] is not None]
+    if worn:
+        profiles = np.array([profile_at(points, pflank, np.asarray(raw["model"].position),
+                                        np.asarray(raw["model"].flank), raw["W"]) for _, raw in worn])
         write_npz(out / PROFILES, points=points, flank=pflank, W=profiles,
-                  pairs=np.array([r["pairs"] for r in rows]))
+                  pairs=np.array([row["pairs"] for row, _ in worn]))
     summary = summarise(rows, profiles)
     figures = plot(out, rows, points, pflank, profiles)
     log.info("contact convergence, two finest meshes: "
