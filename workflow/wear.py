@@ -23,9 +23,6 @@ Two ways to the worn steady state (where every rate is 0):
   ``W += N·rate`` (explicit) or solve ``W⁺ = W + N·rate(x(W⁺), W⁺)`` by
   Newton on W with the exact sensitivity ``d rate/dW = ∂rate/∂W −
   ∂rate/∂x J⁻¹ ∂R/∂W`` (implicit).
-
-Both stop when the wear still to come, extrapolated from the decay of the largest
-rate (:func:`remaining_wear`), is at most ``steady_tol·max W``.
 * pseudo-time (eq. 22): integrate the augmented system
   ``θ J₀ ∂x/∂t* = −R(x; W)``, ``∂W/∂t* = rate(x; W)`` with an implicit scheme
   of :mod:`workflow.pseudotime` to ``R = 0`` and zero rates. Scaling: t* is
@@ -37,6 +34,9 @@ rate (:func:`remaining_wear`), is at most ``steady_tol·max W``.
   resonance (see :mod:`workflow.pseudotime`). The wear rows are multiplied
   by ``c = ‖F‖/max rate₀`` so both parts weigh alike in ‖R_aug‖, which
   drives the SER step growth.
+
+Both stop when the wear still to come, extrapolated from the decay of the
+largest rate (:func:`remaining_wear`), is at most ``steady_tol·max W``.
 """
 from __future__ import annotations
 
@@ -309,9 +309,9 @@ def remaining_wear(hist: WearHistory) -> float:
     ``r(t') = r·(t'/t)^−α``, so ``∫_t^∞ r = r·t/(α − 1)`` for α > 1, and ∞ for a rate that
     decays no faster than 1/t (no finite limit in sight). 0 once every rate is 0.
 
-    For an exponential decay (time constant τ) this gives 2 ln 2·r·τ·t/(t − 2τ ln 2), 1.6× the
-    true remainder at t = 10τ and 1.4× as t/τ → ∞: it errs on the side of marching on. Measured on the contact-
-    convergence dovetail (0.5 N, 16…80 pairs): the max rate decays as t^−0.8 … t^−1.5 for
+    For an exponential decay (time constant τ) this gives 2 ln 2·r·τ·t/(t − 2τ ln 2), 1.6×
+    the true remainder at t = 10τ and 1.4× as t/τ → ∞: it errs on the side of marching
+    on. Measured on the contact-convergence dovetail (0.5 N, 16…80 pairs): the max rate decays as t^−0.8 … t^−1.5 for
     decades of t, so a test on the rate alone (N·r ≤ tol·max W, before this function)
     stopped at 1e8 cycles with max W 20–60 % short of its limit."""
     c, r = hist.cycles, hist.max_rate
@@ -361,8 +361,7 @@ def _steady_or_persistent(hist: WearHistory, cycles_per_block, steady_tol) -> tu
     still to come (:func:`remaining_wear`) is at most ``steady_tol``·max W; stopped, not
     steady, when past the horizon of ``cycles_per_block/steady_tol`` cycles the wear shows
     persistent slip (:func:`_trend`)."""
-    wmax = hist.max_wear[-1] if hist.max_wear else 0.0
-    if remaining_wear(hist) <= steady_tol * wmax or (hist.max_rate and hist.max_rate[-1] == 0.0):
+    if remaining_wear(hist) <= steady_tol * (hist.max_wear[-1] if hist.max_wear else 0.0):
         return True, "steady"
     if hist.cycles[-1] >= cycles_per_block / steady_tol:
         persistent, text = _trend(hist)

@@ -227,15 +227,14 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     wp.set_wear(np.zeros(wp.p))     # the unworn point: the marches left the worn W in wp
     from workflow.engine.epscheck import judged, log_line
 
+    worn = _steady_history(histories)      # the checks march again only where this one ended steady
     if opt.eps_check_factor > 0:
-        worn = _steady_history(histories)
         study.eps_check = judged({**eps_check(wp, base.x, opt, worn=worn, track=3 * i0 + 1),
                                   "frequency_hz": omega / 2 / np.pi})
         if log is not None:
             log.info(log_line(f"wear ε-check (ε × {opt.eps_check_factor:g}, the penalty's sensitivity)",
                               f"the {study.eps_check['measure']}", study.eps_check))
     if opt.nh_check:
-        worn = _steady_history(histories)
         study.nh_check = judged({**nh_check(rc, omega, wp, base.x, opt, eps_path, worn=worn, track=3 * i0 + 1),
                                  "frequency_hz": omega / 2 / np.pi})
         if log is not None:
