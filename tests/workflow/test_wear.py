@@ -178,6 +178,33 @@ def test_wear_derivatives_match_finite_differences():
     np.testing.assert_allclose((sp.rate - sm.rate) / 2, st.G_x @ v, rtol=1e-3, atol=1e-22)
 
 
+def test_schur_wear_step_equals_the_whole_augmented_solve():
+    """The pseudo-time step eliminates Δx through J's LU (a p × p system per step
+    length); it must be the solution of the whole (n + p) system at every h, and a
+    singular J must fall back to that system."""
+    from workflow.wear import _augmented_step
+
+    hb = hb_problem(20.0, nh=2, nit=32)
+    sol = hb.solve(tol=1e-11)
+    wp = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=1e-14)
+    W = np.array([1e-7, 0.0, 2e-7])
+    x = sol.x + 1e-9 * np.random.default_rng(1).standard_normal(hb.n)      # R ≠ 0: the Newton part counts
+    n, p = hb.n, hb.p
+    for h in (1e3, 1e6, 1e9):
+        st = wp.evaluate(x, W, jacobian=True)
+        A = np.block([[st.J, st.R_W], [-h * st.G_x, np.eye(p) - h * np.diag(st.G_W)]])
+        dz = np.linalg.solve(A, np.concatenate([-st.R, h * st.rate]))
+        dx, dW = _augmented_step(st, h)
+        assert st.newton_parts, "J is regular here: the Schur path must be taken"
+        np.testing.assert_allclose(dx, dz[:n], rtol=0, atol=1e-9 * np.abs(dz[:n]).max())
+        np.testing.assert_allclose(dW, dz[n:], rtol=0, atol=1e-9 * np.abs(dz[n:]).max())
+    st = wp.evaluate(x, W, jacobian=True)
+    st.J = np.zeros_like(st.J)
+    st.J[np.arange(n - 1), np.arange(n - 1)] = 1.0                  # rank n − 1
+    dx, dW = _augmented_step(st, 1e6)
+    assert st.newton_parts is False and np.all(np.isfinite(dx)) and np.all(np.isfinite(dW))
+
+
 def test_zero_wear_coefficient_pseudo_time_is_newton():
     hb = hb_problem(20.0, nh=2, nit=32)
     sol = hb.solve(tol=1e-11)
