@@ -279,6 +279,9 @@ class ContactConvergence:
     nodes_across: list = param([2, 3, 4], "", "flank vertices across the flank, one entry per contact mesh", min=2)
     harmonics: int = param(1, "", "Nh of the FRF peak and wear solves (dense Newton cost grows like "
                                   "((2Nh+1)·3·pairs)³)", min=0)
+    wear_harmonics: int = param(0, "", "Nh of the wear marches alone (0: harmonics); the worn steady state "
+                                       "may converge in Nh sooner than the FRF peak — each wear step factors "
+                                       "a dense ((2Nh+1)·3·pairs)² Jacobian", min=0)
     time_samples: int = param(32, "", "nit per period (≥ 2Nh+1)", min=1)
     band: float = param(0.1, "", "peak search band: ± this fraction of the first tied frequency", min=0.0,
                         min_exclusive=True, max=0.5)
@@ -305,6 +308,9 @@ class ContactConvergence:
         if self.time_samples < 2 * self.harmonics + 1:
             raise SceneError(f"contact_convergence.time_samples = {self.time_samples} < 2·harmonics+1 = "
                              f"{2 * self.harmonics + 1}")
+        if self.time_samples < 2 * self.wear_harmonics + 1:
+            raise SceneError(f"contact_convergence.time_samples = {self.time_samples} < 2·wear_harmonics+1 = "
+                             f"{2 * self.wear_harmonics + 1}")
         if len(self.profile_points) != 2:
             raise SceneError("contact_convergence.profile_points must be [along, across]")
 

@@ -108,6 +108,8 @@ def test_section_checks_name_the_keys():
         resolve({"contact_convergence": {"nodes_along": [4, 7], "nodes_across": [2]}})
     with pytest.raises(SceneError, match="contact_convergence.time_samples"):
         resolve({"contact_convergence": {"harmonics": 3, "time_samples": 5}})
+    with pytest.raises(SceneError, match="contact_convergence.time_samples .*wear_harmonics"):
+        resolve({"contact_convergence": {"harmonics": 1, "wear_harmonics": 3, "time_samples": 5}})
 
 
 def test_bad_layout_names_the_geometry_key():

@@ -81,16 +81,22 @@ def _static_gaps(model, contact, vertex: np.ndarray) -> dict:
     return static_gaps(model, law, vertex, contact.max_passes, rc=rc)
 
 
+def wear_harmonics(cc) -> int:
+    """Nh of the wear marches: ``cc.wear_harmonics``, or ``cc.harmonics`` when 0."""
+    return int(cc.wear_harmonics or cc.harmonics)
+
+
 def _worn_profile(model, scene, cc) -> dict:
     """:func:`workflow.engine.meshstudy.worn_profile`: the scene's contact, wear
-    and pseudotime sections, pseudo-time only, HBM with the stage's Nh and nit,
-    at the tip force ``cc.wear_amplitude`` when it is set."""
+    and pseudotime sections, pseudo-time only, HBM with the stage's wear Nh
+    (``cc.wear_harmonics``, else ``cc.harmonics``) and nit, at the tip force
+    ``cc.wear_amplitude`` when it is set."""
     from reduction.condense import relative_coordinates
     from workflow.engine.meshstudy import worn_profile
     from workflow.stages.wear import options
 
     sc = {"wear": scene["wear"], "contact": scene["contact"], "pseudotime": scene["pseudotime"],
-          "hb": replace(scene["hb"], methods=["hbm"], harmonics=[int(cc.harmonics)],
+          "hb": replace(scene["hb"], methods=["hbm"], harmonics=[wear_harmonics(cc)],
                         time_samples=[int(cc.time_samples)])}
     # the study is over the contact mesh: no ε- or Nh-check marches per mesh (each a second wear march)
     opt = replace(options(sc), methods=("pseudo-time",), eps_check_factor=0.0, nh_check=False, compare_unworn=False)
@@ -215,5 +221,6 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                      for r in rows],
             "unconverged": unconverged(rows),
             "table": rows, "layout": scene["geometry"].contact_nodes, "harmonics": int(cc.harmonics),
+            "wear_harmonics": wear_harmonics(cc),
             "time_samples": int(cc.time_samples), **summary, "csv": CSV,
             "profiles": PROFILES if profiles is not None else None, "figures": figures}
