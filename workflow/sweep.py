@@ -22,7 +22,7 @@ import numpy as np
 from workflow.errors import SolverError
 from workflow.solvers import SolveResult, newton, powell
 
-__all__ = ["SweepPoint", "stepped_sweep", "continuation", "arclength_sweep"]
+__all__ = ["SweepPoint", "secant_guesses", "stepped_sweep", "continuation", "arclength_sweep"]
 
 TWO_PI = 2.0 * np.pi
 
@@ -59,6 +59,18 @@ def _solve(fun, fun_jac, x0, solver, tol, scale, maxiter) -> SolveResult:
     raise SolverError(f"sweep.solver: {solver!r} is not one of newton, powell")
 
 
+def secant_guesses(prev: list, omega: float) -> list:
+    """Guesses at ``omega`` [rad/s] from the converged neighbours ``prev`` [(ω, x), …]
+    (the nearest last): the secant through the last two, then the nearest root itself."""
+    out = []
+    if len(prev) >= 2:
+        (w1, x1), (w2, x2) = prev[-2], prev[-1]
+        out.append(x2 + (omega - w2) / (w2 - w1) * (x2 - x1))
+    if prev:
+        out.append(prev[-1][1])
+    return out
+
+
 def stepped_sweep(frequencies_hz, linear, make_problem, observe, *, x0=None, solver: str = "newton",
                   fallback: str | None = "powell", tol: float = 1e-9, maxiter: int = 50,
                   carry_stick: bool = True, progress=None) -> list[SweepPoint]:
@@ -85,13 +97,8 @@ def stepped_sweep(frequencies_hz, linear, make_problem, observe, *, x0=None, sol
         pr.omega = w                      # for observe(); the problem itself is ω-free
         if anchor is not None:
             pr.set_stick_anchor(anchor)
-        guesses = []
-        if len(good) >= 2:
-            (w1, x1), (w2, x2) = good[-2], good[-1]
-            guesses.append(x2 + (x2 - x1) * (w - w2) / (w2 - w1))
-        if good:
-            guesses.append(good[-1][1])
-        elif x0 is not None:
+        guesses = secant_guesses(good, w)
+        if not good and x0 is not None:
             guesses.append(np.asarray(x0, dtype=float))
         guesses.append(pr.x0())
         scale = pr.residual_scale()

@@ -16,6 +16,7 @@ import numpy as np
 
 from workflow.engine.cascade import linear_solver, solve_point
 from workflow.engine.variants import Variant
+from workflow.sweep import secant_guesses
 
 #: samples per period for the max-over-period amplitude.
 PERIOD_SAMPLES = 128
@@ -115,7 +116,7 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
             U[:m] = seeds[i][:m]
             guesses.append(prob.unknowns_from_harmonics(U))
         below = [(cond[j].omega, xs[j]) for j in range(i) if xs[j] is not None][-2:]
-        guesses += _predicted(below, c.omega) or [prob.x0()]     # no neighbour: static + tied linear response
+        guesses += secant_guesses(below, c.omega) or [prob.x0()]     # no neighbour: static + tied linear response
         smooth = None
         if v.nit < smooth_nit:
             def smooth(c=c, guess=guesses[-1], prob=prob):
@@ -149,7 +150,7 @@ def _downwards(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> 
         c, t0 = cond[i], time.perf_counter()
         above = [(cond[j].omega, xs[j]) for j in (i + 2, i + 1) if j < n and xs[j] is not None]
         prob = prob.with_linear(c.Zr, c.Fr)
-        pr = solve_point(prob, _predicted(above, c.omega), **solve_kw)
+        pr = solve_point(prob, secant_guesses(above, c.omega), **solve_kw)
         if pr.converged:
             pr = replace(pr, how=f"downwards-{pr.how}")
             _record(out, i, rc, prob, c.omega, pr, out.seconds[i] + time.perf_counter() - t0,
@@ -158,18 +159,6 @@ def _downwards(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> 
         else:
             out.iterations[i] += pr.iterations
             out.seconds[i] += time.perf_counter() - t0
-
-
-def _predicted(prev: list, omega: float) -> list:
-    """Guesses at ``omega`` from the converged neighbours ``prev`` [(ω, x), …] (the nearest
-    last): the secant through the two, then the nearest root itself."""
-    out = []
-    if len(prev) >= 2:
-        (w1, x1), (w2, x2) = prev[-2], prev[-1]
-        out.append(x2 + (omega - w2) / (w2 - w1) * (x2 - x1))
-    if prev:
-        out.append(prev[-1][1])
-    return out
 
 
 def _record(out: SweepResult, i: int, rc, prob, omega: float, pr, seconds: float, its: int = 0) -> None:
