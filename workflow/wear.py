@@ -536,11 +536,10 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
 
     i.e. a Newton step on the vibration and a linearly implicit Euler step
     on the wear, with one Jacobian per step, factored once per state
-    (:func:`_augmented_step`; measured to the worn steady state on the
-    contact-convergence meshes at Nh = 5, each beside one other march: 42
-    pairs 38.7 → 21.5 s, 80 pairs 237 → 105 s, against an LU of the whole
-    (n + p) system per trial step and a second LU for the trapezoidal shift)
-    — the HB problem is *not*
+    (:func:`_augmented_step`: a step retried with a smaller h costs a p × p
+    solve instead of an LU of the whole (n + p) system; measured to the worn
+    steady state on the contact-convergence meshes at Nh = 5, old and new side
+    by side, 42 pairs 46.9 → 49.7 s and 80 pairs 293 → 257 s) — the HB problem is *not*
     converged at each slow step (only corrected by up to ``x_corrections``
     Newton steps at fixed W when ``‖R‖ > x_tol·‖F‖``, a relaxed tolerance:
     measured on the 48-pair paper-wear case, x_tol = 1e-5 made 63 corrections
