@@ -534,14 +534,12 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
         [ J          ∂R/∂W        ] [Δx]   [ −R(x; W)  ]
         [ −h ∂r/∂x   I − h ∂r/∂W  ] [ΔW] = [ h·rate    ]
 
-    i.e. a Newton step on the vibration and a linearly implicit Euler step
-    on the wear, with one Jacobian per step, factored once per state
-    (:func:`_augmented_step`) — the HB problem is *not*
-    converged at each slow step (only corrected by up to ``x_corrections``
-    Newton steps at fixed W when ``‖R‖ > x_tol·‖F‖``, a relaxed tolerance:
-    measured on the 48-pair paper-wear case, x_tol = 1e-5 made 63 corrections
-    in 39 steps (4.3 s) and x_tol = 1e-3 10 in 37 (2.6 s), both within 1 %
-    of the converged reference profile).
+    i.e. a Newton step on the vibration and a linearly implicit Euler step on the wear, with
+    one Jacobian per step, factored once per state (:func:`_augmented_step`) — the HB problem
+    is *not* converged at each slow step (only corrected by up to ``x_corrections`` Newton steps
+    at fixed W when ``‖R‖ > x_tol·‖F‖``, a relaxed tolerance: measured on the 48-pair paper-wear
+    case, x_tol = 1e-5 made 63 corrections in 39 steps (4.3 s) and x_tol = 1e-3 10 in 37
+    (2.6 s), both within 1 % of the converged reference profile).
     Step control on the wear variables only (the vibration error is
     excluded): local error ``½h‖rate(z⁺) − rate(z)‖∞ ≤ rtol·max(max W,
     pen)`` (pen: :func:`penetration_scale`), rejected steps retried with a
