@@ -540,15 +540,14 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     at fixed W when ``‖R‖ > x_tol·‖F‖``, a relaxed tolerance: measured on the 48-pair paper-wear
     case, x_tol = 1e-5 made 63 corrections in 39 steps (4.3 s) and x_tol = 1e-3 10 in 37
     (2.6 s), both within 1 % of the converged reference profile).
-    Step control on the wear variables only (the vibration error is
-    excluded): local error ``½h‖rate(z⁺) − rate(z)‖∞ ≤ rtol·max(max W,
-    pen)`` (pen: :func:`penetration_scale`), rejected steps retried with a
-    smaller h, so the integration tracks the physical wear trajectory (the
-    worn steady state is a manifold — any W where every pair sticks or
+    Step control on the wear variables only (the vibration error is excluded): local error
+    ``½h‖rate(z⁺) − rate(z)‖∞ ≤ rtol·max(max W, pen)`` (pen: :func:`penetration_scale`),
+    rejected steps retried with a smaller h, so the integration tracks the physical wear
+    trajectory (the worn steady state is a manifold — any W where every pair sticks or
     separates — and the profile reached is the end of the path). Stops at
-    the steady state of :func:`march_reference` after a final HB solve to
-    ``tol`` at the reached W. The one integrator of the wear system (``pseudotime.scheme
-    = "ser"``); ``dt_max_blocks`` > 0 caps h at that many ``cycles_per_block``.
+    the steady state of :func:`march_reference` after a final HB solve to ``tol`` at the
+    reached W. The one integrator of the wear system (``pseudotime.scheme = "ser"``);
+    ``dt_max_blocks`` > 0 caps h at that many ``cycles_per_block``.
     """
     t0 = time.perf_counter()
     N = float(cycles_per_block)
