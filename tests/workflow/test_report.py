@@ -115,6 +115,8 @@ def test_headline_of_a_whole_summary(tmp_path):
     assert h["worn_frequency_shift_hz"] == pytest.approx(0.4) and h["run_seconds"] == 4.0
     assert "something odd" in h["warnings"]
     assert h["status"] == "green"  # stage warnings are listed; the status comes from the checks
+    mesh = [c for c in h["checks"] if (c["item"], c["name"]) == ("wear", "contact mesh")]
+    assert [c["status"] for c in mesh] == ["none"] and "contact-convergence" in mesh[0]["reason"]
     summary["wear"]["methods"]["pseudo-time"]["steady"] = False
     assert hl.headline(summary, {"frf": tmp_path, "wear": tmp_path / "wear"})["status"] == "red"
 

@@ -182,7 +182,7 @@ def test_schur_wear_step_equals_the_whole_augmented_solve():
     """The pseudo-time step eliminates Δx through J's LU (a p × p system per step
     length); it must be the solution of the whole (n + p) system at every h, and a
     singular J must fall back to that system."""
-    from workflow.wear import _augmented_step
+    from workflow.wear import _augmented_step, _newton_parts
 
     hb = hb_problem(20.0, nh=2, nit=32)
     sol = hb.solve(tol=1e-11)
@@ -203,6 +203,10 @@ def test_schur_wear_step_equals_the_whole_augmented_solve():
     st.J[np.arange(n - 1), np.arange(n - 1)] = 1.0                  # rank n − 1
     dx, dW = _augmented_step(st, 1e6)
     assert st.newton_parts is False and np.all(np.isfinite(dx)) and np.all(np.isfinite(dW))
+    for bad in (np.nan, np.inf):                                     # a non-finite J is never factored
+        st = wp.evaluate(x, W, jacobian=True)
+        st.J[n // 2, 0] = bad
+        assert _newton_parts(st) is None and st.newton_parts is False
 
 
 def test_zero_wear_coefficient_pseudo_time_is_newton():

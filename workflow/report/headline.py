@@ -305,6 +305,11 @@ def wear_headline(wear: dict, folder: Path | None, method: str | None) -> tuple[
     for line in wear.get("unconverged") or []:
         checks.append(Check("wear", "convergence", "red", line))
     checks.append(nh_check("wear", (wear.get("nh_check") or {}).get("measure", "unworn wear rates"), wear))
+    # Nh and ε are checked in every run; the contact mesh is not (one march per mesh costs minutes
+    # to an hour), and the worn steady state is the result that moves most with it
+    checks.append(Check("wear", "contact mesh", "none",
+                        f"worn profile on {wear.get('pairs', '?')} contact pairs; its contact-mesh convergence "
+                        "is not checked in a run (scene contact-convergence, docs/contact-layout.md)"))
     d = wear.get("profile_max_rel_diff")
     if d is not None:
         checks.append(Check("wear", "pseudo-time vs reference", "green" if d <= PROFILE_TOL else "amber",
