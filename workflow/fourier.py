@@ -55,23 +55,25 @@ def sample_times(nit: int) -> np.ndarray:
 
 
 def real_to_complex(x: np.ndarray) -> np.ndarray:
-    """Real harmonic-major (2Nh+1, …) → complex (Nh+1, …) with ``U_j = u_jc − i u_js``."""
-    x = np.asarray(x, dtype=float)
+    """Real harmonic-major (2Nh+1, …) → complex (Nh+1, …) with ``U_j = u_jc − i u_js``
+    (single precision stays single: the structured solve's preconditioner, :mod:`workflow.linsolve`)."""
+    x = np.asarray(x)
+    x = x if x.dtype == np.float32 else x.astype(float, copy=False)
     nc = x.shape[0]
     if nc % 2 != 1:
         raise ValueError(f"real coefficient array needs an odd leading size 2Nh+1, got {nc}")
     nh = (nc - 1) // 2
-    U = np.empty((nh + 1,) + x.shape[1:], dtype=complex)
+    U = np.empty((nh + 1,) + x.shape[1:], dtype=np.complex64 if x.dtype == np.float32 else complex)
     U[0] = x[0]
     U[1:] = x[1::2] - 1j * x[2::2]
     return U
 
 
 def complex_to_real(U: np.ndarray) -> np.ndarray:
-    """Complex (Nh+1, …) → real harmonic-major (2Nh+1, …); Im U_0 is dropped."""
+    """Complex (Nh+1, …) → real harmonic-major (2Nh+1, …); Im U_0 is dropped (single precision stays single)."""
     U = np.asarray(U)
     nh = U.shape[0] - 1
-    x = np.empty((2 * nh + 1,) + U.shape[1:], dtype=float)
+    x = np.empty((2 * nh + 1,) + U.shape[1:], dtype=np.float32 if U.dtype == np.complex64 else float)
     x[0] = U[0].real
     x[1::2] = U[1:].real
     x[2::2] = -U[1:].imag

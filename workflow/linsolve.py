@@ -14,8 +14,8 @@ shares one operator::
   (2Nh+1)·3 coefficients of one pair (eqs. 13–17): O(p·(3nc)²);
 * ``E`` — the penalties ε per contact DOF.
 
-Neither factor is (n × n): K is applied matrix-free and solved by GMRES
-(:func:`scipy.sparse.linalg.gmres`), right-preconditioned by the exact
+Neither factor is (n × n): K is applied matrix-free and solved by flexible
+GMRES (PETSc's FGMRES, Saad 1993), right-preconditioned by the exact
 harmonic-diagonal blocks of K itself, ``K_hh = Zb_hh + G̃_hh (E − Zb_hh)``
 (one LU of size 3p or 6p per harmonic) combined, multiplicatively (pair,
 harmonic, pair), with the exact pair-diagonal blocks ``K_pp`` (all harmonics
@@ -35,16 +35,43 @@ and chord-free trial points) until the GMRES iterations it has cost beyond
 (:meth:`StructuredSolve._account`), refactored from the current K then. GMRES always solves with
 the current K, so every step is an (inexact) Newton step, never a chord step.
 Memory: the blocks, (Nh+1)·(6p)² reals — nothing of size n².
+
+The preconditioner runs in *single precision* (:data:`SINGLE`): its LUs, pair
+inverses and its own copy of Zr (complex64) and G̃. The solve is memory-bound
+(every GMRES iteration reads Zr three times and the block LUs once), so halving
+the bytes halves most of its time, and the LU factorisations are 2× faster.
+A single-precision map is not linear to 1e-7, which plain GMRES cannot absorb
+(measured with scipy's GMRES in session 8: it reported 1e-10 while the true
+linear residual was 2e-5…9e-4); FGMRES keeps each preconditioned direction and
+minimises the true residual, so the Newton step is the double-precision one to
+:data:`GMRES_RTOL`. Measured on the interface-scaling sectors (HBM Nh = 7,
+nit = 64, 9 points, one BLAS thread, alone, the same GMRES iteration counts and
+peaks to 1e-15): 128 pairs 20.7 → 17.0 s (GMRES 16.2 → 12.0 s), 256 pairs
+50.5 → 34.5 s (GMRES 41.2 → 24.5 s, factorisations 4.7 → 2.8 s), 512 pairs
+531 → 289 s (GMRES 367 → 201 s, factorisations 121 → 45 s); results/reference/
+interface-scaling/NOTES.md, "Session 14".
 """
 from __future__ import annotations
+
+import contextlib
 
 import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
 from workflow import fourier
+from workflow.solvers import blas_cores, blas_threads
 
-__all__ = ["ContactJacobian", "StructuredSolve", "zb_apply"]
+__all__ = ["ContactJacobian", "StructuredSolve", "k_apply", "zb_apply"]
+
+#: The preconditioner's precision by default (:class:`StructuredSolve`): single.
+SINGLE = True
+#: From this many contact DOFs (3p) up, the structured solve's BLAS runs on every core the
+#: process may use (:func:`workflow.solvers.blas_cores`). Measured on the 512-pair sector
+#: (HBM Nh = 7, 9 points, alone, 2 cores): 28.1 s a point against 32.1 s on one thread (GMRES
+#: 201 → 173 s, factorisations 45 → 36 s); at 256 pairs 35.8 → 35.0 s a sweep (12 % with the
+#: double-precision preconditioner of session 13); smaller products only spin.
+THREADED_MIN_DOFS = 768
 
 #: GMRES tolerance relative to ‖rhs‖ (inexact Newton: the nonlinear residual
 #: decides convergence; a tighter linear solve only costs GMRES iterations).
@@ -79,6 +106,14 @@ def zb_apply(Zr, y, conj_transpose: bool = False):
     V = np.matmul(Z, U[..., None])[..., 0] if U.ndim == 2 else np.matmul(Z, U)
     V[0] = V[0].real
     return fourier.complex_to_real(V)
+
+
+def k_apply(Zr, Gt, eps, Y, nc: int, p: int):
+    """``K Y = Zb Y + G̃ (E Y − Zb Y)`` for coefficients Y (nc, 3p, k) in the arrays' own
+    precision (complex128/float64 for the Newton operator, complex64/float32 for the
+    preconditioner's copies)."""
+    Zy = zb_apply(Zr, Y)
+    return Zy + _pair_apply(Gt, eps[:, None] * Y - Zy, nc, p)
 
 
 def _pair_apply(G, V, nc, p):
@@ -122,6 +157,19 @@ def _bidiagonalise(op, b, steps: int):
     return V[:, :k], B[:k + 1, :k], beta1
 
 
+class _Apply:
+    """A PETSc shell matrix's ``mult`` / shell preconditioner's ``apply``: y = f(x)."""
+
+    def __init__(self, f):
+        self.f = f
+
+    def mult(self, mat, x, y):
+        y.array[:] = self.f(x.array_r)
+
+    def apply(self, pc, x, y):
+        y.array[:] = self.f(x.array_r)
+
+
 class ContactJacobian(scipy.sparse.linalg.LinearOperator):
     """``J = L_r K L_p⁻¹`` with ``K = Zb + G̃ (E − Zb)`` (module docstring), matrix-free.
 
@@ -148,8 +196,7 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
 
     def k_apply(self, Y):
         """K Y for coefficients Y (nc, nr, k)."""
-        Zy = zb_apply(self.Zr, Y)
-        return Zy + _pair_apply(self.Gt, self.eps[:, None] * Y - Zy, self.nc, self.p)
+        return k_apply(self.Zr, self.Gt, self.eps, Y, self.nc, self.p)
 
     def k_apply_t(self, Y):
         """Kᵀ Y = Zbᵀ Y + (E − Zbᵀ) G̃ᵀ Y."""
@@ -205,10 +252,11 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
         return Zpp + np.matmul(self.Gt, M)
 
     def harmonic_blocks(self):
-        """[(idx, K_hh)] — the exact harmonic-diagonal blocks of K, (s·nr)² each."""
+        """Yields (idx, K_hh), the exact harmonic-diagonal blocks of K, (s·nr)² each — one
+        at a time, so that a caller factoring them in single precision never holds all of
+        them in double (at 512 pairs, Nh = 7: 0.5 GB)."""
         nc, nr, p = self.nc, self.nr, self.p
         G5 = self.Gt.reshape(p, nc, 3, nc, 3)
-        out = []
         for h in range(self.nh + 1):
             idx = _harmonic_index(h)
             s = len(idx)
@@ -225,39 +273,71 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
             Mp = np.ascontiguousarray(Mh.reshape(s, p, 3, s * nr).transpose(1, 0, 2, 3)).reshape(p, 3 * s, s * nr)
             Gh = G5[:, idx][:, :, :, idx].reshape(p, 3 * s, 3 * s)
             GM = np.matmul(Gh, Mp).reshape(p, s, 3, s * nr).transpose(1, 0, 2, 3).reshape(s * nr, s * nr)
-            out.append((idx, Zh.reshape(s * nr, s * nr) + GM))
-        return out
+            yield idx, Zh.reshape(s * nr, s * nr) + GM
 
 
 class StructuredSolve:
-    """The Newton linear solver on a :class:`ContactJacobian`: GMRES with the
-    lagged harmonic-block preconditioner (module docstring). Same protocol as
+    """The Newton linear solver on a :class:`ContactJacobian`: flexible GMRES with the
+    lagged pair–harmonic–pair preconditioner (module docstring). Same protocol as
     :class:`workflow.solvers.DenseLU` (``factor``, ``solve``, ``lm_step``).
 
-    ``stats``: factorizations, GMRES iterations, solves."""
+    ``single``: the preconditioner in single precision (:data:`SINGLE`); a solve
+    that fresh single-precision blocks cannot bring below :data:`STALE_RESIDUAL`
+    switches this solver to double precision for good. ``stats``: factorizations,
+    GMRES iterations, solves, failures, ``precision`` ("single" or "double").
+    Under MPI, PETSc must be initialised on every rank before a rank's first solve
+    (its KSP lives on COMM_SELF, but importing petsc4py is collective):
+    :func:`workflow.engine.frf` with ``comm`` and the CLI do it."""
 
     name = "structured"
 
-    def __init__(self):
+    def __init__(self, single: bool = SINGLE):
         self.op: ContactJacobian | None = None
         self._lu = None
         self._lu_op = None
         self._refresh = True
         self._excess = 0.0          # GMRES iterations beyond REFRESH_ITERS since the last factorisation
         self._gk = None             # (operator, R, V, B, β₁) of the last LM bidiagonalisation
-        self.stats = {"factorizations": 0, "gmres_iterations": 0, "solves": 0, "failures": 0}
+        self._real = np.float32 if single else np.float64
+        self.stats = {"factorizations": 0, "gmres_iterations": 0, "solves": 0, "failures": 0,
+                      "precision": "single" if single else "double"}
 
     reusable = True
 
+    def _blas(self, op):
+        """BLAS threads of this solver's work on ``op``: every core this process may use
+        (:func:`workflow.solvers.blas_cores`) from :data:`THREADED_MIN_DOFS` contact DOFs up,
+        else the caller's (one, in :func:`workflow.engine.frf`)."""
+        n = blas_cores() if op.nr >= THREADED_MIN_DOFS else 1
+        return blas_threads(n) if n > 1 else contextlib.nullcontext()
+
     def factor(self, op) -> bool:
         """Take a fresh operator; the preconditioner is kept unless stale."""
+        with self._blas(op):
+            return self._factor(op)
+
+    def solve(self, R):
+        """The Newton step dx of ``J dx = −R`` (None if nothing finite came out): :meth:`_solve`."""
+        with self._blas(self.op):
+            return self._solve(R)
+
+    def lm_step(self, R, nu):
+        """Levenberg–Marquardt step: :meth:`_lm_step`."""
+        with self._blas(self.op):
+            return self._lm_step(R, nu)
+
+    def _factor(self, op) -> bool:
         if not op.finite():
             return False
         self.op = op
-        try:        # cheap (p·(3nc)³): fresh at every Newton step
-            self._pair_inv = np.linalg.inv(op.pair_blocks())
-        except np.linalg.LinAlgError:
-            self._pair_inv = np.linalg.pinv(op.pair_blocks())
+        real = self._real
+        with np.errstate(over="ignore"):    # out of float32's range: caught by solve(), double then
+            self._pre = (op.Zr.astype(np.result_type(real, np.complex64), copy=False),
+                         op.Gt.astype(real, copy=False), op.eps.astype(real))
+            try:        # cheap (p·(3nc)³): fresh at every Newton step
+                self._pair_inv = np.linalg.inv(op.pair_blocks()).astype(real, copy=False)
+            except np.linalg.LinAlgError:
+                self._pair_inv = np.linalg.pinv(op.pair_blocks()).astype(real, copy=False)
         if self._lu is None or self._refresh or self._lu[0] != (op.nc, op.nr):
             self._factor_blocks(op)
         return True
@@ -266,6 +346,8 @@ class StructuredSolve:
         lus = []
         for idx, K in op.harmonic_blocks():
             try:
+                with np.errstate(over="ignore"):
+                    K = K.astype(self._real, copy=False)
                 lus.append((idx, scipy.linalg.lu_factor(K, overwrite_a=True, check_finite=False)))
             except (ValueError, np.linalg.LinAlgError):
                 lus.append((idx, None))
@@ -292,27 +374,56 @@ class StructuredSolve:
         op = self.op
         return op.k_apply(x.reshape(op.nc, op.nr, 1)).ravel()
 
+    def _k_pre(self, x):
+        """K x in the preconditioner's precision (its own copies of Zr, G̃, ε)."""
+        op = self.op
+        return k_apply(*self._pre, x.reshape(op.nc, op.nr, 1), op.nc, op.p).ravel()
+
     def _precond(self, r):
-        """Symmetric multiplicative Schwarz: pair blocks, harmonic blocks, pair blocks."""
-        z = self._pair_solve(r)
-        z = z + self._harmonic_solve(r - self._k(z))
-        return z + self._pair_solve(r - self._k(z))
+        """Symmetric multiplicative Schwarz: pair blocks, harmonic blocks, pair blocks (in the
+        preconditioner's precision; the result in double)."""
+        r = r.astype(self._real, copy=False)
+        with np.errstate(all="ignore"):     # a non-finite result is caught by solve(): double precision then
+            z = self._pair_solve(r)
+            z = z + self._harmonic_solve(r - self._k_pre(z))
+            return (z + self._pair_solve(r - self._k_pre(z))).astype(float, copy=False)
 
     def _k_solve(self, b):
-        """Solve K z = b (coefficient space) by right-preconditioned GMRES:
+        """Solve K z = b (coefficient space) by right-preconditioned flexible GMRES
+        (PETSc's FGMRES: the preconditioned directions are kept, so a preconditioner that is
+        not an exact linear map — single precision — still gives the true residual):
         (z, relative residual ‖Kz − b‖/‖b‖, iterations)."""
-        op = self.op
-        n = op.shape[0]
-        Kop = scipy.sparse.linalg.LinearOperator(
-            (n, n), matvec=lambda v: op.k_apply(self._precond(v).reshape(op.nc, op.nr, 1)).ravel(), dtype=float)
-        hist = []
-        w, _ = scipy.sparse.linalg.gmres(Kop, b, tol=GMRES_RTOL, atol=0.0, restart=GMRES_RESTART,
-                                         maxiter=1, callback=hist.append, callback_type="pr_norm")
-        self.stats["gmres_iterations"] += len(hist)
+        from petsc4py import PETSc
+
+        n = self.op.shape[0]
+        A = PETSc.Mat().createPython([n, n], _Apply(self._k), comm=PETSc.COMM_SELF)
+        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        x, rhs = PETSc.Vec().createSeq(n, comm=PETSc.COMM_SELF), PETSc.Vec().createSeq(n, comm=PETSc.COMM_SELF)
+        try:
+            A.setUp()
+            ksp.setType(PETSc.KSP.Type.FGMRES)
+            ksp.setOperators(A)
+            ksp.setGMRESRestart(GMRES_RESTART)
+            ksp.setTolerances(rtol=GMRES_RTOL, atol=0.0, divtol=1e300, max_it=GMRES_RESTART)
+            pc = ksp.getPC()
+            pc.setType(PETSc.PC.Type.PYTHON)
+            pc.setPythonContext(_Apply(self._precond))
+            ksp.setPCSide(PETSc.PC.Side.RIGHT)
+            ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+            rhs.array[:] = b
+            ksp.solve(rhs, x)
+            its = int(ksp.getIterationNumber())
+            bn = float(np.linalg.norm(b))
+            res = float(ksp.getResidualNorm())
+            rel = 0.0 if bn == 0 else (res / bn if np.isfinite(res) else np.inf)
+            z = x.array.copy()
+        finally:            # no PETSc object outlives the solve (their Python contexts point back here)
+            for o in (ksp, A, x, rhs):
+                o.destroy()
+        self.stats["gmres_iterations"] += its
         self.stats["solves"] += 1
-        rel = float(hist[-1]) if hist else 0.0
-        self._account(len(hist))
-        return self._precond(w), rel, len(hist)
+        self._account(its)
+        return z, rel, its
 
     def _account(self, its: int) -> None:
         """Lagged blocks are refactored once the GMRES iterations beyond
@@ -326,7 +437,7 @@ class StructuredSolve:
         if self._excess >= at * (self._lu[0][1] / dofs) ** power:
             self._refresh = True
 
-    def solve(self, R):
+    def _solve(self, R):
         """The Newton step dx of ``J dx = −R`` (None if nothing finite came out).
 
         An inexact Newton step: GMRES stops at :data:`GMRES_RTOL` or after
@@ -334,7 +445,9 @@ class StructuredSolve:
         relative linear residual of 10⁻⁴ is as good as exact for the line
         search, and the nonlinear residual decides convergence. Blocks from an
         older J that leave more than :data:`STALE_RESIDUAL` are refactored from
-        the current J and the solve repeated once."""
+        the current J and the solve repeated once; single-precision blocks that
+        still leave more are given up for double precision (the blocks of an
+        extreme ε can be too ill-conditioned for float32) and the solve repeated."""
         op = self.op
         b = -np.asarray(R, float).reshape(op.nc, op.nr)
         if op._left_inv is not None:
@@ -343,6 +456,12 @@ class StructuredSolve:
         if rel > STALE_RESIDUAL and self._lu_op is not op:
             self._factor_blocks(op)
             z, rel, _ = self._k_solve(b.ravel())
+        if rel > STALE_RESIDUAL and self._real is not np.float64:
+            self._real = np.float64
+            self.stats["precision"] = "double"
+            self._lu = None
+            self._factor(op)
+            z, rel, _ = self._k_solve(b.ravel())
         if rel > STALE_RESIDUAL:
             self.stats["failures"] += 1
         z = z.reshape(op.nc, op.nr)
@@ -350,7 +469,7 @@ class StructuredSolve:
         dx = dx.ravel()
         return dx if np.all(np.isfinite(dx)) else None
 
-    def lm_step(self, R, nu):
+    def _lm_step(self, R, nu):
         """Levenberg–Marquardt step ``min ‖J dx + R‖² + ν‖dx‖²``, matrix-free and
         approximate: the damped least-squares solution on the Krylov space of
         :data:`LM_ITERS` Golub–Kahan bidiagonalisation steps of J from R — LSQR's

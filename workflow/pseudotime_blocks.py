@@ -95,7 +95,7 @@ def integrate_pairs(fun, fun_op, x0, *, tol: float = 1e-8, scale: float = 1.0, m
     reason = None
     harm = None
     if blocks == "pairs+harmonics":
-        harm = StructuredSolve()
+        harm = StructuredSolve(single=False)    # a stationary iteration: no flexible Krylov to absorb float32
         harm._factor_blocks(op)
     while reason is None:
         if norm <= tol * scale:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import os
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -22,7 +23,10 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 
-__all__ = ["DenseLU", "SolveResult", "newton", "powell", "blas_threads"]
+__all__ = ["DenseLU", "SolveResult", "newton", "powell", "blas_cores", "blas_threads"]
+
+#: Variables MPI launchers set to the number of ranks on this node (Open MPI, MPICH/Hydra).
+_LOCAL_RANKS_ENV = ("OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS")
 
 
 @dataclass
@@ -101,6 +105,29 @@ def blas_threads(n: int = 1):
     finally:
         for s, k in reversed(old):      # reversed: one library may be listed twice
             s(k)
+
+
+def blas_cores() -> int:
+    """BLAS threads this process may use for a large product: ``OPENBLAS_NUM_THREADS`` or
+    ``OMP_NUM_THREADS`` if set (a user's, or a benchmark's one-thread protocol), else
+    the cores of its CPU affinity shared among the MPI ranks on this node (1 under an
+    MPI launcher that does not say how many), so that ranks never oversubscribe."""
+    for key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+        try:
+            return max(1, int(os.environ[key]))
+        except (KeyError, ValueError):
+            continue
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    from workflow.mpi import launched
+
+    if not launched():
+        return max(1, cores)
+    for key in _LOCAL_RANKS_ENV:
+        try:
+            return max(1, cores // max(1, int(os.environ[key])))
+        except (KeyError, ValueError):
+            continue
+    return 1
 
 
 def _finite(a) -> bool:

@@ -63,6 +63,18 @@ def test_zb_apply_is_the_real_block_matrix():
     assert np.allclose(zb_apply(Zr, y, conj_transpose=True).ravel(), Zb.T @ y.ravel(), rtol=1e-13, atol=0)
 
 
+def test_zb_apply_stays_in_single_precision():
+    """The preconditioner's products run in complex64/float32 (half the bytes of a
+    memory-bound product) and equal the double ones to float32 round-off."""
+    rng = np.random.default_rng(0)
+    Zr = rng.standard_normal((4, 5, 5)) + 1j * rng.standard_normal((4, 5, 5))
+    y = rng.standard_normal((7, 5))
+    ref = zb_apply(Zr, y)
+    out = zb_apply(Zr.astype(np.complex64), y.astype(np.float32))
+    assert out.dtype == np.float32
+    assert np.abs(out - ref).max() <= 1e-5 * np.abs(ref).max()
+
+
 def test_hdhb_operator_applied_with_ffts_equals_dense_h():
     prob = _problem("hdhb")
     y = np.random.default_rng(1).standard_normal((prob.nc, prob.nr))
@@ -81,8 +93,23 @@ def test_gmres_step_equals_lu_step(method):
     dense, lin = DenseLU(), StructuredSolve()
     assert dense.factor(J) and lin.factor(op)
     dx_d, dx_s = dense.solve(R), lin.solve(R)
+    # the preconditioner in single precision, the step the double-precision one (FGMRES)
+    assert lin.stats["precision"] == "single"
     assert np.linalg.norm(dx_s - dx_d) <= 1e-7 * np.linalg.norm(dx_d)
     assert lin.stats["gmres_iterations"] < prob.n        # the preconditioner does the work
+
+
+def test_single_precision_blocks_out_of_range_fall_back_to_double():
+    """ε beyond float32's range (3.4e38) overflows the single-precision preconditioner:
+    the solver switches to double for good and its step is the double-precision solver's."""
+    x = _slipping_state(_problem("hbm")) * 1.05
+    prob = _problem("hbm", eps=1e39)
+    R, op = prob.residual_operator(x)
+    single, double = StructuredSolve(), StructuredSolve(single=False)
+    assert single.factor(op) and double.factor(op)
+    dx, ref = single.solve(R), double.solve(R)
+    assert single.stats["precision"] == "double" and single.stats["factorizations"] == 2
+    assert dx is not None and np.array_equal(dx, ref)
 
 
 @pytest.mark.parametrize("method", ["hbm", "tcm", "hdhb"])
@@ -225,3 +252,42 @@ def test_lagged_blocks_are_renewed_when_their_extra_gmres_iterations_cost_a_fact
     assert lin.factor(op) and lin.stats["factorizations"] == 2
     lin._account(over)
     assert lin.factor(op) and lin.stats["factorizations"] == 2
+
+
+def test_blas_cores_respects_the_environment_and_the_ranks_on_the_node(monkeypatch):
+    from workflow import solvers
+
+    for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS",
+              "OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "PMI_RANK", "BLADEWEAR_MPI"):
+        monkeypatch.delenv(k, raising=False)
+    monkeypatch.setattr(solvers.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
+    assert solvers.blas_cores() == 4
+    monkeypatch.setenv("OMPI_COMM_WORLD_SIZE", "2")
+    monkeypatch.setenv("OMPI_COMM_WORLD_LOCAL_SIZE", "2")
+    assert solvers.blas_cores() == 2                   # two ranks share the node's cores
+    monkeypatch.delenv("OMPI_COMM_WORLD_LOCAL_SIZE")
+    assert solvers.blas_cores() == 1                   # a launcher that does not say: never oversubscribe
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")
+    assert solvers.blas_cores() == 3                   # a user's (or a benchmark's) setting wins
+
+
+def test_large_structured_solves_run_blas_on_the_cores_and_restore_the_count(monkeypatch):
+    from workflow import linsolve, solvers
+
+    handles = solvers._openblas_handles()
+    if not handles:
+        pytest.skip("no OpenBLAS in this process")
+    get = handles[0][1]
+    prob = _problem("hbm")
+    R, op = prob.residual_operator(_slipping_state(prob) * 1.05)
+    seen = []
+    k_solve = StructuredSolve._k_solve
+    monkeypatch.setattr(StructuredSolve, "_k_solve", lambda self, b: (seen.append(get()), k_solve(self, b))[1])
+    monkeypatch.setattr(linsolve, "blas_cores", lambda: 2)
+    with solvers.blas_threads(1):
+        lin = StructuredSolve()
+        assert lin.factor(op) and lin.solve(R) is not None
+        assert seen == [1] and get() == 1             # a small interface: the caller's one thread
+        monkeypatch.setattr(linsolve, "THREADED_MIN_DOFS", op.nr)
+        assert lin.solve(R) is not None
+        assert seen[-1] == 2 and get() == 1           # a large one: the cores, then the caller's count again

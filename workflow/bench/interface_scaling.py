@@ -20,7 +20,8 @@ Output: ``interface_scaling.csv``, ``interface_scaling.png`` (log–log seconds
 per converged point and memory against pairs, fitted exponents) and
 ``interface_scaling.json`` (power laws ``y = a·pairs^b`` per method × solver
 over pairs ≥ ``fit_min_pairs``). Timings are wall times of one process with one
-BLAS thread: meaningful only on a quiet machine.
+BLAS thread, except the structured solve from 256 pairs, which uses every core
+(:data:`workflow.linsolve.THREADED_MIN_DOFS`): meaningful only on a quiet machine.
 """
 from __future__ import annotations
 
@@ -111,11 +112,12 @@ def _launch(reduced: Path, method: str, nh: int, nit: int, solver: str, points: 
     import os
 
     from workflow.bench.scaling import launch_env
-    from workflow.mpi import single_thread_env
 
     cmd = [sys.executable, "-m", "workflow.bench.interface_scaling", "--worker", str(reduced), method, str(nh),
            str(nit), solver, str(points), str(out_json), linear, repr(float(mu)), str(int(maxiter))]
-    env = launch_env(single_thread_env())
+    # no OPENBLAS_NUM_THREADS: the sweep runs on one thread (workflow.engine.frf) except the
+    # structured solve of a large interface, which uses the cores (workflow.linsolve.THREADED_MIN_DOFS)
+    env = launch_env({k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")})
     env["PYTHONPATH"] = os.environ.get("PYTHONPATH", "")
     r = subprocess.run(cmd, capture_output=True, text=True, env=env)
     if r.returncode:
@@ -204,7 +206,7 @@ def _plot(rows, fit, path: Path) -> Path:
             lab = f"{m} {s}" + (f" (∝ pairs^{f['b']:.2f})" if f else "")
             ax.loglog([p for p, _ in pts], [y for _, y in pts], "o-", label=lab)
         finish_axes(ax, "contact pairs", unit, which="both")
-    fig.suptitle("bladewear: harmonic balance vs contact pairs (1 BLAS thread)")
+    fig.suptitle("bladewear: harmonic balance vs contact pairs (1 BLAS thread; structured solve ≥ 256 pairs: all cores)")
     write_figure(fig, path)
     return path
 

@@ -4,7 +4,8 @@
 [--points 9] [--out split.json]``
 
 One sweep of :func:`workflow.bench.interface_scaling.worker` (the ``interface-scaling``
-band, Newton through the cascade, the structured linear solve forced, one BLAS thread)
+band, Newton through the cascade, the structured linear solve forced, one BLAS thread except
+in the structured solve from :data:`workflow.linsolve.THREADED_MIN_DOFS` contact DOFs up)
 with :class:`workflow.linsolve.StructuredSolve` timed from outside: seconds and count of
 the harmonic-block factorisations, seconds and iterations of GMRES, the sequence of
 GMRES iterations per solve (``F`` marks a factorisation). The rest of ``seconds``

@@ -275,6 +275,12 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
 
     opt = options or FRFOptions()
     t0 = time.perf_counter()
+    if comm is not None:
+        # PetscInitialize is collective, and a rank's first structured solve (PETSc's FGMRES,
+        # workflow.linsolve) would otherwise import petsc4py on that rank alone
+        from workflow.mpi import init_petsc
+
+        init_petsc()
     rc = relative_coordinates(model)
     if freqs_hz is not None:
         freqs_hz = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
