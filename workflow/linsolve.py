@@ -299,6 +299,7 @@ class StructuredSolve:
         self._excess = 0.0          # GMRES iterations beyond REFRESH_ITERS since the last factorisation
         self._gk = None             # (operator, R, V, B, β₁) of the last LM bidiagonalisation
         self._real = np.float32 if single else np.float64
+        self._zr_pre = (None, None)    # (Zr, its copy in the preconditioner's precision)
         self.stats = {"factorizations": 0, "gmres_iterations": 0, "solves": 0, "failures": 0,
                       "precision": "single" if single else "double"}
 
@@ -332,8 +333,9 @@ class StructuredSolve:
         self.op = op
         real = self._real
         with np.errstate(over="ignore"):    # out of float32's range: caught by solve(), double then
-            self._pre = (op.Zr.astype(np.result_type(real, np.complex64), copy=False),
-                         op.Gt.astype(real, copy=False), op.eps.astype(real))
+            if self._zr_pre[0] is not op.Zr:    # Zr is one array per frequency: copied once, not per step
+                self._zr_pre = (op.Zr, op.Zr.astype(np.result_type(real, np.complex64), copy=False))
+            self._pre = (self._zr_pre[1], op.Gt.astype(real, copy=False), op.eps.astype(real))
             try:        # cheap (p·(3nc)³): fresh at every Newton step
                 self._pair_inv = np.linalg.inv(op.pair_blocks()).astype(real, copy=False)
             except np.linalg.LinAlgError:
@@ -459,7 +461,7 @@ class StructuredSolve:
         if rel > STALE_RESIDUAL and self._real is not np.float64:
             self._real = np.float64
             self.stats["precision"] = "double"
-            self._lu = None
+            self._lu, self._zr_pre = None, (None, None)
             self._factor(op)
             z, rel, _ = self._k_solve(b.ravel())
         if rel > STALE_RESIDUAL:

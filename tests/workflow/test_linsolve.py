@@ -97,6 +97,10 @@ def test_gmres_step_equals_lu_step(method):
     assert lin.stats["precision"] == "single"
     assert np.linalg.norm(dx_s - dx_d) <= 1e-7 * np.linalg.norm(dx_d)
     assert lin.stats["gmres_iterations"] < prob.n        # the preconditioner does the work
+    # the next Newton step at the same frequency reuses the single-precision copy of Zr
+    zr32 = lin._pre[0]
+    assert zr32.dtype == np.complex64 and lin.factor(prob.residual_operator(x * 1.01)[1])
+    assert lin._pre[0] is zr32
 
 
 def test_single_precision_blocks_out_of_range_fall_back_to_double():
