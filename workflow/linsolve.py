@@ -73,6 +73,11 @@ SINGLE = True
 #: double-precision preconditioner of session 13); smaller products only spin.
 THREADED_MIN_DOFS = 768
 
+#: Up to this many contact DOFs (3p) the harmonic blocks are inverted explicitly and applied as
+#: one batched product instead of Nh+1 triangular solves: at these sizes the solves are Python-call
+#: bound, not flop-bound (measured below, :class:`StructuredSolve`).
+INVERSE_MAX_DOFS = 192
+
 #: GMRES tolerance relative to ‖rhs‖ (inexact Newton: the nonlinear residual
 #: decides convergence; a tighter linear solve only costs GMRES iterations).
 GMRES_RTOL = 1e-10
@@ -116,11 +121,40 @@ def k_apply(Zr, Gt, eps, Y, nc: int, p: int):
     return Zy + _pair_apply(Gt, eps[:, None] * Y - Zy, nc, p)
 
 
+def real_blocks(Zr, dtype=np.float64):
+    """Zb as real harmonic blocks: (Z_0 (nr, nr), Z_h (Nh, 2nr, 2nr) with rows and columns
+    (cos, sin) × DOF, ``[[Re Z_h, Im Z_h], [−Im Z_h, Re Z_h]]``) in ``dtype`` — the layout
+    of the coefficient vector (2Nh+1, nr), so that harmonics 1…Nh are one batched product
+    (:func:`zb_apply_blocks`). Twice the bytes of Zr: for small interfaces, where the
+    conversions of :func:`zb_apply` cost more than the product."""
+    nh, nr = Zr.shape[0] - 1, Zr.shape[1]
+    Zh = np.empty((nh, 2, nr, 2, nr), dtype=dtype)
+    A, B = Zr[1:].real, Zr[1:].imag
+    Zh[:, 0, :, 0], Zh[:, 0, :, 1], Zh[:, 1, :, 0], Zh[:, 1, :, 1] = A, B, -B, A
+    return np.ascontiguousarray(Zr[0].real, dtype=dtype), Zh.reshape(nh, 2 * nr, 2 * nr)
+
+
+def zb_apply_blocks(blocks, Y):
+    """``Zb Y`` for coefficients Y (nc, nr, k) with Zb as :func:`real_blocks`."""
+    Z0, Zh = blocks
+    nc, nr, k = Y.shape
+    out = np.empty_like(Y)
+    out[0] = Z0 @ Y[0]
+    out[1:] = np.matmul(Zh, Y[1:].reshape(nc // 2, 2 * nr, k)).reshape(nc - 1, nr, k)
+    return out
+
+
+def k_apply_blocks(blocks, Gt, eps, Y, nc: int, p: int):
+    """:func:`k_apply` with Zb as :func:`real_blocks`."""
+    Zy = zb_apply_blocks(blocks, Y)
+    return Zy + _pair_apply(Gt, eps[:, None] * Y - Zy, nc, p)
+
+
 def _pair_apply(G, V, nc, p):
     """Block-diagonal-over-pairs G (p, 3nc, 3nc) times V (nc, 3p, k) → (nc, 3p, k)."""
     k = V.shape[-1]
-    Vp = np.moveaxis(V.reshape(nc, p, 3, k), 1, 0).reshape(p, 3 * nc, k)
-    return np.moveaxis(np.matmul(G, Vp).reshape(p, nc, 3, k), 0, 1).reshape(nc, 3 * p, k)
+    Vp = V.reshape(nc, p, 3, k).transpose(1, 0, 2, 3).reshape(p, 3 * nc, k)
+    return np.matmul(G, Vp).reshape(p, nc, 3, k).transpose(1, 0, 2, 3).reshape(nc, 3 * p, k)
 
 
 def _harmonic_index(h):
@@ -231,10 +265,16 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
         """The (n × n) J — for tests and small problems only."""
         return self._matmat(np.eye(self.shape[1]))
 
-    def pair_blocks(self) -> np.ndarray:
+    def pair_blocks(self, parts=None) -> np.ndarray:
         """The exact pair-diagonal blocks of K, (p, 3nc, 3nc), rows/columns (coefficient, c):
         ``K_pp = Zb_pp + G̃_p (E_p − Zb_pp)`` — every harmonic of one pair, the
-        pair's own 3×3 stiffness only."""
+        pair's own 3×3 stiffness only. ``parts``: :meth:`pair_parts` if already made."""
+        Zpp, M = self.pair_parts() if parts is None else parts
+        return Zpp + np.matmul(self.Gt, M)
+
+    def pair_parts(self):
+        """(Zb_pp, E_p − Zb_pp), each (p, 3nc, 3nc): the parts of :meth:`pair_blocks` that
+        depend on the frequency and ε only, not on G̃."""
         nc, p = self.nc, self.p
         idx = np.arange(self.nr).reshape(p, 3)
         Zp = self.Zr[:, idx[:, :, None], idx[:, None, :]]               # (Nh+1, p, 3, 3)
@@ -249,7 +289,7 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
         E = np.tile(self.eps.reshape(p, 3), (1, nc))                      # (p, 3nc), (coef, c) order
         M = -Zpp
         M[:, np.arange(3 * nc), np.arange(3 * nc)] += E
-        return Zpp + np.matmul(self.Gt, M)
+        return Zpp, M
 
     def harmonic_blocks(self):
         """Yields (idx, K_hh), the exact harmonic-diagonal blocks of K, (s·nr)² each — one
@@ -294,12 +334,16 @@ class StructuredSolve:
     def __init__(self, single: bool = SINGLE):
         self.op: ContactJacobian | None = None
         self._lu = None
+        self._inv = None            # explicit harmonic-block inverses (small interfaces)
+        self._pp = None             # pair blocks at one frequency and ε (:meth:`_pair_inverses`)
         self._lu_op = None
         self._refresh = True
         self._excess = 0.0          # GMRES iterations beyond REFRESH_ITERS since the last factorisation
         self._gk = None             # (operator, R, V, B, β₁) of the last LM bidiagonalisation
         self._real = np.float32 if single else np.float64
-        self._zr_pre = (None, None)    # (Zr, its copy in the preconditioner's precision)
+        # (Zr, its copy in the preconditioner's precision, its real blocks in double or None):
+        # real blocks (real_blocks) up to INVERSE_MAX_DOFS, complex above
+        self._zr_pre = (None, None, None)
         self.stats = {"factorizations": 0, "gmres_iterations": 0, "solves": 0, "failures": 0,
                       "precision": "single" if single else "double"}
 
@@ -334,19 +378,46 @@ class StructuredSolve:
         real = self._real
         with np.errstate(over="ignore"):    # out of float32's range: caught by solve(), double then
             if self._zr_pre[0] is not op.Zr:    # Zr is one array per frequency: copied once, not per step
-                self._zr_pre = (op.Zr, op.Zr.astype(np.result_type(real, np.complex64), copy=False))
+                self._zr_pre = (op.Zr, real_blocks(op.Zr, real) if op.nr <= INVERSE_MAX_DOFS else
+                                op.Zr.astype(np.result_type(real, np.complex64), copy=False),
+                                real_blocks(op.Zr) if op.nr <= INVERSE_MAX_DOFS else None)
             self._pre = (self._zr_pre[1], op.Gt.astype(real, copy=False), op.eps.astype(real))
-            try:        # cheap (p·(3nc)³): fresh at every Newton step
-                self._pair_inv = np.linalg.inv(op.pair_blocks()).astype(real, copy=False)
-            except np.linalg.LinAlgError:
-                self._pair_inv = np.linalg.pinv(op.pair_blocks()).astype(real, copy=False)
+            self._pair_inverses(op)
         if self._lu is None or self._refresh or self._lu[0] != (op.nc, op.nr):
             self._factor_blocks(op)
         return True
 
+    def _pair_inverses(self, op):
+        """The pair blocks' inverses, fresh at every Newton step (p·(3nc)³, cheap) but only
+        for the pairs whose G̃ block changed since the last step at this frequency and ε:
+        a stuck or separated pair's block stays put while Newton converges (measured on
+        paper-frf's HBM-17: the inverses were a third of the structured solve's time)."""
+        real = self._real
+        pp = self._pp
+        if pp is None or pp["Zr"] is not op.Zr or not np.array_equal(pp["eps"], op.eps) or pp["inv"].dtype != real:
+            Zpp, M = op.pair_parts()
+            pp = self._pp = {"Zr": op.Zr, "eps": op.eps.copy(), "parts": (Zpp, M), "Gt": None,
+                             "inv": np.empty(Zpp.shape, dtype=real)}
+        Zpp, M = pp["parts"]
+        todo = np.arange(op.p) if pp["Gt"] is None else \
+            np.flatnonzero(np.any(pp["Gt"] != op.Gt, axis=(1, 2)))
+        if len(todo):
+            K = Zpp[todo] + np.matmul(op.Gt[todo], M[todo])
+            try:
+                with np.errstate(over="ignore"):
+                    pp["inv"][todo] = np.linalg.inv(K.astype(real, copy=False))
+            except np.linalg.LinAlgError:
+                pp["inv"][todo] = np.linalg.pinv(K)
+            if pp["Gt"] is None:
+                pp["Gt"] = op.Gt.copy()
+            else:
+                pp["Gt"][todo] = op.Gt[todo]
+        self._pair_inv = pp["inv"]
+
     def _factor_blocks(self, op):
+        self._inv = self._invert_blocks(op) if op.nr <= INVERSE_MAX_DOFS else None
         lus = []
-        for idx, K in op.harmonic_blocks():
+        for idx, K in (() if self._inv is not None else op.harmonic_blocks()):
             try:
                 with np.errstate(over="ignore"):
                     K = K.astype(self._real, copy=False)
@@ -359,10 +430,28 @@ class StructuredSolve:
         self._excess = 0.0
         self.stats["factorizations"] += 1
 
+    def _invert_blocks(self, op):
+        """(K_00⁻¹, stacked K_hh⁻¹ (Nh, 2nr, 2nr)) in the preconditioner's precision, or None
+        if a block is singular (the LUs then, which pass a singular block's rows through)."""
+        blocks = [K for _, K in op.harmonic_blocks()]
+        try:
+            with np.errstate(all="ignore"):
+                inv0 = np.linalg.inv(blocks[0].astype(self._real, copy=False))
+                invh = np.linalg.inv(np.stack(blocks[1:]).astype(self._real, copy=False)) if op.nh else None
+        except np.linalg.LinAlgError:
+            return None
+        return inv0, invh
+
     def _harmonic_solve(self, x):
         nc, nr = self._lu[0]
         Y = x.reshape(nc, nr)
         out = np.empty_like(Y)
+        if self._inv is not None:
+            inv0, invh = self._inv
+            out[0] = inv0 @ Y[0]
+            if invh is not None:
+                out[1:] = np.matmul(invh, Y[1:].reshape(nc // 2, 2 * nr, 1)).reshape(nc - 1, nr)
+            return out.ravel()
         for idx, lu in self._lu[1]:
             b = Y[idx].ravel()
             out[idx] = (b if lu is None else scipy.linalg.lu_solve(lu, b, check_finite=False)).reshape(len(idx), nr)
@@ -374,12 +463,16 @@ class StructuredSolve:
 
     def _k(self, x):
         op = self.op
-        return op.k_apply(x.reshape(op.nc, op.nr, 1)).ravel()
+        Y = x.reshape(op.nc, op.nr, 1)
+        if self._zr_pre[2] is not None and self._zr_pre[0] is op.Zr:
+            return k_apply_blocks(self._zr_pre[2], op.Gt, op.eps, Y, op.nc, op.p).ravel()
+        return op.k_apply(Y).ravel()
 
     def _k_pre(self, x):
         """K x in the preconditioner's precision (its own copies of Zr, G̃, ε)."""
         op = self.op
-        return k_apply(*self._pre, x.reshape(op.nc, op.nr, 1), op.nc, op.p).ravel()
+        apply = k_apply_blocks if self._zr_pre[2] is not None else k_apply
+        return apply(*self._pre, x.reshape(op.nc, op.nr, 1), op.nc, op.p).ravel()
 
     def _precond(self, r):
         """Symmetric multiplicative Schwarz: pair blocks, harmonic blocks, pair blocks (in the
@@ -461,7 +554,7 @@ class StructuredSolve:
         if rel > STALE_RESIDUAL and self._real is not np.float64:
             self._real = np.float64
             self.stats["precision"] = "double"
-            self._lu, self._zr_pre = None, (None, None)
+            self._lu, self._zr_pre = None, (None, None, None)
             self._factor(op)
             z, rel, _ = self._k_solve(b.ravel())
         if rel > STALE_RESIDUAL:

@@ -83,7 +83,14 @@ def test_hdhb_operator_applied_with_ffts_equals_dense_h():
 
 
 @pytest.mark.parametrize("method", ["hbm", "hdhb"])
-def test_gmres_step_equals_lu_step(method):
+@pytest.mark.parametrize("small", [True, False])
+def test_gmres_step_equals_lu_step(method, small, monkeypatch):
+    """Both layouts of the preconditioner: explicit inverses and real harmonic blocks (small
+    interfaces, the test model) and the LUs with the complex Zr of large ones."""
+    from workflow import linsolve
+
+    if not small:
+        monkeypatch.setattr(linsolve, "INVERSE_MAX_DOFS", 0)
     prob = _problem(method)
     x = _slipping_state(prob) * 1.05
     states = prob.contact_state(x)
@@ -97,10 +104,28 @@ def test_gmres_step_equals_lu_step(method):
     assert lin.stats["precision"] == "single"
     assert np.linalg.norm(dx_s - dx_d) <= 1e-7 * np.linalg.norm(dx_d)
     assert lin.stats["gmres_iterations"] < prob.n        # the preconditioner does the work
-    # the next Newton step at the same frequency reuses the single-precision copy of Zr
+    # the next Newton step at the same frequency reuses the single-precision copy of Zr (a small
+    # interface: its real harmonic blocks, linsolve.real_blocks)
     zr32 = lin._pre[0]
-    assert zr32.dtype == np.complex64 and lin.factor(prob.residual_operator(x * 1.01)[1])
-    assert lin._pre[0] is zr32
+    if small:
+        assert lin._inv is not None and all(z.dtype == np.float32 for z in zr32)
+    else:
+        assert lin._inv is None and zr32.dtype == np.complex64
+    assert lin.factor(prob.residual_operator(x * 1.01)[1]) and lin._pre[0] is zr32
+
+
+def test_real_blocks_equal_the_complex_product():
+    from workflow.linsolve import k_apply, k_apply_blocks, real_blocks, zb_apply, zb_apply_blocks
+
+    rng = np.random.default_rng(3)
+    nh, p, k = 4, 3, 2
+    nr, nc = 3 * p, 2 * nh + 1
+    Zr = rng.normal(size=(nh + 1, nr, nr)) + 1j * rng.normal(size=(nh + 1, nr, nr))
+    Y = rng.normal(size=(nc, nr, k))
+    Gt, eps = rng.normal(size=(p, 3 * nc, 3 * nc)), rng.uniform(1.0, 2.0, nr)
+    assert np.allclose(zb_apply_blocks(real_blocks(Zr), Y), zb_apply(Zr, Y), rtol=0, atol=1e-12)
+    assert np.allclose(k_apply_blocks(real_blocks(Zr), Gt, eps, Y, nc, p), k_apply(Zr, Gt, eps, Y, nc, p),
+                       rtol=0, atol=1e-11)
 
 
 def test_single_precision_blocks_out_of_range_fall_back_to_double():
@@ -183,8 +208,43 @@ def test_block_jacobi_pseudo_time_reaches_the_newton_root(method, omega_hz):
         integrate_pairs(prob.residual, prob.residual_operator, ref.result.x, blocks="instants")
 
 
+def test_matrix_free_size_is_never_below_the_structured_one(monkeypatch):
+    """Between the two sizes Newton's solve is structured and its fallbacks still dense."""
+    n = cascade.STRUCTURED_MIN_UNKNOWNS
+    assert cascade.STRUCTURED_MIN_UNKNOWNS <= cascade.MATRIX_FREE_MIN_UNKNOWNS
+    assert cascade.linear_solver(n) == "structured" and not cascade.matrix_free(n)
+    assert cascade.matrix_free(cascade.MATRIX_FREE_MIN_UNKNOWNS)
+    monkeypatch.setattr(cascade, "MATRIX_FREE_MIN_UNKNOWNS", 0)
+    assert not cascade.matrix_free(n - 1) and cascade.matrix_free(n)
+
+
+def test_dense_newton_follows_a_structured_newton_that_stops_below_the_matrix_free_size(monkeypatch):
+    """A structured Newton that gives up (here: its linear solve refuses every step) is followed,
+    below the matrix-free size, by Newton on the dense J from the best guess, before MINPACK;
+    the point is reported "newton-dense" and equals the plain dense Newton root."""
+    monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
+    monkeypatch.setattr(StructuredSolve, "solve", lambda self, R: None)
+    prob = _problem("hbm", 29.0)
+    assert not cascade.matrix_free(prob.n)
+    calls = []
+    run = cascade.run_solver
+
+    def spy(q, x, solver, tol, maxiter, pseudo=None, linear=None):
+        calls.append((solver, linear))
+        return run(q, x, solver, tol, maxiter, pseudo, linear=linear)
+
+    monkeypatch.setattr(cascade, "run_solver", spy)
+    x0 = _slipping_state(prob) * 1.03
+    pr = cascade.solve_point(prob, [x0], solver="newton-powell", tol=1e-9, maxiter=60)
+    assert pr.converged and pr.how == "newton-dense"
+    assert calls == [("newton", None), ("newton", "dense")]
+    ref = _problem("hbm", 29.0).solve(x0, tol=1e-9, maxiter=60)
+    assert np.abs(pr.result.x - ref.x).max() <= 1e-8 * np.abs(ref.x).max()
+
+
 def test_cascade_pseudo_time_is_matrix_free_when_structured(monkeypatch):
     monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
+    monkeypatch.setattr(cascade, "MATRIX_FREE_MIN_UNKNOWNS", 0)
     prob = _problem("hbm", 29.0)
     ref = prob.solve(_slipping_state(prob), tol=1e-9, maxiter=80)
     fresh = _problem("hbm", 29.0)
@@ -193,8 +253,9 @@ def test_cascade_pseudo_time_is_matrix_free_when_structured(monkeypatch):
     assert fresh._dense is None
 
 
-def test_powell_is_replaced_by_matrix_free_pseudo_time_at_the_structured_size(monkeypatch):
+def test_powell_is_replaced_by_matrix_free_pseudo_time_at_the_matrix_free_size(monkeypatch):
     monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
+    monkeypatch.setattr(cascade, "MATRIX_FREE_MIN_UNKNOWNS", 0)
     prob = _problem("hbm", 25.0)
     res = cascade.run_solver(prob, prob.x0(), "powell", 1e-9, 50)
     assert res.scheme == "block-jacobi-pairs"

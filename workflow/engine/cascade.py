@@ -11,7 +11,8 @@ usual first; each later attempt exists because a measured case needed it):
 2. ``newton-powell`` only: Newton from each guess, the smallest residual
    first, *along the ε-path* (``eps_path``: the root at a moderate ε, then
    ε up by decades, each from the last root — :func:`along_eps_path`), then
-   MINPACK's Powell from Newton's best iterate, then (below the structured
+   (between the structured and the matrix-free sizes) Newton on the dense J,
+   then MINPACK's Powell from Newton's best iterate, then (below the matrix-free
    size, where Powell already is the matrix-free pseudo-time) pseudo-transient
    continuation from the best guess (:func:`_ptc`);
 3. the solver from each guess in turn (``short`` iterations each);
@@ -85,8 +86,20 @@ SOLVERS = ("newton", "powell", "newton-powell", "pseudo-time")
 #: HDHB-11 (n = 1104) 20.7 / 3.9 s; HBM-13 (n = 1296) 11.4 / 6.6 s; HBM-17 nit=35
 #: (n = 1680) 22.3 / 8.5 s, nit=105 23.6 / 9.4 s, HDHB-17 27.8 / 7.0 s — the same
 #: peaks to 7 digits. (At the earlier 10³× penalty GMRES needed more iterations
-#: and the switch sat at 2000.)
-STRUCTURED_MIN_UNKNOWNS = 1000
+#: and the switch sat at 2000.) Session 15, with the small-interface preconditioner
+#: (explicit harmonic-block inverses, pair inverses renewed only where G̃ changed), the
+#: same model and four runs each, dense / structured sweep: HBM-4 nit=105 (n = 432)
+#: 1.1–1.3 / 1.9 s; HBM-5 nit=105 (n = 528) 3.7–4.0 / 1.3–1.7 s, nit=11 2.4–2.8 / 0.8–1.1 s;
+#: HBM-6 nit=13 (n = 624) 2.5–3.0 / 0.8–1.3 s; HBM-7 nit=105 (n = 720) 2.5–2.8 / 2.2 s,
+#: nit=15 2.2–2.5 / 1.5 s; the quick sector's HBM-5 nit=64 1.5–2.1 / 1.2 s, HDHB-5 1.9–2.3 /
+#: 0.6–0.7 s. Structured Newton needs fewer iterations (no chord steps: 297 → 126 on HBM-5).
+STRUCTURED_MIN_UNKNOWNS = 500
+#: From this many unknowns up nothing forms the (n × n) J: Powell's place is taken by the
+#: matrix-free block pseudo-time, and there is no dense pseudo-transient continuation.
+#: Below it the dense fallbacks stay, also behind a structured Newton: on the quick
+#: sector's HBM-8 nit=97 (n = 816) the hardest point took 2.6 s by the matrix-free
+#: fallbacks (129 iterations, down to the Nh-continuation) and 0.24 s by dense Newton.
+MATRIX_FREE_MIN_UNKNOWNS = 1000
 
 
 def collocated(prob) -> bool:
@@ -107,6 +120,12 @@ def linear_solver(n: int) -> str:
     return "structured" if n >= STRUCTURED_MIN_UNKNOWNS else "dense"
 
 
+def matrix_free(n: int) -> bool:
+    """True if the fallbacks of a problem of n unknowns must not form the (n × n) J
+    (:data:`MATRIX_FREE_MIN_UNKNOWNS`; never below the structured Newton's own size)."""
+    return n >= max(MATRIX_FREE_MIN_UNKNOWNS, STRUCTURED_MIN_UNKNOWNS)
+
+
 def _linsolver(prob):
     """The problem's :class:`~workflow.linsolve.StructuredSolve`, created on first
     use and shared by the solves of one frequency (its blocks are lagged)."""
@@ -121,7 +140,7 @@ def _linsolver(prob):
 class PointResult:
     """One frequency solved: ``result`` (the best :class:`SolveResult`), total
     ``iterations`` over every attempt, and ``how`` — "guess0", "guess1", …,
-    "newton", "powell", "pseudo-time", "smooth", "eps-continuation", "nh-continuation",
+    "newton", "newton-dense", "powell", "pseudo-time", "smooth", "eps-continuation", "nh-continuation",
     "homotopy" or "failed"."""
 
     result: object
@@ -144,7 +163,8 @@ def newton_steps(prob, maxiter: int) -> int:
     return min(maxiter, NEWTON_STEPS * (3 if prob.n >= POWELL_COSTLY_UNKNOWNS else 1))
 
 
-def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | None = None):
+def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | None = None,
+               linear: str | None = None):
     """One solver from ``x0``: a :class:`~workflow.solvers.SolveResult`.
 
     ``pseudo``: keyword arguments of :func:`workflow.pseudotime.integrate`
@@ -152,16 +172,18 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
     SER with the Jacobian mass — pseudo-transient continuation, a damped
     Newton — while ``precond = "none"`` is eq. 18 as printed. From
     :data:`STRUCTURED_MIN_UNKNOWNS` up, Newton's linear solve is the structured
-    one and pseudo-time the matrix-free pair/harmonic block-Jacobi of
-    :mod:`workflow.pseudotime_blocks` (``pseudo`` is then not used)."""
-    if solver == "newton" and linear_solver(prob.n) == "structured":
+    one; from :data:`MATRIX_FREE_MIN_UNKNOWNS` up Powell and pseudo-time are the
+    matrix-free pair/harmonic block-Jacobi of :mod:`workflow.pseudotime_blocks`
+    (``pseudo`` is then not used). ``linear``: Newton's linear solve, "dense" or
+    "structured" (default :func:`linear_solver`)."""
+    if solver == "newton" and (linear or linear_solver(prob.n)) == "structured":
         # no chord steps: J costs no factorisation here, the blocks are lagged instead
         return prob.solve(x0, solver="newton", tol=tol, maxiter=maxiter, max_backtracks=10,
                           linear="structured", linsolver=_linsolver(prob))
     if solver == "newton":
         return prob.solve(x0, solver="newton", tol=tol, maxiter=maxiter, max_backtracks=10,
                           reuse_ratio=CHORD_RATIO if prob.n >= CHORD_MIN_UNKNOWNS else 0.0)
-    if solver == "powell" and linear_solver(prob.n) == "structured":
+    if solver == "powell" and matrix_free(prob.n):
         # MINPACK's Powell needs the dense J and factors it by an unblocked QR: at
         # 64 pairs, Nh = 7 (n = 2880) one call ran for minutes — and the structured
         # size promises no (n × n) array. The matrix-free pseudo-time takes its
@@ -172,7 +194,7 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
                                max_steps=max(maxiter, 200), blocks="pairs+harmonics")
     if solver == "powell":
         return prob.solve(x0, solver="powell", tol=tol, maxiter=maxiter, maxfev=4 * maxiter)
-    if solver == "pseudo-time" and linear_solver(prob.n) == "structured":
+    if solver == "pseudo-time" and matrix_free(prob.n):
         # the dense schemes would form the (n × n) J: the matrix-free block-Jacobi instead
         from workflow.pseudotime_blocks import integrate_pairs
 
@@ -188,13 +210,15 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
     raise SceneError(f"hb.solver: {solver!r} is not one of {', '.join(SOLVERS)}")
 
 
-def along_eps_path(prob, x0, eps_path, tol: float, maxiter: int, run=None, solver: str = "newton"):
+def along_eps_path(prob, x0, eps_path, tol: float, maxiter: int, run=None, solver: str = "newton",
+                   linear: str | None = None):
     """``solver`` (Newton by default; ``run`` the cascade's runner, for its
     pseudo-time options) from ``x0`` along ``eps_path`` (factors < 1 of the
     law's ε, rising), then at the law's own ε: the large penalty's root from
     a moderate one's. A step that fails is skipped (the next starts from the
-    last root); the result is the final solve's, at the law's ε."""
-    run = run or (lambda q, x, s, m: run_solver(q, x, s, tol, m))
+    last root); the result is the final solve's, at the law's ε. ``linear``:
+    see :func:`run_solver` (without ``run``)."""
+    run = run or (lambda q, x, s, m: run_solver(q, x, s, tol, m, linear=linear))
     its = 0
     x = x0
     for f in eps_path:
@@ -202,7 +226,7 @@ def along_eps_path(prob, x0, eps_path, tol: float, maxiter: int, run=None, solve
         # the structured linear solver (large interfaces) is carried from level to level
         q = _with_penalty(prob, f)
         q.linsolver = getattr(prob, "linsolver", None)
-        res = run_solver(q, x, solver, PATH_TOL, maxiter, getattr(run, "pseudo", None))
+        res = run_solver(q, x, solver, PATH_TOL, maxiter, getattr(run, "pseudo", None), linear=linear)
         prob.linsolver = getattr(q, "linsolver", None)
         its += int(res.iterations)
         if res.converged:
@@ -406,9 +430,18 @@ def _cascade(prob, guesses, solver: str, tol: float, maxiter: int, smooth, eps_p
         for k in sorted(norms, key=norms.get):
             if best.keep(along_eps_path(prob, guesses[k], eps_path, tol, newton_steps(prob, maxiter))):
                 return PointResult(best.res, best.total, "newton")
+        if norms and linear_solver(prob.n) == "structured" and not matrix_free(prob.n):
+            # J is still cheap to form: Newton on it (exact Levenberg–Marquardt fallback, chord
+            # steps) takes another path round the kink that stopped the structured one —
+            # on the quick sector's HBM-8 nit=97 hardest point 19 iterations, where MINPACK
+            # and the fallbacks after it took 5.5 s
+            k = min(norms, key=norms.get)
+            if best.keep(along_eps_path(prob, guesses[k], eps_path, tol, newton_steps(prob, maxiter),
+                                        linear="dense")):
+                return PointResult(best.res, best.total, "newton-dense")
         if best.res is not None and best.keep(run(prob, best.res.x, "powell", maxiter)):
             return PointResult(best.res, best.total, "powell")
-        if norms and linear_solver(prob.n) == "dense" and best.keep(_ptc(prob, guesses[min(norms, key=norms.get)],
+        if norms and not matrix_free(prob.n) and best.keep(_ptc(prob, guesses[min(norms, key=norms.get)],
                                                                         eps_path, tol, maxiter)):
             return PointResult(best.res, best.total, "pseudo-time")
         solver = "powell"

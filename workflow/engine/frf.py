@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from workflow.engine.cascade import linear_solver, solve_point
+from workflow.engine.cascade import linear_solver, matrix_free, solve_point
 from workflow.engine.variants import Variant
 from workflow.sweep import secant_guesses
 
@@ -97,7 +97,7 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     out.linear_solver = linear_solver(n_unknowns)
     if log is not None:
         log.info(f"{v.label}: {n_unknowns} unknowns, Newton linear solve {out.linear_solver}"
-                 + (", pseudo-time: matrix-free pair/harmonic block-Jacobi" if out.linear_solver == "structured"
+                 + (", pseudo-time: matrix-free pair/harmonic block-Jacobi" if matrix_free(n_unknowns)
                     and solver == "pseudo-time" else ""))
     t_all = time.perf_counter()
     c_all = time.process_time()
