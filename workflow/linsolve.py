@@ -50,6 +50,13 @@ peaks to 1e-15): 128 pairs 20.7 → 17.0 s (GMRES 16.2 → 12.0 s), 256 pairs
 50.5 → 34.5 s (GMRES 41.2 → 24.5 s, factorisations 4.7 → 2.8 s), 512 pairs
 531 → 289 s (GMRES 367 → 201 s, factorisations 121 → 45 s); results/reference/
 interface-scaling/NOTES.md, "Session 14".
+
+*Small interfaces* (:data:`INVERSE_MAX_DOFS`) are bound by Python calls, not by bytes:
+there the harmonic blocks are inverted explicitly (one batched product instead of Nh+1
+triangular solves), Zr is held as real harmonic blocks (one batched product, no complex
+conversions, :func:`real_blocks`), and the pair inverses are renewed only for the pairs
+whose G̃ block changed since the last Newton step at that frequency (a stuck or separated
+pair's block stays put).
 """
 from __future__ import annotations
 
@@ -74,9 +81,14 @@ SINGLE = True
 THREADED_MIN_DOFS = 768
 
 #: Up to this many contact DOFs (3p) the harmonic blocks are inverted explicitly and applied as
-#: one batched product instead of Nh+1 triangular solves: at these sizes the solves are Python-call
-#: bound, not flop-bound (measured below, :class:`StructuredSolve`).
-INVERSE_MAX_DOFS = 192
+#: one batched product instead of Nh+1 triangular solves, and Zr is held as real harmonic
+#: blocks (:func:`real_blocks`): at these sizes the solves are Python-call bound, not
+#: flop-bound. Measured (one BLAS thread, alone, sweeps of 50 points on paper-frf's 16 pairs,
+#: 9 points on the interface-scaling sectors): 16 pairs HBM-17 nit=35 4.5–4.8 → 3.3 s (with
+#: the pair inverses renewed only where G̃ changed: 3.0 s); 64 pairs HBM-7 3.4–3.5 → 3.5–4.0 s,
+#: HDHB-7 2.5–3.0 → 2.6–2.9 s (a wash: the inverses cost what the solves save); 128 pairs
+#: HBM-7 13.8–15.1 → 18.2–18.3 s (the factorisation 1.0 → 4.5 s).
+INVERSE_MAX_DOFS = 96
 
 #: GMRES tolerance relative to ‖rhs‖ (inexact Newton: the nonlinear residual
 #: decides convergence; a tighter linear solve only costs GMRES iterations).
