@@ -277,11 +277,11 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
         """The (n × n) J — for tests and small problems only."""
         return self._matmat(np.eye(self.shape[1]))
 
-    def pair_blocks(self, parts=None) -> np.ndarray:
+    def pair_blocks(self) -> np.ndarray:
         """The exact pair-diagonal blocks of K, (p, 3nc, 3nc), rows/columns (coefficient, c):
         ``K_pp = Zb_pp + G̃_p (E_p − Zb_pp)`` — every harmonic of one pair, the
-        pair's own 3×3 stiffness only. ``parts``: :meth:`pair_parts` if already made."""
-        Zpp, M = self.pair_parts() if parts is None else parts
+        pair's own 3×3 stiffness only."""
+        Zpp, M = self.pair_parts()
         return Zpp + np.matmul(self.Gt, M)
 
     def pair_parts(self):
