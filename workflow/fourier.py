@@ -160,6 +160,18 @@ def real_block(Zj: np.ndarray) -> np.ndarray:
     return np.block([[A, B], [-B, A]])
 
 
+def real_block(Z: np.ndarray, dtype=float) -> np.ndarray:
+    """The real form of complex harmonic blocks ``Z`` (…, m, m): (…, 2m, 2m) with rows and
+    columns (cos, sin) × DOF, ``[[Re Z, Im Z], [−Im Z, Re Z]]`` — ``U = u_c − i u_s`` mapped
+    to ``(Re ZU, −Im ZU)`` (eq. 4). Units those of ``Z``."""
+    Z = np.asarray(Z)
+    m = Z.shape[-1]
+    out = np.empty(Z.shape[:-2] + (2, m, 2, m), dtype=dtype)
+    A, B = Z.real, Z.imag
+    out[..., 0, :, 0, :], out[..., 0, :, 1, :], out[..., 1, :, 0, :], out[..., 1, :, 1, :] = A, B, -B, A
+    return out.reshape(Z.shape[:-2] + (2 * m, 2 * m))
+
+
 def real_block_diag(Z: np.ndarray) -> np.ndarray:
     """Harmonic-block-diagonal real matrix of complex (Nh+1, m, m) per-harmonic ``Z``.
 
@@ -173,13 +185,9 @@ def real_block_diag(Z: np.ndarray) -> np.ndarray:
     nc = n_coef(nh)
     out = np.zeros((nc, m, nc, m))
     out[0, :, 0, :] = Z[0].real
+    blocks = real_block(Z[1:]).reshape(nh, 2, m, 2, m)
     for j in range(1, nh + 1):
-        c, s = 2 * j - 1, 2 * j
-        A, B = Z[j].real, Z[j].imag
-        out[c, :, c, :] = A
-        out[c, :, s, :] = B
-        out[s, :, c, :] = -B
-        out[s, :, s, :] = A
+        out[2 * j - 1:2 * j + 1, :, 2 * j - 1:2 * j + 1, :] = blocks[j - 1]
     return out.reshape(nc * m, nc * m)
 
 

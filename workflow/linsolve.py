@@ -139,11 +139,7 @@ def real_blocks(Zr, dtype=np.float64):
     of the coefficient vector (2Nh+1, nr), so that harmonics 1…Nh are one batched product
     (:func:`zb_apply_blocks`). Twice the bytes of Zr: for small interfaces, where the
     conversions of :func:`zb_apply` cost more than the product."""
-    nh, nr = Zr.shape[0] - 1, Zr.shape[1]
-    Zh = np.empty((nh, 2, nr, 2, nr), dtype=dtype)
-    A, B = Zr[1:].real, Zr[1:].imag
-    Zh[:, 0, :, 0], Zh[:, 0, :, 1], Zh[:, 1, :, 0], Zh[:, 1, :, 1] = A, B, -B, A
-    return np.ascontiguousarray(Zr[0].real, dtype=dtype), Zh.reshape(nh, 2 * nr, 2 * nr)
+    return np.ascontiguousarray(Zr[0].real, dtype=dtype), fourier.real_block(Zr[1:], dtype)
 
 
 def zb_apply_blocks(blocks, Y):
@@ -312,12 +308,8 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
         for h in range(self.nh + 1):
             idx = _harmonic_index(h)
             s = len(idx)
-            Zh = np.zeros((s, nr, s, nr))
             Z = self.Zr[h]
-            if s == 1:
-                Zh[0, :, 0] = Z.real
-            else:
-                Zh[0, :, 0], Zh[0, :, 1], Zh[1, :, 0], Zh[1, :, 1] = Z.real, Z.imag, -Z.imag, Z.real
+            Zh = (Z.real.copy() if s == 1 else fourier.real_block(Z)).reshape(s, nr, s, nr)
             Mh = -Zh
             for a in range(s):
                 Mh[a, np.arange(nr), a, np.arange(nr)] += self.eps
