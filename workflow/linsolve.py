@@ -17,26 +17,29 @@ shares one operator::
 Neither factor is (n × n): K is applied matrix-free and solved by flexible
 GMRES (PETSc's FGMRES, Saad 1993), right-preconditioned by the exact
 harmonic-diagonal blocks of K itself, ``K_hh = Zb_hh + G̃_hh (E − Zb_hh)``
-(one LU of size 3p or 6p per harmonic) combined, multiplicatively (pair,
-harmonic, pair), with the exact pair-diagonal blocks ``K_pp`` (all harmonics
-of one pair, p LUs of size 3·(2Nh+1)). Why both: a stuck pair's rows are ≈ ε
+(one LU of size 3p or 6p per harmonic) combined, multiplicatively (cluster,
+harmonic, cluster), with the exact *cluster*-diagonal blocks ``K_CC`` (all
+harmonics of a few neighbouring pairs, :func:`pair_clusters`; blocks of about
+:data:`CLUSTER_DOFS` unknowns). Why both: a stuck pair's rows are ≈ ε
 (``G̃ ≈ I``) and a separated pair's are ``Zb`` (``G̃ = 0``) — neither couples
 harmonics, the harmonic blocks hold them exactly; a slipping pair couples its
-harmonics through ``G̃ E``, terms of size ε (10³× the stiffness by default)
-that only the pair blocks hold. Measured on the quick sector (64 pairs, HBM
-Nh = 7, nit = 64, default ε, four Newton systems at resonance), GMRES
-iterations to 10⁻¹⁰: harmonic blocks alone 166–200 (three stalled at
-10⁻⁴…10⁻⁶), pair blocks alone 62–73, pair-then-harmonic 22–28,
-pair-harmonic-pair 13–18.
+harmonics through ``G̃ E``, terms of size ε that only the pair blocks hold.
+Measured on the quick sector (64 pairs, HBM Nh = 7, nit = 64, ε = 10³× the
+stiffness, four Newton systems at resonance), GMRES iterations to 10⁻¹⁰:
+harmonic blocks alone 166–200 (three stalled at 10⁻⁴…10⁻⁶), pair blocks alone
+62–73, pair-then-harmonic 22–28, pair-harmonic-pair 13–18. What one pair's
+block misses is the coupling of a slipping pair's harmonics to its neighbours'
+through Zb (``G̃_p(h, h') Zb_h'[p, q]``); a cluster of neighbours holds it.
 
 The preconditioner is *lagged*: kept across Newton steps (and ε-path steps
 and chord-free trial points) until the GMRES iterations it has cost beyond
 :data:`REFRESH_ITERS` a solve add up to one factorisation
 (:meth:`StructuredSolve._account`), refactored from the current K then. GMRES always solves with
 the current K, so every step is an (inexact) Newton step, never a chord step.
-Memory: the blocks, (Nh+1)·(6p)² reals — nothing of size n².
+Memory: the harmonic blocks, (Nh+1)·(6p)² reals, and the cluster blocks, three
+arrays of (p/s)·(3·s·nc)² (50 MB at 512 pairs) — nothing of size n².
 
-The preconditioner runs in *single precision* (:data:`SINGLE`): its LUs, pair
+The preconditioner runs in *single precision* (:data:`SINGLE`): its LUs, cluster
 inverses and its own copy of Zr (complex64) and G̃. The solve is memory-bound
 (every GMRES iteration reads Zr three times and the block LUs once), so halving
 the bytes halves most of its time, and the LU factorisations are 2× faster.
@@ -89,6 +92,22 @@ THREADED_MIN_DOFS = 768
 #: HDHB-7 2.5–3.0 → 2.6–2.9 s (a wash: the inverses cost what the solves save); 128 pairs
 #: HBM-7 13.8–15.1 → 18.2–18.3 s (the factorisation 1.0 → 4.5 s).
 INVERSE_MAX_DOFS = 96
+
+#: Unknowns per cluster block of the preconditioner (3·pairs·(2Nh+1)): neighbouring pairs
+#: share a block (:func:`pair_clusters`), which holds the coupling of their harmonics through
+#: Zb that single-pair blocks miss. Measured on 22 Newton systems captured at 128 pairs (HDHB
+#: Nh = 7, fresh blocks, GMRES to 1e-10): 762 iterations with one pair per block, 631 / 459 /
+#: 258 / 234 with 2 / 4 / 8 / 16 pairs (HBM: 421 → 182 at 8). The blocks are inverted at every
+#: Newton step and applied twice per GMRES iteration, so fewer iterations cost more per step;
+#: whole sweeps (interface-scaling sectors, 9 points, one BLAS thread, alone, pairs = 1 →
+#: 4 per cluster, i.e. 180 unknowns): 512 pairs HBM 277.7 → 202.7 s (8 per cluster: 240.0 s),
+#: 256 pairs HBM 35.5–37.2 → 34.4–36.3 s and HDHB 63.1–65.1 → 53.0–56.8 s, 128 pairs HBM
+#: 14.4–19.7 → 16.2–19.5 s and HDHB 23.8–27.5 → 18.7–21.2 s; 64 pairs HBM 3.3 → 4.4 s.
+CLUSTER_DOFS = 180
+#: From this many contact DOFs (3p) up the preconditioner's blocks are clusters of pairs
+#: (:data:`CLUSTER_DOFS`), below single pairs: at 64 pairs the blocks cost more than the
+#: GMRES iterations they save (above).
+CLUSTER_MIN_DOFS = 384
 
 #: GMRES tolerance relative to ‖rhs‖ (inexact Newton: the nonlinear residual
 #: decides convergence; a tighter linear solve only costs GMRES iterations).
@@ -163,6 +182,77 @@ def _pair_apply(G, V, nc, p):
     k = V.shape[-1]
     Vp = V.reshape(nc, p, 3, k).transpose(1, 0, 2, 3).reshape(p, 3 * nc, k)
     return np.matmul(G, Vp).reshape(p, nc, 3, k).transpose(1, 0, 2, 3).reshape(nc, 3 * p, k)
+
+
+def cluster_size(nc: int, nr: int) -> int:
+    """Pairs per preconditioner cluster for nc = 2Nh+1 coefficients and nr = 3p contact DOFs:
+    blocks of about :data:`CLUSTER_DOFS` unknowns from :data:`CLUSTER_MIN_DOFS` contact DOFs
+    up, one pair below."""
+    return 1 if nr < CLUSTER_MIN_DOFS else max(1, CLUSTER_DOFS // (3 * nc))
+
+
+def pair_clusters(Z0, size: int) -> list[np.ndarray]:
+    """Groups of ``size`` strongly coupled contact pairs (the last may be smaller), sorted
+    index arrays covering 0…p−1 once: the preconditioner's blocks (:class:`StructuredSolve`).
+
+    Greedy aggregation on the normalised coupling of the static condensed stiffness
+    ``Z0`` (nr, nr) (N/m): ``c_pq = ‖Z_pq‖_F / (‖Z_pp‖_F ‖Z_qq‖_F)^½``; a group is seeded on
+    the rim of the pairs still free (the one least coupled to them) and grows by the free
+    pair most coupled to the group so far, so the groups are compact patches of neighbours
+    on a flank grid and no stranded pairs are left for a last, scattered one. Algebraic, as
+    in aggregation multigrid: a bundle without meaningful pair positions clusters as well."""
+    p = Z0.shape[0] // 3
+    size = int(max(1, min(size, p)))
+    if size == 1:
+        return [np.array([q]) for q in range(p)]
+    N = np.sqrt(np.sum(np.abs(np.asarray(Z0, float).reshape(p, 3, p, 3)) ** 2, axis=(1, 3)))
+    d = np.sqrt(np.maximum(np.diag(N), 1e-300))
+    C = N / d[:, None] / d[None, :]
+    np.fill_diagonal(C, 0.0)
+    free = np.ones(p, dtype=bool)
+    out = []
+    while free.any():
+        rim = np.where(free, C @ free, np.inf)
+        group = [int(np.argmin(rim))]
+        free[group[0]] = False
+        score = C[group[0]].copy()
+        while len(group) < size and free.any():
+            q = int(np.argmax(np.where(free, score, -1.0)))
+            group.append(q)
+            free[q] = False
+            score += C[q]
+        out.append(np.array(sorted(group)))
+    return out
+
+
+def cluster_groups(clusters: list[np.ndarray]) -> list[np.ndarray]:
+    """The clusters of :func:`pair_clusters` stacked by size: index arrays (g, s), one per size,
+    so that each size is one batched product."""
+    sizes = sorted({len(c) for c in clusters}, reverse=True)
+    return [np.stack([c for c in clusters if len(c) == s]) for s in sizes]
+
+
+def _cluster_k(G, Zcc, M):
+    """``K_CC = Zb_CC + G̃_C (E_C − Zb_CC)`` (g, m, m) from the clusters' pair blocks G̃
+    (g, s, 3nc, 3nc) and :meth:`ContactJacobian.cluster_parts` (Zcc, M)."""
+    g, s = G.shape[:2]
+    m = Zcc.shape[1]
+    return Zcc + np.matmul(G, M.reshape(g, s, m // s, m)).reshape(g, m, m)
+
+
+def _cluster_apply(inv, groups, V, nc, p):
+    """Block-diagonal-over-clusters ``inv`` (one (g, m, m) array per group of
+    :func:`cluster_groups`, rows and columns (pair, coefficient, c)) times V (nc, 3p, k)."""
+    if len(groups) == 1 and groups[0].shape[1] == 1:        # one pair per block, in order
+        return _pair_apply(inv[0], V, nc, p)
+    k = V.shape[-1]
+    V4 = V.reshape(nc, p, 3, k)
+    out = np.empty_like(V4)
+    for B, idx in zip(inv, groups):
+        g, s = idx.shape
+        Vc = V4[:, idx].transpose(1, 2, 0, 3, 4).reshape(g, s * nc * 3, k)
+        out[:, idx] = np.matmul(B, Vc).reshape(g, s, nc, 3, k).transpose(2, 0, 1, 3, 4)
+    return out.reshape(nc, 3 * p, k)
 
 
 def _harmonic_index(h):
@@ -299,6 +389,35 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
         M[:, np.arange(3 * nc), np.arange(3 * nc)] += E
         return Zpp, M
 
+    def cluster_parts(self, idx: np.ndarray):
+        """(Zb_CC, E_C − Zb_CC), each (g, m, m) with m = 3·s·nc, for the clusters ``idx``
+        (g, s) of pairs (:func:`pair_clusters`), rows and columns (pair, coefficient, c): the
+        frequency- and ε-only parts of the cluster-diagonal blocks of K,
+        ``K_CC = Zb_CC + G̃_C (E_C − Zb_CC)`` with G̃_C block-diagonal over the cluster's pairs.
+        One pair per cluster gives :meth:`pair_parts`."""
+        nc, nh = self.nc, self.nh
+        g, s = idx.shape
+        dofs = (3 * idx[:, :, None] + np.arange(3)).reshape(g, 3 * s)
+        Z5 = self.Zr[:, dofs[:, :, None], dofs[:, None, :]].reshape(nh + 1, g, s, 3, s, 3)
+        Zcc = np.zeros((g, s, nc, 3, s, nc, 3))
+        Zcc[:, :, 0, :, :, 0, :] = Z5[0].real
+        for j in range(1, nh + 1):
+            c, s_ = 2 * j - 1, 2 * j
+            A, B = Z5[j].real, Z5[j].imag
+            Zcc[:, :, c, :, :, c, :], Zcc[:, :, c, :, :, s_, :] = A, B
+            Zcc[:, :, s_, :, :, c, :], Zcc[:, :, s_, :, :, s_, :] = -B, A
+        m = 3 * s * nc
+        Zcc = Zcc.reshape(g, m, m)
+        E = np.broadcast_to(self.eps[dofs].reshape(g, s, 1, 3), (g, s, nc, 3)).reshape(g, m)
+        M = -Zcc
+        M[:, np.arange(m), np.arange(m)] += E
+        return Zcc, M
+
+    def cluster_blocks(self, idx: np.ndarray) -> np.ndarray:
+        """The exact cluster-diagonal blocks of K (g, m, m) for the clusters ``idx`` (g, s),
+        rows and columns (pair, coefficient, c) (:meth:`cluster_parts`)."""
+        return _cluster_k(self.Gt[idx], *self.cluster_parts(idx))
+
     def harmonic_blocks(self):
         """Yields (idx, K_hh), the exact harmonic-diagonal blocks of K, (s·nr)² each — one
         at a time, so that a caller factoring them in single precision never holds all of
@@ -322,7 +441,7 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
 
 class StructuredSolve:
     """The Newton linear solver on a :class:`ContactJacobian`: flexible GMRES with the
-    lagged pair–harmonic–pair preconditioner (module docstring). Same protocol as
+    lagged cluster–harmonic–cluster preconditioner (module docstring). Same protocol as
     :class:`workflow.solvers.DenseLU` (``factor``, ``solve``, ``lm_step``).
 
     ``single``: the preconditioner in single precision (:data:`SINGLE`); a solve
@@ -339,7 +458,8 @@ class StructuredSolve:
         self.op: ContactJacobian | None = None
         self._lu = None
         self._inv = None            # explicit harmonic-block inverses (small interfaces)
-        self._pp = None             # pair blocks at one frequency and ε (:meth:`_pair_inverses`)
+        self._pp = None             # cluster blocks at one frequency and ε (:meth:`_cluster_inverses`)
+        self._groups = None         # ((p, nc), cluster_groups(...)): the preconditioner's pair clusters
         self._lu_op = None
         self._refresh = True
         self._excess = 0.0          # GMRES iterations beyond REFRESH_ITERS since the last factorisation
@@ -380,43 +500,51 @@ class StructuredSolve:
             return False
         self.op = op
         real = self._real
-        with np.errstate(over="ignore"):    # out of float32's range: caught by solve(), double then
+        with np.errstate(over="ignore", invalid="ignore"):  # out of float32: caught by solve(), double then
             if self._zr_pre[0] is not op.Zr:    # Zr is one array per frequency: copied once, not per step
                 self._zr_pre = (op.Zr, real_blocks(op.Zr, real) if op.nr <= INVERSE_MAX_DOFS else
                                 op.Zr.astype(np.result_type(real, np.complex64), copy=False),
                                 real_blocks(op.Zr) if op.nr <= INVERSE_MAX_DOFS else None)
             self._pre = (self._zr_pre[1], op.Gt.astype(real, copy=False), op.eps.astype(real))
-            self._pair_inverses(op)
+            self._cluster_inverses(op)
         if self._lu is None or self._refresh or self._lu[0] != (op.nc, op.nr):
             self._factor_blocks(op)
         return True
 
-    def _pair_inverses(self, op):
-        """The pair blocks' inverses, fresh at every Newton step (p·(3nc)³, cheap) but only
-        for the pairs whose G̃ block changed since the last step at this frequency and ε:
-        a stuck or separated pair's block stays put while Newton converges (measured on
-        paper-frf's HBM-17: the inverses were a third of the structured solve's time)."""
+    def _cluster_inverses(self, op):
+        """The inverses of K's cluster-diagonal blocks (:meth:`ContactJacobian.cluster_parts`,
+        clusters of :func:`pair_clusters`) in the preconditioner's precision, fresh at every
+        Newton step but only for the clusters with a pair whose G̃ block changed since the
+        last step at this frequency and ε: a stuck or separated pair's block stays put while
+        Newton converges (measured on paper-frf's HBM-17: the pair inverses were a third of
+        the structured solve's time)."""
         real = self._real
+        if self._groups is None or self._groups[0] != (op.p, op.nc):
+            self._groups = ((op.p, op.nc), cluster_groups(pair_clusters(op.Zr[0].real, cluster_size(op.nc, op.nr))))
+        groups = self._groups[1]
         pp = self._pp
-        if pp is None or pp["Zr"] is not op.Zr or not np.array_equal(pp["eps"], op.eps) or pp["inv"].dtype != real:
-            Zpp, M = op.pair_parts()
-            pp = self._pp = {"Zr": op.Zr, "eps": op.eps.copy(), "parts": (Zpp, M), "Gt": None,
-                             "inv": np.empty(Zpp.shape, dtype=real)}
-        Zpp, M = pp["parts"]
-        todo = np.arange(op.p) if pp["Gt"] is None else \
-            np.flatnonzero(np.any(pp["Gt"] != op.Gt, axis=(1, 2)))
-        if len(todo):
-            K = Zpp[todo] + np.matmul(op.Gt[todo], M[todo])
+        if pp is None or pp["Zr"] is not op.Zr or not np.array_equal(pp["eps"], op.eps) \
+                or pp["groups"] is not groups or pp["inv"][0].dtype != real:
+            # in the preconditioner's precision: the blocks are formed and inverted there anyway
+            parts = [tuple(a.astype(real) for a in op.cluster_parts(idx)) for idx in groups]
+            pp = self._pp = {"Zr": op.Zr, "eps": op.eps.copy(), "groups": groups, "parts": parts, "Gt": None,
+                             "inv": [np.empty(Z.shape, dtype=real) for Z, _ in parts]}
+        changed = np.ones(op.p, dtype=bool) if pp["Gt"] is None else np.any(pp["Gt"] != op.Gt, axis=(1, 2))
+        for (Zcc, M), inv, idx in zip(pp["parts"], pp["inv"], groups):
+            todo = np.flatnonzero(np.any(changed[idx], axis=1))
+            if not len(todo):
+                continue
+            K = _cluster_k(op.Gt[idx[todo]].astype(real, copy=False), Zcc[todo], M[todo])
             try:
                 with np.errstate(over="ignore"):
-                    pp["inv"][todo] = np.linalg.inv(K.astype(real, copy=False))
+                    inv[todo] = np.linalg.inv(K.astype(real, copy=False))
             except np.linalg.LinAlgError:
-                pp["inv"][todo] = np.linalg.pinv(K)
-            if pp["Gt"] is None:
-                pp["Gt"] = op.Gt.copy()
-            else:
-                pp["Gt"][todo] = op.Gt[todo]
-        self._pair_inv = pp["inv"]
+                inv[todo] = np.linalg.pinv(K)
+        if pp["Gt"] is None:
+            pp["Gt"] = op.Gt.copy()
+        else:
+            pp["Gt"][changed] = op.Gt[changed]
+        self._cluster_inv = pp["inv"]
 
     def _factor_blocks(self, op):
         self._inv = self._invert_blocks(op) if op.nr <= INVERSE_MAX_DOFS else None
@@ -461,9 +589,9 @@ class StructuredSolve:
             out[idx] = (b if lu is None else scipy.linalg.lu_solve(lu, b, check_finite=False)).reshape(len(idx), nr)
         return out.ravel()
 
-    def _pair_solve(self, x):
+    def _cluster_solve(self, x):
         op = self.op
-        return _pair_apply(self._pair_inv, x.reshape(op.nc, op.nr, 1), op.nc, op.p).ravel()
+        return _cluster_apply(self._cluster_inv, self._groups[1], x.reshape(op.nc, op.nr, 1), op.nc, op.p).ravel()
 
     def _k(self, x):
         op = self.op
@@ -479,13 +607,13 @@ class StructuredSolve:
         return apply(*self._pre, x.reshape(op.nc, op.nr, 1), op.nc, op.p).ravel()
 
     def _precond(self, r):
-        """Symmetric multiplicative Schwarz: pair blocks, harmonic blocks, pair blocks (in the
+        """Symmetric multiplicative Schwarz: cluster blocks, harmonic blocks, cluster blocks (in the
         preconditioner's precision; the result in double)."""
         r = r.astype(self._real, copy=False)
         with np.errstate(all="ignore"):     # a non-finite result is caught by solve(): double precision then
-            z = self._pair_solve(r)
+            z = self._cluster_solve(r)
             z = z + self._harmonic_solve(r - self._k_pre(z))
-            return (z + self._pair_solve(r - self._k_pre(z))).astype(float, copy=False)
+            return (z + self._cluster_solve(r - self._k_pre(z))).astype(float, copy=False)
 
     def _k_solve(self, b):
         """Solve K z = b (coefficient space) by right-preconditioned flexible GMRES

@@ -84,13 +84,17 @@ def test_hdhb_operator_applied_with_ffts_equals_dense_h():
 
 @pytest.mark.parametrize("method", ["hbm", "hdhb"])
 @pytest.mark.parametrize("small", [True, False])
-def test_gmres_step_equals_lu_step(method, small, monkeypatch):
+@pytest.mark.parametrize("clusters", [False, True])
+def test_gmres_step_equals_lu_step(method, small, clusters, monkeypatch):
     """Both layouts of the preconditioner: explicit inverses and real harmonic blocks (small
-    interfaces, the test model) and the LUs with the complex Zr of large ones."""
+    interfaces, the test model) and the LUs with the complex Zr of large ones; blocks of one
+    pair (small interfaces) and of clusters of pairs (large ones: here 5 + 1 of the 6 pairs)."""
     from workflow import linsolve
 
     if not small:
         monkeypatch.setattr(linsolve, "INVERSE_MAX_DOFS", 0)
+    if clusters:
+        monkeypatch.setattr(linsolve, "CLUSTER_MIN_DOFS", 0)
     prob = _problem(method)
     x = _slipping_state(prob) * 1.05
     states = prob.contact_state(x)
@@ -104,6 +108,7 @@ def test_gmres_step_equals_lu_step(method, small, monkeypatch):
     assert lin.stats["precision"] == "single"
     assert np.linalg.norm(dx_s - dx_d) <= 1e-7 * np.linalg.norm(dx_d)
     assert lin.stats["gmres_iterations"] < prob.n        # the preconditioner does the work
+    assert [g.shape for g in lin._groups[1]] == ([(1, 5), (1, 1)] if clusters else [(P, 1)])
     # the next Newton step at the same frequency reuses the single-precision copy of Zr (a small
     # interface: its real harmonic blocks, linsolve.real_blocks)
     zr32 = lin._pre[0]
@@ -356,3 +361,48 @@ def test_large_structured_solves_run_blas_on_the_cores_and_restore_the_count(mon
         monkeypatch.setattr(linsolve, "THREADED_MIN_DOFS", op.nr)
         assert lin.solve(R) is not None
         assert seen[-1] == 2 and get() == 1           # a large one: the cores, then the caller's count again
+
+
+def test_pair_clusters_partition_the_pairs_into_coupled_neighbours():
+    """Every pair in exactly one cluster of at most ``size``; on a chain of pairs coupled only
+    to their neighbours (a row of flank nodes) the clusters are runs of neighbours."""
+    from workflow.linsolve import cluster_groups, pair_clusters
+
+    p = 11
+    Z0 = np.zeros((3 * p, 3 * p))
+    for q in range(p):
+        Z0[3 * q:3 * q + 3, 3 * q:3 * q + 3] = 4.0 * np.eye(3)
+        if q + 1 < p:
+            Z0[3 * q:3 * q + 3, 3 * q + 3:3 * q + 6] = Z0[3 * q + 3:3 * q + 6, 3 * q:3 * q + 3] = -np.eye(3)
+    order = np.random.default_rng(0).permutation(p)            # pairs numbered in any order
+    Zp = Z0.reshape(p, 3, p, 3)[order][:, :, order].reshape(3 * p, 3 * p)
+    clusters = pair_clusters(Zp, 4)
+    assert sorted(np.concatenate(clusters).tolist()) == list(range(p))
+    assert [len(c) for c in clusters] == [4, 4, 3]
+    for c in clusters:                                          # neighbours on the chain
+        pos = np.sort(order[c])
+        assert np.all(np.diff(pos) == 1)
+    groups = cluster_groups(clusters)
+    assert [g.shape for g in groups] == [(2, 4), (1, 3)]
+    assert [len(c) for c in pair_clusters(Zp, 1)] == [1] * p
+
+
+@pytest.mark.parametrize("method", ["hbm", "hdhb"])
+def test_cluster_blocks_are_the_blocks_of_the_dense_k(method):
+    """K_CC = Zb_CC + G̃_C (E_C − Zb_CC) is K restricted to a cluster's unknowns (all harmonics of
+    its pairs); one pair per cluster gives the pair blocks."""
+    from workflow.linsolve import ContactJacobian
+
+    prob = _problem(method)
+    x = _slipping_state(prob) * 1.05
+    _, op = prob.residual_operator(x)
+    K = ContactJacobian(op.Zr, op.eps, op.Gt).todense()       # coefficient space, no L_r, L_p
+    nc, p = op.nc, op.p
+    idx = np.array([[0, 2, 5], [1, 3, 4]])
+    blocks = op.cluster_blocks(idx)
+    K6 = K.reshape(nc, p, 3, nc, p, 3)
+    for b, c in zip(blocks, idx):
+        ref = K6[:, c][:, :, :, :, c].transpose(1, 0, 2, 4, 3, 5).reshape(b.shape)
+        assert np.abs(b - ref).max() <= 1e-12 * np.abs(ref).max()
+    single = op.cluster_blocks(np.arange(p)[:, None])
+    assert np.abs(single - op.pair_blocks()).max() <= 1e-12 * np.abs(single).max()
