@@ -366,35 +366,14 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
     def pair_blocks(self) -> np.ndarray:
         """The exact pair-diagonal blocks of K, (p, 3nc, 3nc), rows/columns (coefficient, c):
         ``K_pp = Zb_pp + G̃_p (E_p − Zb_pp)`` — every harmonic of one pair, the
-        pair's own 3×3 stiffness only."""
-        Zpp, M = self.pair_parts()
-        return Zpp + np.matmul(self.Gt, M)
-
-    def pair_parts(self):
-        """(Zb_pp, E_p − Zb_pp), each (p, 3nc, 3nc): the parts of :meth:`pair_blocks` that
-        depend on the frequency and ε only, not on G̃."""
-        nc, p = self.nc, self.p
-        idx = np.arange(self.nr).reshape(p, 3)
-        Zp = self.Zr[:, idx[:, :, None], idx[:, None, :]]               # (Nh+1, p, 3, 3)
-        Zpp = np.zeros((p, nc, 3, nc, 3))
-        Zpp[:, 0, :, 0, :] = Zp[0].real
-        for j in range(1, self.nh + 1):
-            c, s_ = 2 * j - 1, 2 * j
-            A, B = Zp[j].real, Zp[j].imag
-            Zpp[:, c, :, c, :], Zpp[:, c, :, s_, :] = A, B
-            Zpp[:, s_, :, c, :], Zpp[:, s_, :, s_, :] = -B, A
-        Zpp = Zpp.reshape(p, 3 * nc, 3 * nc)
-        E = np.tile(self.eps.reshape(p, 3), (1, nc))                      # (p, 3nc), (coef, c) order
-        M = -Zpp
-        M[:, np.arange(3 * nc), np.arange(3 * nc)] += E
-        return Zpp, M
+        pair's own 3×3 stiffness only (:meth:`cluster_blocks` with one pair a cluster)."""
+        return self.cluster_blocks(np.arange(self.p)[:, None])
 
     def cluster_parts(self, idx: np.ndarray):
         """(Zb_CC, E_C − Zb_CC), each (g, m, m) with m = 3·s·nc, for the clusters ``idx``
         (g, s) of pairs (:func:`pair_clusters`), rows and columns (pair, coefficient, c): the
         frequency- and ε-only parts of the cluster-diagonal blocks of K,
-        ``K_CC = Zb_CC + G̃_C (E_C − Zb_CC)`` with G̃_C block-diagonal over the cluster's pairs.
-        One pair per cluster gives :meth:`pair_parts`."""
+        ``K_CC = Zb_CC + G̃_C (E_C − Zb_CC)`` with G̃_C block-diagonal over the cluster's pairs."""
         nc, nh = self.nc, self.nh
         g, s = idx.shape
         dofs = (3 * idx[:, :, None] + np.arange(3)).reshape(g, 3 * s)

@@ -390,7 +390,8 @@ def test_pair_clusters_partition_the_pairs_into_coupled_neighbours():
 @pytest.mark.parametrize("method", ["hbm", "hdhb"])
 def test_cluster_blocks_are_the_blocks_of_the_dense_k(method):
     """K_CC = Zb_CC + G̃_C (E_C − Zb_CC) is K restricted to a cluster's unknowns (all harmonics of
-    its pairs); one pair per cluster gives the pair blocks."""
+    its pairs), for clusters of several pairs and of one (the pair blocks of the block-Jacobi
+    pseudo-time)."""
     from workflow.linsolve import ContactJacobian
 
     prob = _problem(method)
@@ -404,5 +405,7 @@ def test_cluster_blocks_are_the_blocks_of_the_dense_k(method):
     for b, c in zip(blocks, idx):
         ref = K6[:, c][:, :, :, :, c].transpose(1, 0, 2, 4, 3, 5).reshape(b.shape)
         assert np.abs(b - ref).max() <= 1e-12 * np.abs(ref).max()
-    single = op.cluster_blocks(np.arange(p)[:, None])
-    assert np.abs(single - op.pair_blocks()).max() <= 1e-12 * np.abs(single).max()
+    pairs = op.pair_blocks()                                   # one pair per cluster
+    for q in range(p):
+        ref = K6[:, q, :, :, q, :].reshape(pairs[q].shape)
+        assert np.abs(pairs[q] - ref).max() <= 1e-12 * np.abs(ref).max()
