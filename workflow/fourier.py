@@ -154,12 +154,6 @@ def hdhb_operators(nh: int) -> tuple[np.ndarray, np.ndarray]:
     return coef_from_time_matrix(nh, nit), time_from_coef_matrix(nh, nit)
 
 
-def real_block(Zj: np.ndarray) -> np.ndarray:
-    """Real 2×2 block form ``[[A, B], [−B, A]]`` of ``Zj = A + iB`` (m×m → 2m×2m), eq. 4."""
-    A, B = Zj.real, Zj.imag
-    return np.block([[A, B], [-B, A]])
-
-
 def real_block(Z: np.ndarray, dtype=float) -> np.ndarray:
     """The real form of complex harmonic blocks ``Z`` (…, m, m): (…, 2m, 2m) with rows and
     columns (cos, sin) × DOF, ``[[Re Z, Im Z], [−Im Z, Re Z]]`` — ``U = u_c − i u_s`` mapped

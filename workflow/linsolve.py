@@ -380,11 +380,10 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
         Z5 = self.Zr[:, dofs[:, :, None], dofs[:, None, :]].reshape(nh + 1, g, s, 3, s, 3)
         Zcc = np.zeros((g, s, nc, 3, s, nc, 3))
         Zcc[:, :, 0, :, :, 0, :] = Z5[0].real
+        # harmonic j's (cos, sin) rows and columns 2j−1, 2j: its real form, (g, a, q, c, b, q', c')
+        blocks = fourier.real_block(Z5[1:].reshape(nh, g, 3 * s, 3 * s)).reshape(nh, g, 2, s, 3, 2, s, 3)
         for j in range(1, nh + 1):
-            c, s_ = 2 * j - 1, 2 * j
-            A, B = Z5[j].real, Z5[j].imag
-            Zcc[:, :, c, :, :, c, :], Zcc[:, :, c, :, :, s_, :] = A, B
-            Zcc[:, :, s_, :, :, c, :], Zcc[:, :, s_, :, :, s_, :] = -B, A
+            Zcc[:, :, 2 * j - 1:2 * j + 1, :, :, 2 * j - 1:2 * j + 1, :] = blocks[j - 1].transpose(0, 2, 1, 3, 5, 4, 6)
         m = 3 * s * nc
         Zcc = Zcc.reshape(g, m, m)
         E = np.broadcast_to(self.eps[dofs].reshape(g, s, 1, 3), (g, s, nc, 3)).reshape(g, m)
