@@ -118,8 +118,13 @@ GMRES_RESTART = 100
 #: relative linear residual above which lagged blocks are refactored and the
 #: step repeated (and, with fresh blocks, counted in ``stats["failures"]``).
 STALE_RESIDUAL = 1e-4
-#: LSQR iterations of a Levenberg–Marquardt fallback step (:meth:`StructuredSolve.lm_step`).
-LM_ITERS = 30
+#: LSQR iterations of a Levenberg–Marquardt fallback step (:meth:`StructuredSolve.lm_step`):
+#: the Golub–Kahan steps are most of a search's cost (2 products of J each), and the step only
+#: has to get the iterate off a kink. Measured (interface-scaling sectors, Nh = 7, 9 points,
+#: one BLAS thread, the same peaks to 1e-16): HDHB 256 pairs 30 → 8 steps 49.4 → 45.4 s (the
+#: searches 6.4 → 3.1 s, 20 → 24 of them), 128 pairs 19.6 → 15.1 s (87 → 78 Newton
+#: iterations); HBM 128 and 256 pairs and paper-frf's 16 pairs unchanged (0–1 searches).
+LM_ITERS = 8
 #: GMRES iterations per solve that fresh blocks give on easy points; the iterations
 #: beyond it are what lagged blocks cost (:meth:`StructuredSolve._account`).
 REFRESH_ITERS = 25

@@ -101,3 +101,30 @@ def test_non_finite_residual_stops_with_diagnosis(which):
     else:
         r2 = newton(lambda x: (np.array([np.nan]), np.eye(1)), [0.0])
         assert r2.reason == "non-finite residual" and np.all(np.isfinite(r2.x))
+
+
+def test_lm_search_starts_from_the_damping_last_accepted():
+    """Marquardt's update: a second Levenberg–Marquardt search of the same solve starts at a
+    tenth of the ν the first accepted, not again at 1e-8·trace(JᵀJ)/n (a solve creeping along
+    a kink needs about the same ν at every step)."""
+    from workflow.solvers import _lm_search
+
+    class Lin:                       # a step that only lowers ‖R‖ once ν ≥ 1e3
+        tried = []
+
+        def lm_scale(self):
+            return 1.0
+
+        def lm_step(self, R, nu):
+            self.tried.append(nu)
+            return -R / (1.0 + nu) if nu >= 1e3 else R.copy()
+
+    fun = lambda z: z                                      # noqa: E731
+    x = np.array([1.0, -2.0])
+    ok, xt, Rt, nu = _lm_search(fun, Lin(), x, fun(x), np.linalg.norm(x), 1e-4, 20, [0])
+    assert ok and np.linalg.norm(Rt) < np.linalg.norm(x)
+    first = len(Lin.tried)
+    assert first == 12 and nu == pytest.approx(1e3)       # 1e-8, 1e-7, …, 1e3
+    Lin.tried.clear()
+    ok, _, _, nu2 = _lm_search(fun, Lin(), xt, fun(xt), np.linalg.norm(xt), 1e-4, 20, [0], nu_last=nu)
+    assert ok and Lin.tried == pytest.approx([1e2, 1e3]) and nu2 == pytest.approx(1e3)
