@@ -233,6 +233,17 @@ def _lm_search(fun, lin, x, R, norm, armijo, max_backtracks, count, nu_last=None
     return False, None, None, None
 
 
+#: A Newton solve stops as "stalled" when the last this many of a run of Levenberg–Marquardt
+#: steps (the Newton direction failed its line search each time) together cut ‖R‖ by less than
+#: 1/:data:`STALL_RATIO`: it creeps along a kink of the friction residual, and the budget runs
+#: out long before ‖R‖ reaches the tolerance at 1–10 % a step, while the cascade's next attempt
+#: (another start, another ε, Powell from the best iterate) gets round it. Measured on the
+#: 256-pair sector (HDHB Nh = 7, its resonance point): 24 such steps took ‖R‖ from 1859 to 283
+#: N, ~10 s, before the iteration budget ended the attempt; the next attempt converged in 6.
+STALL_LM_STEPS = 5
+STALL_RATIO = 0.5
+
+
 def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxiter: int = 50,
            max_backtracks: int = 20, armijo: float = 1e-4, lm_fallback: bool = True,
            reuse_ratio: float = 0.0, callback=None, linear=None) -> SolveResult:
@@ -246,7 +257,8 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     piecewise-smooth friction residual. Trial points use ``fun`` (residual
     only, cheaper) when given. If no step length decreases ‖R‖ (a kink),
     ``lm_fallback`` tries Levenberg–Marquardt steps of growing damping before
-    giving up with "line search failed".
+    giving up with "line search failed"; a run of them that makes no headway
+    stops the solve as "stalled" (:data:`STALL_LM_STEPS`).
 
     tol, scale: converged when ``‖R‖₂ ≤ tol·scale`` (see module docstring).
     reuse_ratio: if > 0, keep the factor of an earlier Jacobian (a chord
@@ -282,6 +294,7 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     history.append(norm)
     fresh = True        # the factor in ``lin`` is of J at x (False: a chord step)
     nu_last = None      # the damping the last Levenberg–Marquardt search accepted
+    creep: list = []    # ‖R‖ before each step of the current run of LM-only steps
     for it in range(maxiter + 1):
         if norm <= target:
             return done("converged", True, R, it)
@@ -300,8 +313,16 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
             return done("singular Jacobian", False, R, it)
         if not accepted and lm_fallback:
             accepted, xt, Rt, nu_last = _lm_search(fun, lin, x, R, norm, armijo, max_backtracks, nfev, nu_last)
+            creep.append(norm)
+        elif accepted:
+            creep = []
         if not accepted:
             return done("line search failed", False, R, it)
+        if len(creep) >= STALL_LM_STEPS and float(np.linalg.norm(Rt)) > STALL_RATIO * creep[-STALL_LM_STEPS]:
+            x = xt
+            history.append(float(np.linalg.norm(Rt)))
+            return done(f"stalled: the last {STALL_LM_STEPS} of {len(creep)} Levenberg–Marquardt steps in a "
+                        f"row cut ‖R‖ by less than {1 / STALL_RATIO:g}×", False, Rt, it + 1)
         x = xt
         if reuse_ratio > 0.0 and lin.reusable and float(np.linalg.norm(Rt)) <= reuse_ratio * norm:
             R, J, fresh = Rt, None, False            # chord step next: keep the factor

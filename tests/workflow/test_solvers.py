@@ -128,3 +128,25 @@ def test_lm_search_starts_from_the_damping_last_accepted():
     Lin.tried.clear()
     ok, _, _, nu2 = _lm_search(fun, Lin(), xt, fun(xt), np.linalg.norm(xt), 1e-4, 20, [0], nu_last=nu)
     assert ok and Lin.tried == pytest.approx([1e2, 1e3]) and nu2 == pytest.approx(1e3)
+
+
+def test_newton_creeping_on_levenberg_marquardt_steps_stops_as_stalled(monkeypatch):
+    """A Newton direction that fails its line search every time (here: a wrong Jacobian, as at
+    a kink of the friction residual, where the active branch's slope points the wrong way)
+    leaves only Levenberg–Marquardt steps, a few % each. The solve stops as "stalled" after
+    STALL_LM_STEPS of them, with the iterate it reached (the cascade's next attempt starts
+    there or elsewhere); with the rule switched off the path is the same up to that step (this
+    toy then escapes the bad region and converges at step 11: the rule trades such escapes
+    for the budget a creep would take on the sector)."""
+    import workflow.solvers as S
+
+    J = np.array([[1.0, 10.0], [0.0, 1.0]])    # R(x) = x: the true Jacobian is I
+    x0 = np.array([1.0, 1.0])
+    r = newton(lambda x: (x.copy(), J), x0, maxiter=50, tol=1e-10)
+    assert not r.converged and r.reason.startswith("stalled")
+    assert r.iterations == S.STALL_LM_STEPS and len(r.history) == r.iterations + 1
+    assert r.residual_norm == pytest.approx(np.linalg.norm(r.x)) and r.residual_norm < np.linalg.norm(x0)
+    assert r.history[-1] > S.STALL_RATIO * r.history[0]
+    monkeypatch.setattr(S, "STALL_LM_STEPS", 10 ** 9)
+    full = newton(lambda x: (x.copy(), J), x0, maxiter=50, tol=1e-10)
+    assert np.allclose(full.history[:len(r.history)], r.history, rtol=1e-12)
