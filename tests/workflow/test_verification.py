@@ -324,20 +324,33 @@ def test_stop_regime_point_without_neighbours_converges_by_continuation_in_nh():
     assert ref.stops and abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.15
 
 
-def test_a_point_lost_upwards_is_found_downwards_from_its_upper_neighbour():
+def test_a_point_lost_upwards_is_found_downwards_from_its_upper_neighbour(monkeypatch):
     """The sweep's second pass. Coulomb oscillator, μN/F0 = 0.7, ζ = 0.02, ε = 10⁴k, Nh = 15:
-    the first point (β = 0.5, stops) is lost from the linear guess through the whole cascade,
-    and found from its converged upper neighbour (β = 0.61) by the pass downwards. The root it
-    finds is the oscillator's: within the HB truncation of its stop-regime reference (measured
-    3.5 %)."""
+    with Newton allowed to creep on Levenberg–Marquardt steps to the end of its budget (the
+    solver before session 17), the first point (β = 0.5, stops) is lost from the linear guess
+    through the whole cascade, and found from its converged upper neighbour (β = 0.61) by the
+    pass downwards. With the default stall rule (:data:`workflow.solvers.STALL_LM_STEPS`) the
+    cascade finds it on the way up (continuation in Nh). Either root is the oscillator's:
+    within the HB truncation of its stop-regime reference (measured 3.5 %)."""
     from workflow import engine
+    import workflow.solvers as solvers
 
     r = 0.7
     model, spec = models.coulomb(M, K, 2 * 0.02, 1.0, 1.0, r)
     betas = np.array([0.5, 0.5 + 1.0 / 9.0])
     law = engine.contact_law(model, mu=r, eps_n=1e4 * K, eps_t=1e4 * K, omega_hz=1.0 / 2 / np.pi)
-    run = engine.frf(model, law, [engine.Variant("hbm", 15, 128)], freqs_hz=betas / 2 / np.pi,
-                     options=engine.FRFOptions(max_iterations=100, eps_check_factor=0.0, nh_check=False)).runs[0]
-    assert run.converged.all() and run.how[0].startswith("downwards-")
     ref = runner.reference(spec, betas[0])
-    assert ref.stops and abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.06
+    assert ref.stops
+
+    def sweep():
+        return engine.frf(model, law, [engine.Variant("hbm", 15, 128)], freqs_hz=betas / 2 / np.pi,
+                          options=engine.FRFOptions(max_iterations=100, eps_check_factor=0.0,
+                                                    nh_check=False)).runs[0]
+
+    run = sweep()
+    assert run.converged.all() and not run.how[0].startswith("downwards-")
+    assert abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.06
+    monkeypatch.setattr(solvers, "STALL_LM_STEPS", 10 ** 9)
+    run = sweep()
+    assert run.converged.all() and run.how[0].startswith("downwards-")
+    assert abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.06
