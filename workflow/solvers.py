@@ -244,41 +244,60 @@ STALL_LM_STEPS = 5
 STALL_RATIO = 0.5
 
 
+class _LMFallback:
+    """Newton's Levenberg–Marquardt fallback over one solve: the damping its last search
+    accepted (Marquardt's update, :func:`_lm_search`) and ‖R‖ before each step of the current
+    run of LM-only steps, which the stall rule watches (:data:`STALL_LM_STEPS`)."""
+
+    def __init__(self):
+        self.nu, self.creep = None, []
+
+    def after(self, accepted, xt, Rt, fun, lin, x, R, norm, armijo, max_backtracks, count):
+        """After a line search from x: its step if it found one (the LM run ends), else an LM
+        search. (accepted, x_trial, R_trial, "stalled: …" or None)."""
+        if accepted:
+            self.creep = []
+            return accepted, xt, Rt, None
+        ok, xt, Rt, self.nu = _lm_search(fun, lin, x, R, norm, armijo, max_backtracks, count, self.nu)
+        self.creep.append(norm)
+        n = len(self.creep)
+        if ok and n >= STALL_LM_STEPS and float(np.linalg.norm(Rt)) > STALL_RATIO * self.creep[-STALL_LM_STEPS]:
+            return ok, xt, Rt, (f"stalled: the last {STALL_LM_STEPS} of {n} Levenberg–Marquardt steps in a row "
+                                f"cut ‖R‖ by less than {1 / STALL_RATIO:g}×")
+        return ok, xt, Rt, None
+
+
 def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxiter: int = 50,
            max_backtracks: int = 20, armijo: float = 1e-4, lm_fallback: bool = True,
            reuse_ratio: float = 0.0, callback=None, linear=None) -> SolveResult:
     """Newton–Raphson with backtracking line search on ‖R‖₂.
 
     Each step solves ``J dx = −R`` with ``linear`` (default :class:`DenseLU`;
-    :class:`workflow.linsolve.StructuredSolve` for a matrix-free J from
+    :class:`workflow.linsolve.StructuredSolve` for the matrix-free J of
     :meth:`workflow.hb.HBProblem.residual_operator`) and halves the step until
-    ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖`` — a sufficient decrease of the
-    residual norm, which keeps Newton from cycling across the kinks of the
-    piecewise-smooth friction residual. Trial points use ``fun`` (residual
-    only, cheaper) when given. If no step length decreases ‖R‖ (a kink),
-    ``lm_fallback`` tries Levenberg–Marquardt steps of growing damping before
-    giving up with "line search failed"; a run of them that makes no headway
-    stops the solve as "stalled" (:data:`STALL_LM_STEPS`).
+    ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖``, which keeps Newton from cycling
+    across the kinks of the friction residual; trial points use ``fun``
+    (residual only) when given. Where no step length decreases ‖R‖ (a kink),
+    ``lm_fallback`` tries Levenberg–Marquardt steps ("line search failed" if
+    none does); a run of them that makes no headway stops the solve as
+    "stalled" (:class:`_LMFallback`).
 
-    tol, scale: converged when ``‖R‖₂ ≤ tol·scale`` (see module docstring).
-    reuse_ratio: if > 0, keep the factor of an earlier Jacobian (a chord
-    step, no new Jacobian) while each accepted step cuts ‖R‖ by at least
-    this factor; a fresh Jacobian otherwise, or when a stale direction fails
-    the line search. Pays where forming and factoring J dominates (large Nh)
-    and Newton converges only linearly anyway (non-smooth friction residual).
-    callback(it, x, norm) is called after every accepted step.
+    tol, scale: converged when ``‖R‖₂ ≤ tol·scale`` (module docstring).
+    reuse_ratio: if > 0, keep the factor of an earlier Jacobian (a chord step)
+    while each accepted step cuts ‖R‖ by at least this factor; a fresh one
+    otherwise, or when a stale direction fails the line search — pays where
+    forming and factoring J dominates (large Nh) and Newton converges only
+    linearly anyway. callback(it, x, norm): after every accepted step.
     """
     t0 = time.perf_counter()
     x = np.array(x0, dtype=float)
     fun = fun if fun is not None else (lambda z: fun_jac(z)[0])
     lin = DenseLU() if linear is None else linear
     nfev, nje = [0], [0]
-    history: list[float] = []
-    target = tol * scale
+    history: list[float] = []       # ‖R‖ of x0 and of every accepted iterate
 
     def jac(z):
-        nfev[0] += 1
-        nje[0] += 1
+        nfev[0], nje[0] = nfev[0] + 1, nje[0] + 1
         return fun_jac(z)
 
     def done(reason, conv, R, it):
@@ -293,10 +312,9 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     norm = float(np.linalg.norm(R))
     history.append(norm)
     fresh = True        # the factor in ``lin`` is of J at x (False: a chord step)
-    nu_last = None      # the damping the last Levenberg–Marquardt search accepted
-    creep: list = []    # ‖R‖ before each step of the current run of LM-only steps
+    lm = _LMFallback() if lm_fallback else None
     for it in range(maxiter + 1):
-        if norm <= target:
+        if norm <= tol * scale:
             return done("converged", True, R, it)
         if it == maxiter:
             return done("max iterations", False, R, it)
@@ -305,25 +323,19 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
         dx = lin.solve(R)
         accepted, xt, Rt = (False, None, None) if dx is None else \
             _line_search(fun, x, dx, norm, armijo, max_backtracks, nfev)
-        if not accepted and not fresh:
-            # a chord direction from a stale Jacobian failed: refresh it and try again
+        if not accepted and not fresh:      # a chord direction failed: refresh J, try again
             (R, J), fresh = jac(x), True
             continue
         if dx is None:
             return done("singular Jacobian", False, R, it)
-        if not accepted and lm_fallback:
-            accepted, xt, Rt, nu_last = _lm_search(fun, lin, x, R, norm, armijo, max_backtracks, nfev, nu_last)
-            creep.append(norm)
-        elif accepted:
-            creep = []
+        accepted, xt, Rt, stall = (accepted, xt, Rt, None) if lm is None else \
+            lm.after(accepted, xt, Rt, fun, lin, x, R, norm, armijo, max_backtracks, nfev)
         if not accepted:
             return done("line search failed", False, R, it)
-        if len(creep) >= STALL_LM_STEPS and float(np.linalg.norm(Rt)) > STALL_RATIO * creep[-STALL_LM_STEPS]:
-            x = xt
-            history.append(float(np.linalg.norm(Rt)))
-            return done(f"stalled: the last {STALL_LM_STEPS} of {len(creep)} Levenberg–Marquardt steps in a "
-                        f"row cut ‖R‖ by less than {1 / STALL_RATIO:g}×", False, Rt, it + 1)
         x = xt
+        if stall is not None:
+            history.append(float(np.linalg.norm(Rt)))
+            return done(stall, False, Rt, it + 1)
         if reuse_ratio > 0.0 and lin.reusable and float(np.linalg.norm(Rt)) <= reuse_ratio * norm:
             R, J, fresh = Rt, None, False            # chord step next: keep the factor
         else:
