@@ -354,3 +354,57 @@ def test_a_point_lost_upwards_is_found_downwards_from_its_upper_neighbour(monkey
     run = sweep()
     assert run.converged.all() and run.how[0].startswith("downwards-")
     assert abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.06
+
+
+def _coulomb_sweep(r, zeta, nh, nit, betas):
+    """The project's default sweep (automatic penalty, engine defaults) of the Coulomb
+    oscillator over ``betas`` (ω/ω_n, in that order)."""
+    from workflow import engine
+
+    model, spec = models.coulomb(M, K, 2 * zeta, 1.0, 1.0, r)
+    betas = np.asarray(betas, float)
+    law = engine.contact_law(model, mu=spec.mu, omega_hz=1.0 / 2 / np.pi)
+    opt = engine.FRFOptions(max_iterations=100, eps_check_factor=0.0, nh_check=False)
+    return engine.frf(model, law, [engine.Variant("hbm", nh, nit)], freqs_hz=betas / 2 / np.pi,
+                      options=opt).runs[0], spec
+
+
+def test_a_point_lost_both_ways_is_approached_in_frequency_steps(monkeypatch):
+    """The sweep's last pass (:func:`workflow.engine.frf._approach`). Coulomb oscillator,
+    μN/F0 = 0.7, ζ = 0, Nh = 5, nit = 64: the first point (β = 0.5, the mass sticking twice a
+    period) is lost from the linear guess through the whole cascade and from β = 0.61 by the
+    pass downwards — the truncated HB curve folds between the two. Four steps of frequency
+    from β = 0.61 reach it, and it is the root an independent, finer continuation reaches
+    (β = 0.61 → 0.5 by steps of ≈ 0.02, solved point by point)."""
+    import importlib
+
+    sweeps = importlib.import_module("workflow.engine.frf")   # the module, not engine.frf the function
+    betas = [0.5, 0.5 + 1.0 / 9.0, 0.5 + 2.0 / 9.0]
+    run, spec = _coulomb_sweep(0.7, 0.0, 5, 64, betas)
+    assert run.converged.all() and run.how[0].startswith("approached-")
+    fine, _ = _coulomb_sweep(0.7, 0.0, 5, 64, [0.6111, 0.59, 0.57, 0.55, 0.53, 0.51, 0.5])
+    assert fine.converged.all()
+    assert run.amplitude[0] == pytest.approx(fine.amplitude[-1], rel=1e-7)
+    ref = runner.reference(spec, 0.5)
+    assert ref.stops
+    # the HB answer at Nh = 5, not the oscillator's: the stop regime's truncation (measured 21 %)
+    assert abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.3
+    monkeypatch.setattr(sweeps, "APPROACH_STEPS", 0)
+    run, _ = _coulomb_sweep(0.7, 0.0, 5, 64, betas)
+    assert not run.converged[0] and run.converged[1:].all()
+
+
+def test_a_point_without_a_root_nearby_is_found_from_twice_the_time_samples():
+    """The cascade's smooth guess for a variant sampled at nit ≥ 64: HBM at 2·nit. Coulomb
+    oscillator, μN/F0 = 0.5, ζ = 0.02, Nh = 7, nit = 64, β = 0.5 (stops): every other attempt
+    stalls (‖R‖/‖F‖ ≈ 1e-2 from the linear guess, from β = 0.61, from frequency steps); from
+    the nit = 128 root Newton converges. The root is the nit = 64 discretisation of the same
+    motion: its first harmonic within 0.2 % of the nit = 128 one (measured 0.11 %), and within
+    the stop regime's HB truncation of the oscillator's (measured 6.3 %)."""
+    run, spec = _coulomb_sweep(0.5, 0.02, 7, 64, [0.5, 0.5 + 1.0 / 9.0])
+    assert run.converged.all() and run.how[0] == "smooth"
+    fine, _ = _coulomb_sweep(0.5, 0.02, 7, 128, [0.5])
+    assert fine.converged[0]
+    assert run.amplitude[0] == pytest.approx(fine.amplitude[0], rel=2e-3)
+    ref = runner.reference(spec, 0.5)
+    assert ref.stops and abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.1

@@ -20,6 +20,9 @@ from workflow.sweep import secant_guesses
 
 #: samples per period for the max-over-period amplitude.
 PERIOD_SAMPLES = 128
+#: frequency steps from a converged neighbour to a point both sweep passes lost
+#: (:func:`_approach`; 0: no such pass).
+APPROACH_STEPS = 4
 
 
 @dataclass
@@ -75,8 +78,12 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     anchor is carried into every solve; its state seeds the first guess).
     ``progress`` wraps the frequency loop (e.g. ``log.progress``).
     ``smooth_nit``: variants with fewer samples fall back on a guess from
-    HBM with this many (see :func:`workflow.engine.cascade.solve_point`); its cost is charged to
-    the variant.
+    HBM with this many, the others on one from HBM with twice their own (see
+    :func:`workflow.engine.cascade.solve_point`); its cost is charged to the variant. The
+    DLFT residual on a finer time grid has more but smaller kinks: on the Coulomb oscillator
+    (μN/F0 = 0.5, ζ = 0.02, β = 0.5, stops, Nh = 7) the nit = 64 point lost by every other
+    attempt and both sweep passes converges from the nit = 128 root (the nit = 32 and 80
+    roots do not reach it).
     ``seeds`` (optional, one per frequency): complex harmonics (≥1, 3p) of
     U_r from another solve at that frequency (e.g. a lower Nh), tried first;
     missing harmonics are zero. ``eps_path``, ``pseudo``: see
@@ -117,14 +124,14 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
             guesses.append(prob.unknowns_from_harmonics(U))
         below = [(cond[j].omega, xs[j]) for j in range(i) if xs[j] is not None][-2:]
         guesses += secant_guesses(below, c.omega) or [prob.x0()]     # no neighbour: static + tied linear response
-        smooth = None
-        if v.nit < smooth_nit:
-            def smooth(c=c, guess=guesses[-1], prob=prob):
-                sp = HBProblem(c.Zr, c.Fr, law, v.nh, smooth_nit, "hbm", max_passes=max_passes, static=static)
-                pr = solve_point(sp, [sp.unknowns_from_harmonics(prob.harmonics(guess))], solver=solver,
-                                 tol=tol, maxiter=maxiter, eps_path=eps_path, pseudo=pseudo)
-                return (prob.unknowns_from_harmonics(sp.harmonics(pr.result.x)) if pr.converged else None), \
-                    pr.iterations
+        snit = smooth_nit if v.nit < smooth_nit else 2 * v.nit
+
+        def smooth(c=c, guess=guesses[-1], prob=prob):
+            sp = HBProblem(c.Zr, c.Fr, law, v.nh, snit, "hbm", max_passes=max_passes, static=static)
+            pr = solve_point(sp, [sp.unknowns_from_harmonics(prob.harmonics(guess))], solver=solver,
+                             tol=tol, maxiter=maxiter, eps_path=eps_path, pseudo=pseudo)
+            return (prob.unknowns_from_harmonics(sp.harmonics(pr.result.x)) if pr.converged else None), \
+                pr.iterations
         pr = solve_point(prob, guesses, solver=solver, tol=tol, maxiter=maxiter, smooth=smooth, eps_path=eps_path,
                          pseudo=pseudo)
         _record(out, i, rc, prob, c.omega, pr, time.perf_counter() - t0)
@@ -132,8 +139,9 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
             xs[i] = pr.result.x
         out.dlft_max_passes = max(out.dlft_max_passes, prob.stats["max_passes"])
     if prob is not None:
-        _downwards(out, rc, cond, xs, prob, solver=solver, tol=tol, maxiter=maxiter, eps_path=eps_path,
-                   pseudo=pseudo)
+        kw = dict(solver=solver, tol=tol, maxiter=maxiter, eps_path=eps_path, pseudo=pseudo)
+        _downwards(out, rc, cond, xs, prob, **kw)
+        _approach(out, rc, cond, xs, prob, **kw)
     out.total_seconds = time.perf_counter() - t_all
     out.cpu_seconds = time.process_time() - c_all
     return out
@@ -158,6 +166,47 @@ def _downwards(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> 
             xs[i] = pr.result.x
         else:
             out.iterations[i] += pr.iterations
+            out.seconds[i] += time.perf_counter() - t0
+
+
+def _approach(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> None:
+    """The sweep's last pass: a point lost both ways is approached from its converged lower,
+    then upper, neighbour in :data:`APPROACH_STEPS` equal steps of frequency, each solved from
+    the last two roots (secant) through the cascade; the intermediate points are condensed
+    here and not kept. A grid step can jump a fold of the truncated HB curve that a shorter
+    step follows: the Coulomb oscillator at μN/F0 = 0.7, ζ = 0, β = 0.5 (the mass sticking
+    twice a period), Nh = 5, nit = 64, lost from β = 0.611 both ways, converges by four
+    steps (``tests/workflow/test_verification.py``). ``solve_kw``: :func:`solve_point`'s."""
+    from reduction.condense import condense
+
+    if APPROACH_STEPS < 1:
+        return
+    n = len(cond)
+    for i in range(n):
+        if out.converged[i]:
+            continue
+        t0, its = time.perf_counter(), 0
+        for j in (i - 1, i + 1):
+            if not 0 <= j < n or xs[j] is None:
+                continue
+            path = [(cond[j].omega, xs[j])]
+            steps = np.linspace(cond[j].omega, cond[i].omega, APPROACH_STEPS + 1)[1:]
+            for k, w in enumerate(steps):
+                c = cond[i] if k == len(steps) - 1 else condense(rc, float(w), cond[i].nh)
+                q = prob.with_linear(c.Zr, c.Fr)
+                pr = solve_point(q, secant_guesses(path[-2:], float(w)), **solve_kw)
+                its += pr.iterations
+                if not pr.converged:
+                    break
+                path.append((float(w), pr.result.x))
+            if pr.converged:
+                pr = replace(pr, how=f"approached-{pr.how}")
+                _record(out, i, rc, q, cond[i].omega, pr, out.seconds[i] + time.perf_counter() - t0,
+                        its=out.iterations[i] + its - pr.iterations)
+                xs[i] = pr.result.x
+                break
+        if not out.converged[i]:
+            out.iterations[i] += its
             out.seconds[i] += time.perf_counter() - t0
 
 
