@@ -7,7 +7,10 @@ band (±10 %).
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
+import scipy.linalg
 
 from workflow.errors import BundleError, SceneError
 
@@ -66,9 +69,16 @@ def _solve_or_inf(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     undamped resonance exactly on a frequency point: no bounded response)."""
     if b.size == 0:
         return b.astype(complex)
-    if np.linalg.cond(A) > 1e14:
+    # LAPACK's estimate of the reciprocal 1-norm condition from the LU it solves with: an SVD
+    # for cond(A) took 8 s of a 512-pair sweep's 190 (64 ms a point)
+    with warnings.catch_warnings():     # exactly singular: rcond = 0 below says so
+        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+        lu, piv = scipy.linalg.lu_factor(A, check_finite=False)
+    gecon, = scipy.linalg.lapack.get_lapack_funcs(("gecon",), (lu,))
+    rcond, info = gecon(lu, float(np.linalg.norm(A, 1)))
+    if info != 0 or not rcond > 1e-14:
         return np.full(b.shape, np.inf, dtype=complex)
-    return np.linalg.solve(A, b)
+    return scipy.linalg.lu_solve((lu, piv), b, check_finite=False)
 
 
 def linear_frfs(rc, cond: list, static) -> tuple[np.ndarray, np.ndarray]:
