@@ -12,7 +12,8 @@ each (method, solver) sweeps a fixed band through the first tied resonance
 peak memory (``ru_maxrss``) is its own. The row: pairs, unknowns
 ``(2Nh+1)·3·pairs``, method, solver, Newton's linear solve (automatic,
 :func:`workflow.engine.cascade.linear_solver`), seconds per converged point,
-iterations, peak memory, converged/points. Before a pair count, the peak
+iterations, peak memory, converged/points, and the seconds per frequency of
+condensing the band (``condense_s_per_point``, not in ``s_per_point``). Before a pair count, the peak
 memory is extrapolated from the two previous counts (power law); the study
 stops there if it exceeds ``max_gb`` (as :mod:`workflow.bench.scaling`).
 
@@ -101,7 +102,10 @@ def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: i
     return dict(pairs=int(model.n_pairs), unknowns=(2 * nh + 1) * 3 * int(model.n_pairs), method=method, nh=nh,
                 nit=nit, solver=solver, linear_solver=r.linear_solver,
                 s_per_point=float(r.total_seconds / conv) if conv else float("nan"),
-                seconds=float(r.total_seconds), iterations=int(np.sum(r.iterations)),
+                seconds=float(r.total_seconds),
+                # what a user pays besides the sweep: condensing the band, per frequency
+                condense_s_per_point=float(st.condense_seconds / len(r.freqs_hz)),
+                iterations=int(np.sum(r.iterations)),
                 peak_gb=(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2),
                 converged=conv, points=len(r.freqs_hz), peak_amplitude_m=float(np.nanmax(
                     np.where(r.converged, r.amplitude, np.nan))) if conv else float("nan"))
