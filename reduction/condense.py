@@ -36,9 +36,9 @@ from scipy.linalg.blas import zsyrk
 
 from reduction.reduced import ReducedModel
 
-#: Condense through the tied structure's modes (:func:`tied_modes`) wherever the damping is
+#: Condense through the tied structure's modes (:func:`tied_basis`) wherever the damping is
 #: Rayleigh; False: one LU of ``D'_yy`` per harmonic everywhere (the reference path of the tests).
-TIED_MODES = True
+TIED_BASIS = True
 #: ‖C' − αM' − βK'‖_F / ‖C'‖_F at or below which C counts as Rayleigh damping. The project's
 #: own bundles (``damping.alpha``, ``beta``, ``modal_ratio``: C = αM + βK before the reduction,
 #: which is linear) reduce to 4e-14…5e-14 (quick and interface-scaling sectors).
@@ -59,7 +59,7 @@ class RelativeCoordinates:
     f_harmonic: np.ndarray
     O: np.ndarray  # O T: z → observed DOFs
     n_rel: int  # 3p
-    # :func:`tied_modes`, made on first use: None not yet, False not applicable
+    # :func:`tied_basis`, made on first use: None not yet, False not applicable
     tied: object = field(default=None, repr=False, compare=False)
 
     def harmonic(self, j: int) -> "RelativeCoordinates":
@@ -107,7 +107,7 @@ class CyclicRelativeCoordinates:
 
 
 @dataclass
-class TiedModes:
+class TiedBasis:
     """The tied structure ``D'_yy`` diagonalised once per model (real K, M; Rayleigh C).
 
     ``M_yy Φ = K_yy Φ diag(μ)`` with ``Φᵀ K_yy Φ = I`` (μ = 1/ω_k² of the tied modes, s²).
@@ -131,18 +131,18 @@ class TiedModes:
     PM: np.ndarray
 
 
-def tied_modes(rc: RelativeCoordinates) -> TiedModes | None:
-    """:class:`TiedModes` of ``rc`` (made once, kept on ``rc.tied``), or None where the
-    condensation keeps its LU per harmonic: :data:`TIED_MODES` off, a complex (cyclic) or
+def tied_basis(rc: RelativeCoordinates) -> TiedBasis | None:
+    """:class:`TiedBasis` of ``rc`` (made once, kept on ``rc.tied``), or None where the
+    condensation keeps its LU per harmonic: :data:`TIED_BASIS` off, a complex (cyclic) or
     non-Rayleigh model, nothing to condense, or a K_yy that is not positive definite."""
-    if not TIED_MODES:
+    if not TIED_BASIS:
         return None
     if rc.tied is None:
-        rc.tied = _tied_modes(rc) or False
+        rc.tied = _tied_basis(rc) or False
     return rc.tied or None
 
 
-def _tied_modes(rc: RelativeCoordinates) -> TiedModes | None:
+def _tied_basis(rc: RelativeCoordinates) -> TiedBasis | None:
     r, n = rc.n_rel, rc.K.shape[0]
     K, M, C = rc.K, rc.M, rc.C
     if n == r or not all(np.isrealobj(a) for a in (K, M, C)):
@@ -155,11 +155,11 @@ def _tied_modes(rc: RelativeCoordinates) -> TiedModes | None:
         mu, Phi = sla.eigh(M[r:, r:], K[r:, r:], check_finite=False)
     except (np.linalg.LinAlgError, ValueError):   # K_yy not positive definite
         return None
-    return TiedModes(alpha=float(alpha), beta=float(beta), mu=mu, Phi=Phi, PK=K[:r, r:] @ Phi,
+    return TiedBasis(alpha=float(alpha), beta=float(beta), mu=mu, Phi=Phi, PK=K[:r, r:] @ Phi,
                      PM=M[:r, r:] @ Phi)
 
 
-def _ab(tm: TiedModes, w: float):
+def _ab(tm: TiedBasis, w: float):
     """(a, b) of ``D = aK − bM`` at w = jω [rad/s], and their derivatives in w."""
     return 1 + 1j * w * tm.beta, w * w - 1j * w * tm.alpha, 1j * tm.beta, 2 * w - 1j * tm.alpha
 
@@ -188,7 +188,7 @@ def relative_coordinates(model):
     cyclic model (:class:`CyclicRelativeCoordinates`): the one place that
     tells the two apart.
 
-    A model's coordinates (and their :func:`tied_modes`) are made once and kept while the
+    A model's coordinates (and their :func:`tied_basis`) are made once and kept while the
     model lives and holds the same arrays (a stage asks for them in the penalty choice, the
     sweep and the checks: 6 s a time at 512 pairs). Its arrays are never modified in place
     (``dataclasses.replace`` makes a new model)."""
@@ -283,7 +283,7 @@ def condense(rc, omega: float, nh: int, derivative: bool = False) -> Condensed:
 
 def _condense_harmonic(rc: RelativeCoordinates, j: int, omega: float, derivative: bool):
     """(Z_r, F_r[, dZ_r/dω, dF_r/dω]) of harmonic j: the Schur complement onto u_r."""
-    tm = tied_modes(rc)
+    tm = tied_basis(rc)
     if tm is not None:
         out = _condense_modal(rc, tm, j, omega, derivative)
         if out is not None:
@@ -314,8 +314,8 @@ def _condense_harmonic(rc: RelativeCoordinates, j: int, omega: float, derivative
     return Z, F, dZ, dF
 
 
-def _condense_modal(rc: RelativeCoordinates, tm: TiedModes, j: int, omega: float, derivative: bool):
-    """:func:`_condense_harmonic` through :class:`TiedModes`; None at an undamped tied
+def _condense_modal(rc: RelativeCoordinates, tm: TiedBasis, j: int, omega: float, derivative: bool):
+    """:func:`_condense_harmonic` through :class:`TiedBasis`; None at an undamped tied
     resonance (a − bμ = 0), which the LU path reports as singular."""
     r = rc.n_rel
     a, b, da, db = _ab(tm, j * omega)
@@ -360,8 +360,8 @@ def recover(rc, omega: float, Ur: np.ndarray) -> np.ndarray:
 
 
 def _tied_response(rc: RelativeCoordinates, j: int, omega: float, f: np.ndarray, u: np.ndarray):
-    """``y = D'_yy⁻¹ (f_y − D'_yr u)`` through :class:`TiedModes` (None where they do not apply)."""
-    tm = tied_modes(rc)
+    """``y = D'_yy⁻¹ (f_y − D'_yr u)`` through :class:`TiedBasis` (None where they do not apply)."""
+    tm = tied_basis(rc)
     if tm is None:
         return None
     r = rc.n_rel

@@ -103,7 +103,7 @@ def _both_paths(monkeypatch, rc, omega, nh, Ur=None):
 
     out = []
     for modal in (True, False):
-        monkeypatch.setattr(cd, "TIED_MODES", modal)
+        monkeypatch.setattr(cd, "TIED_BASIS", modal)
         rc.tied = None
         c = condense(rc, omega, nh, derivative=True)
         out.append((c, None if Ur is None else recover(rc, omega, Ur)))
@@ -116,7 +116,7 @@ def _close(a, b, rtol, floor=0.0):
     assert np.abs(a - b).max() <= rtol * max(np.abs(b).max(), floor)
 
 
-def test_tied_modes_condense_a_reduced_sector_as_the_lu_does(rotating_bundle, monkeypatch):
+def test_the_tied_basis_condenses_a_reduced_sector_as_the_lu_does(rotating_bundle, monkeypatch):
     """The project's own bundle (modal damping: C = βK before the reduction) is Rayleigh after
     it, so the condensation goes through the tied modes; Z_r, F_r, their ω-derivatives and the
     recovered response equal the LU path's statically, at the first tied frequency (the worst
@@ -126,7 +126,7 @@ def test_tied_modes_condense_a_reduced_sector_as_the_lu_does(rotating_bundle, mo
 
     bundle, summary, _ = rotating_bundle
     rc = relative_coordinates(reduce_bundle(bundle, 10))
-    tm = cd.tied_modes(rc)
+    tm = cd.tied_basis(rc)
     assert tm is not None and tm.alpha == pytest.approx(0.0, abs=1e-9) and tm.beta > 0
     f1 = summary["first_tied_hz"]
     rng = np.random.default_rng(0)
@@ -152,7 +152,7 @@ def test_a_damping_that_is_not_rayleigh_keeps_the_lu():
     A = rng.standard_normal(model.C.shape)
     model.C = model.C + 1e-3 * (A + A.T)
     rc = relative_coordinates(model)
-    assert cd.tied_modes(rc) is None and rc.tied is False
+    assert cd.tied_basis(rc) is None and rc.tied is False
     omega = 2.9
     c = condense(rc, omega, nh=1)
     D = model.K - omega ** 2 * model.M + 1j * omega * model.C

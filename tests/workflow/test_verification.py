@@ -355,7 +355,7 @@ def test_a_point_lost_upwards_is_found_downwards_from_its_upper_neighbour(monkey
     # round-off (the oscillator's one interior DOF) and Powell finds the point on the way up
     import reduction.condense as cd
 
-    monkeypatch.setattr(cd, "TIED_MODES", False)
+    monkeypatch.setattr(cd, "TIED_BASIS", False)
     run = sweep()
     assert run.converged.all() and run.how[0].startswith("downwards-")
     assert abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.06
