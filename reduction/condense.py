@@ -142,6 +142,12 @@ def tied_basis(rc: RelativeCoordinates) -> TiedBasis | None:
     return rc.tied or None
 
 
+def condensation(rc) -> str:
+    """Which path :func:`condense` takes for ``rc``: "tied basis" or "LU per harmonic"."""
+    return "tied basis" if isinstance(rc, RelativeCoordinates) and tied_basis(rc) is not None \
+        else "LU per harmonic"
+
+
 def _tied_basis(rc: RelativeCoordinates) -> TiedBasis | None:
     r, n = rc.n_rel, rc.K.shape[0]
     K, M, C = rc.K, rc.M, rc.C

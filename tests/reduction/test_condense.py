@@ -128,6 +128,7 @@ def test_the_tied_basis_condenses_a_reduced_sector_as_the_lu_does(rotating_bundl
     rc = relative_coordinates(reduce_bundle(bundle, 10))
     tm = cd.tied_basis(rc)
     assert tm is not None and tm.alpha == pytest.approx(0.0, abs=1e-9) and tm.beta > 0
+    assert cd.condensation(rc) == "tied basis"
     f1 = summary["first_tied_hz"]
     rng = np.random.default_rng(0)
     Ur = 1e-6 * (rng.standard_normal((4, rc.n_rel)) + 1j * rng.standard_normal((4, rc.n_rel)))
@@ -153,6 +154,7 @@ def test_a_damping_that_is_not_rayleigh_keeps_the_lu():
     model.C = model.C + 1e-3 * (A + A.T)
     rc = relative_coordinates(model)
     assert cd.tied_basis(rc) is None and rc.tied is False
+    assert cd.condensation(rc) == "LU per harmonic"
     omega = 2.9
     c = condense(rc, omega, nh=1)
     D = model.K - omega ** 2 * model.M + 1j * omega * model.C

@@ -167,6 +167,7 @@ class FRFStudy:
     static: object
     law: object
     condense_seconds: float
+    condensation: str = ""                      # reduction.condense.condensation: the path it took
     eps_check: dict = field(default_factory=dict)
     nh_check: dict = field(default_factory=dict)
     reference_convergence: dict | None = None
@@ -270,7 +271,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
     themselves (swept in the order given). Returns the :class:`FRFStudy`
     (None on MPI ranks other than 0).
     """
-    from reduction.condense import relative_coordinates
+    from reduction.condense import condensation, relative_coordinates
     from workflow.solvers import blas_threads
 
     opt = options or FRFOptions()
@@ -307,7 +308,8 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
         tied = f"#{mode_index + 1} at {f_mode:.2f} Hz" if f_mode is not None else "none"
         log.info(f"{model.n_pairs} contact pairs, {model.size} reduced DOFs; first excited tied mode "
                  f"{tied}; band {f0:.2f}–{f1:.2f} Hz, {len(freqs)} points; "
-                 f"condensation to Nh = {nh_max}: {t_cond:.2f} s; {penalty.describe(law)}; static state: "
+                 f"condensation to Nh = {nh_max} ({condensation(rc)}): {t_cond:.2f} s; {penalty.describe(law)}; "
+                 "static state: "
                  f"{int(np.count_nonzero(static.state))}/{model.n_pairs} pairs in contact")
     tied, sliding = linear_frfs(rc, cond, static)
     with blas_threads(1):   # small dense systems: threads only add spinning CPU time
@@ -323,7 +325,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
         study = FRFStudy(freqs_hz=freqs, band_hz=(f0, f1), tied_hz=f_mode,
                          tied_mode=None if mode_index is None else mode_index + 1, runs=runs,
                          reference=ref, tied=tied, sliding=sliding, static=static, law=law,
-                         condense_seconds=t_cond)
+                         condense_seconds=t_cond, condensation=condensation(rc))
         _check(study, rc, cond, opt, log)
         if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:
             study.peak = _refined_peak(rc, law, static, ref if ref is not None else _most_harmonics(runs), opt,

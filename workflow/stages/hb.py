@@ -153,6 +153,7 @@ def summarise(study, scene) -> dict:
         "excitation_amplitude_N": None if "excitation" in getattr(scene, "unused", ()) else
         float(scene["excitation"].amplitude),
         "condense_seconds": round(study.condense_seconds, 4),
+        "condensation": study.condensation,
         "unconverged": study.unconverged(),
         "warnings": study.warnings(),
     })
