@@ -160,3 +160,19 @@ def test_a_damping_that_is_not_rayleigh_keeps_the_lu():
     D = model.K - omega ** 2 * model.M + 1j * omega * model.C
     Zr = np.linalg.inv(model.B @ np.linalg.inv(D) @ model.B.T)
     np.testing.assert_allclose(c.Zr[1], Zr, rtol=1e-9, atol=1e-9 * np.abs(Zr).max())
+
+
+def test_the_tied_frequencies_come_from_the_condensations_basis(rotating_bundle, monkeypatch):
+    """`workflow.engine.linear.tied_modes` reads the tied basis instead of solving the same
+    eigenproblem again: the same frequencies and modal responses as its own eigh(K_yy, M_yy)."""
+    import reduction.condense as cd
+    from reduction.reduce import reduce_bundle
+    from workflow.engine.linear import tied_modes
+
+    rc = relative_coordinates(reduce_bundle(rotating_bundle[0], 10))
+    assert cd.tied_basis(rc) is not None
+    f, s = tied_modes(rc)
+    monkeypatch.setattr(cd, "TIED_BASIS", False)
+    f0, s0 = tied_modes(rc)
+    np.testing.assert_allclose(f, f0, rtol=1e-9)
+    np.testing.assert_allclose(s, s0, atol=1e-9)
