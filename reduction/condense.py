@@ -325,14 +325,18 @@ def _condense_modal(rc: RelativeCoordinates, tm: TiedBasis, j: int, omega: float
     resonance (a − bμ = 0), which the LU path reports as singular."""
     r = rc.n_rel
     a, b, da, db = _ab(tm, j * omega)
-    d = 1.0 / (a - b * tm.mu) if np.all(a - b * tm.mu != 0) else None
-    if d is None or not np.all(np.isfinite(d)):
+    den = a - b * tm.mu
+    if not np.all(den != 0):
+        return None
+    d = 1.0 / den
+    if not np.all(np.isfinite(d)):
         return None
     P = a * tm.PK - b * tm.PM
     up = np.triu(zsyrk(1.0, P * np.sqrt(d), trans=0, lower=0))   # P diag(d) Pᵀ, complex symmetric
     Z = a * rc.K[:r, :r] - b * rc.M[:r, :r] - up - np.triu(up, 1).T
     f = harmonic_load(rc, j)
-    g = d * (tm.Phi.T @ f[r:])                                    # diag(d) Φᵀ f_y
+    h = tm.Phi.T @ f[r:]                                          # Φᵀ f_y
+    g = d * h
     F = f[:r] - P @ g
     if not derivative:
         return Z, F
@@ -341,7 +345,7 @@ def _condense_modal(rc: RelativeCoordinates, tm: TiedBasis, j: int, omega: float
     dd = -(da - db * tm.mu) * d * d
     Pd = P * d
     dZ = j * (da * rc.K[:r, :r] - db * rc.M[:r, :r] - dP @ Pd.T - Pd @ dP.T - (P * dd) @ P.T)
-    dF = j * -(dP @ g + P @ (dd * (tm.Phi.T @ f[r:])))
+    dF = j * -(dP @ g + P @ (dd * h))
     return Z, F, dZ, dF
 
 
