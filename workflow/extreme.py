@@ -47,6 +47,7 @@ from reduction.condense import condense, relative_coordinates
 from reduction.reduced import ReducedModel
 from workflow.contact import SEPARATION, SLIP, STICK, ContactLaw
 from workflow.engine import penalty
+from workflow.engine.linear import tied_modes
 from workflow.errors import BladewearError
 from workflow.hb import HBProblem
 from workflow.lumped import pairs_on_block
@@ -184,8 +185,7 @@ def setup(model: ReducedModel, settings: Settings | None = None) -> Setup:
     s = settings or Settings()
     model.validate()
     rc = relative_coordinates(model)
-    r = rc.n_rel
-    ft = _eig_freqs(rc.K[r:, r:], rc.M[r:, r:])
+    ft = 2 * np.pi * tied_modes(rc)[0]      # the FRF's and the wear's tied frequencies, not a second eigh
     omega_tied = float(ft[ft > 1e-6 * max(ft.max(), 1.0)][0])
     ff = _eig_freqs(rc.K, rc.M)
     above = ff[ff > 1.05 * omega_tied]
