@@ -53,6 +53,9 @@ from workflow.solvers import newton
 
 #: times the reference march halves a block whose HB solve fails before it stops
 MAX_BLOCK_HALVINGS = 4
+#: the implicit reference block's wear equation ``W_n = W + N·rate(W_n)`` holds to this
+#: fraction of max W when the block is accepted (:func:`_reference_block`)
+W_EQ_TOL = 1e-6
 
 __all__ = ["slip_increments", "wear_per_cycle", "pressure", "WearProblem", "WearState", "WearHistory",
            "march_reference", "pseudo_time_wear", "profile_rel_diff", "tip_cycle"]
@@ -467,11 +470,15 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
         # A block that crosses a contact-state change can leave the HB solver at
         # a kink: halve the block (a smaller wear step) before giving up.
         for halving in range(MAX_BLOCK_HALVINGS + 1):
-            res, stn, Wn, used = _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations)
+            res, stn, Wn, used, w_solved = _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations)
+            if _hb_ok(wp, res, tol) and not w_solved and halving == MAX_BLOCK_HALVINGS:
+                # still no root in the shortest block: a jump of the rate (an event) lies within
+                # N·rate; cross it with the explicit step, as the march in physical time would
+                solves, nje = solves + used[0], nje + used[1]
+                res, stn, Wn, used, w_solved = _reference_block(wp, x, W, st, N, "explicit", tol, 0)
             solves += used[0]
             nje += used[1]
-            if res.converged or (np.isfinite(res.residual_norm)
-                                 and res.residual_norm <= 1e3 * tol * wp.hb.residual_scale()):
+            if _hb_ok(wp, res, tol) and w_solved:
                 break
             N *= 0.5
         else:
@@ -489,22 +496,40 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     return hist
 
 
-def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
-    """One block of N cycles from wear W: ``(res, state, W_next, (solves, jacobians))``.
+def _hb_ok(wp, res, tol) -> bool:
+    """A block's HB solve is usable: converged, or stopped within 10³ × ``tol`` (scaled residual)."""
+    return bool(res.converged or (np.isfinite(res.residual_norm)
+                                  and res.residual_norm <= 1e3 * tol * wp.hb.residual_scale()))
 
-    Explicit: ``W + N·rate(W)``. Implicit: ``W_n = W + N·rate(W_n)`` by Newton
-    on W, each residual an HB solve at the trial wear.
+
+def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
+    """One block of N cycles from wear W: ``(res, state, W_next, (solves, jacobians), solved)``.
+
+    Explicit: ``W + N·rate(W)`` (``solved`` always). Implicit: ``W_n = W + N·rate(W_n)`` by
+    Newton on W, each residual an HB solve at the trial wear; ``solved`` says whether that
+    equation holds to :data:`W_EQ_TOL` of max W at the end. It may have no root at all: a
+    pair whose rate *grows* with its own wear and then drops to 0 when the HB solution
+    jumps to a sticking state (paper-wear, 48 pairs, block_tol = 0.01: rate 6.7e-18 →
+    9.3e-18 m/cycle over +1 nm of wear, 0 at +10 nm, against N·rate = 18 nm) — a block
+    must then be shorter than the way to the jump, not accepted unsolved (it was, and the
+    march then sat for 870 blocks at W + 1e-18 m with the same rate, never steady; now it
+    ends steady in 157 blocks). :func:`march_reference` halves such a block, and crosses
+    the jump with the explicit step if even the shortest block has no root.
     """
     solves = nje = 0
     Wn = W + N * st.rate          # explicit step, or the implicit predictor
     res, stn = wp.solve_hb(x, Wn, tol=tol)
     solves, nje = 1, res.jacobian_evaluations + 1
     if scheme == "explicit":
-        return res, stn, Wn, (solves, nje)
+        return res, stn, Wn, (solves, nje), True
+
+    def solved():
+        return bool(np.max(np.abs(Wn - W - N * stn.rate)) <= W_EQ_TOL * max(float(np.max(Wn)), 1e-300))
+
     for _ in range(newton_w_iterations):
-        F = Wn - W - N * stn.rate
-        if np.max(np.abs(F)) <= 1e-6 * max(float(np.max(Wn)), 1e-300):
+        if solved():
             break
+        F = Wn - W - N * stn.rate
         Jw = np.eye(wp.p) - N * wp.total_rate_jacobian(stn)
         try:
             dW = np.linalg.solve(Jw, -F)
@@ -514,7 +539,7 @@ def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
         res, stn = wp.solve_hb(res.x, Wn, tol=tol)
         solves += 1
         nje += res.jacobian_evaluations + 1
-    return res, stn, Wn, (solves, nje)
+    return res, stn, Wn, (solves, nje), solved()
 
 
 # ------------------------------------------------------------------ pseudo-time

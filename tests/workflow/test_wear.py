@@ -408,3 +408,51 @@ def test_quick_sector_worn_profile_converges_in_nh_and_eps(tmp_path):
     for chk in (w["nh_check"], w["eps_check"]):
         assert chk["measure"] == "worn profile" and chk["steady"], chk
         assert chk["max_rel_change"] < 5e-3, chk
+
+
+class _JumpWear:
+    """One pair whose wear rate grows with its own wear, r0·(1 + W/Wj), and drops to 0 at
+    W = Wj — its HB solution jumps to a sticking state (measured on paper-wear's 48-pair
+    sector: 6.7e-18 → 9.3e-18 m/cycle over +1 nm, 0 at +10 nm). The worn steady state is
+    W = Wj. The stand-ins give what :func:`march_reference` reads: 1 N of compression on a
+    pair of static stiffness 1e8 N/m (W scale 1e-8 m)."""
+
+    p = 1
+
+    def __init__(self, r0: float, Wj: float):
+        from types import SimpleNamespace
+
+        self.r0, self.Wj, self.W = r0, Wj, np.zeros(1)
+        self.hb = SimpleNamespace(Zr=1e8 * np.eye(3)[None], nh=1, harmonics=lambda x: np.zeros((2, 3)),
+                                  residual_scale=lambda: 1.0)
+
+    def solve_hb(self, x, W, tol):
+        from types import SimpleNamespace
+
+        W = np.asarray(W, dtype=float)
+        lam = np.zeros((8, 1, 3))
+        lam[..., 0] = -1.0
+        st = SimpleNamespace(rate=np.where(W < self.Wj, self.r0 * (1 + W / self.Wj), 0.0), lam=lam, W=W)
+        return SimpleNamespace(converged=True, x=x, residual_norm=0.0, reason="", jacobian_evaluations=0), st
+
+    def total_rate_jacobian(self, st):
+        return np.diag(np.where(st.W < self.Wj, self.r0 / self.Wj, 0.0))
+
+
+def test_implicit_block_with_no_root_is_shortened_and_the_march_ends_at_the_jump():
+    """W_n = W + N·rate(W_n) has no root once N·rate overshoots the jump of the rate. Such a
+    block is halved (and, if the shortest still has none, the jump is crossed by the explicit
+    step), never accepted unsolved: the implicit march ends steady at W = Wj, past it by at
+    most the shortest block's wear (block_tol × W scale / 2⁴). Accepting unsolved blocks left
+    paper-wear's coarse reference march at the same W for 870 blocks, never steady."""
+    from workflow.wear import MAX_BLOCK_HALVINGS
+
+    Wj, block_tol, scale = 5e-9, 0.01, 1e-8
+    wp = _JumpWear(r0=1e-17, Wj=Wj)
+    h = march_reference(wp, np.zeros(1), scheme="implicit", block_tol=block_tol, max_blocks=2000,
+                        steady_tol=1e-4, tol=1e-9)
+    assert h.steady, h.reason
+    assert Wj <= h.W[0] <= Wj + block_tol * scale / 2 ** MAX_BLOCK_HALVINGS * (1 + 1e-9)
+    # no block overshot: each wore at most its target (block_tol × W scale) × the rate's growth over it
+    steps = np.diff(np.asarray(h.max_wear))
+    assert np.all(steps >= 0) and np.all(steps <= 1.05 * block_tol * scale)
