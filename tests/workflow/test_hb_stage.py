@@ -20,7 +20,7 @@ from reduction.reduced import ReducedModel
 from workflow.errors import SceneError, SolverError
 from workflow.engine import variants
 from workflow.params import HB, Contact, Excitation, PseudoTime, Sweep
-from workflow.pipeline import RunLog
+from workflow.runlog import RunLog
 from workflow.stages import hb as stage
 from workflow.lumped import pairs_on_block
 

@@ -8,7 +8,7 @@ import pytest
 
 from geometry.params import MAX_ELEMENTS, estimate_elements
 from workflow.errors import GeometryError, SceneError
-from workflow.pipeline import RunLog
+from workflow.runlog import RunLog
 from workflow.scene import load_scene
 
 

@@ -17,7 +17,8 @@ import pytest
 import fakestages
 from workflow import io as wio
 from workflow.errors import OutputError, SceneError
-from workflow.pipeline import RunLog, clean_stale, plan, run_scene
+from workflow.pipeline import clean_stale, plan, run_scene
+from workflow.runlog import RunLog
 from workflow.scene import load_scene
 
 

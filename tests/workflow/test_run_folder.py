@@ -71,7 +71,7 @@ def test_heartbeat_lines_while_a_stage_is_silent(tmp_path):
     import io
     import time
 
-    from workflow.pipeline import RunLog, heartbeat
+    from workflow.runlog import RunLog, heartbeat
 
     buf = io.StringIO()
     log = RunLog(tmp_path / "log", stream=buf)
@@ -114,7 +114,7 @@ def test_weighted_progress_counts_work_not_items(tmp_path):
     """Cheap items first (HB variants by Nh): the percentage follows the work (issue 18, item 9)."""
     import io
 
-    from workflow.pipeline import RunLog
+    from workflow.runlog import RunLog
 
     buf = io.StringIO()
     log = RunLog(tmp_path / "log", stream=buf)
