@@ -126,29 +126,27 @@ def main(argv: list[str] | None = None) -> int:
     base = work / "serial"
     rows = [("serial", 0.0, 0.0, _run([bin_, "run", a.scene, "--out", str(base), "--cache", str(work / "c0"),
                                         "--fresh", "--quiet", *TIGHT]))]
+
+    def compare(label: str, d: Path, argv: list[str]) -> None:
+        t = _run(argv)
+        rows.append((label, *_rel(base, d), t))
+        print(f"{label}: FRF {rows[-1][1]:.2e}, wear {rows[-1][2]:.2e}")
+
     again = work / "serial-again"  # the control: the same chain twice must agree exactly
-    t = _run([bin_, "run", a.scene, "--out", str(again), "--cache", str(work / "c1"), "--fresh", "--quiet", *TIGHT])
-    rows.append(("serial, again", *_rel(base, again), t))
-    print(f"{rows[-1][0]}: FRF {rows[-1][1]:.2e}, wear {rows[-1][2]:.2e}")
+    compare("serial, again", again, [bin_, "run", a.scene, "--out", str(again), "--cache", str(work / "c1"),
+                                     "--fresh", "--quiet", *TIGHT])
+    child = [sys.executable, "-m", "workflow.bench.renumbering", "--scene", a.scene]
     for s in range(1, a.orders + 1):
-        d = work / f"order{s}"
-        t = _run([sys.executable, "-m", "workflow.bench.renumbering", "--scene", a.scene, "--seed", str(s),
-                  "--run-out", str(d)])
-        rows.append((f"serial, DOF order {s}", *_rel(base, d), t))
-        print(f"{rows[-1][0]}: FRF {rows[-1][1]:.2e}, wear {rows[-1][2]:.2e}")
+        compare(f"serial, DOF order {s}", work / f"order{s}", child + ["--seed", str(s), "--run-out",
+                                                                     str(work / f"order{s}")])
     for s in range(1, a.ulps + 1):
-        d = work / f"ulp{s}"
-        t = _run([sys.executable, "-m", "workflow.bench.renumbering", "--scene", a.scene, "--ulp-seed", str(s),
-                  "--run-out", str(d)])
-        rows.append((f"serial, M and K ±1 ulp {s}", *_rel(base, d), t))
-        print(f"{rows[-1][0]}: FRF {rows[-1][1]:.2e}, wear {rows[-1][2]:.2e}")
+        compare(f"serial, M and K ±1 ulp {s}", work / f"ulp{s}", child + ["--ulp-seed", str(s), "--run-out",
+                                                                         str(work / f"ulp{s}")])
     mpirun = mpirun_command(a.ranks) if a.ranks > 1 else None
     if mpirun:
         d = work / f"ranks{a.ranks}"
-        t = _run(mpirun + [bin_, "run", a.scene, "--out", str(d), "--cache", str(work / "cmpi"), "--fresh",
-                           "--quiet", *TIGHT])
-        rows.append((f"{a.ranks} MPI ranks", *_rel(base, d), t))
-        print(f"{rows[-1][0]}: FRF {rows[-1][1]:.2e}, wear {rows[-1][2]:.2e}")
+        compare(f"{a.ranks} MPI ranks", d, mpirun + [bin_, "run", a.scene, "--out", str(d), "--cache",
+                                                     str(work / "cmpi"), "--fresh", "--quiet", *TIGHT])
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "renumbering.csv", "w", newline="") as fh:
         w = csv.writer(fh)
