@@ -526,13 +526,10 @@ def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
     if scheme == "explicit":
         return res, stn, Wn, (solves, nje), True
 
-    def solved():
-        return bool(np.max(np.abs(Wn - W - N * stn.rate)) <= W_EQ_TOL * max(float(np.max(Wn)), 1e-300))
-
+    F = Wn - W - N * stn.rate
     for _ in range(newton_w_iterations):
-        if solved():
+        if _w_solved(F, Wn):
             break
-        F = Wn - W - N * stn.rate
         Jw = np.eye(wp.p) - N * wp.total_rate_jacobian(stn)
         try:
             dW = np.linalg.solve(Jw, -F)
@@ -542,7 +539,13 @@ def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
         res, stn = wp.solve_hb(res.x, Wn, tol=tol)
         solves += 1
         nje += res.jacobian_evaluations + 1
-    return res, stn, Wn, (solves, nje), solved()
+        F = Wn - W - N * stn.rate
+    return res, stn, Wn, (solves, nje), _w_solved(F, Wn)
+
+
+def _w_solved(F, Wn) -> bool:
+    """The implicit block's residual ``F = W_n − W − N·rate(W_n)`` is within :data:`W_EQ_TOL` of max W."""
+    return bool(np.max(np.abs(F)) <= W_EQ_TOL * max(float(np.max(Wn)), 1e-300))
 
 
 # ------------------------------------------------------------------ pseudo-time
