@@ -72,7 +72,7 @@ import scipy.sparse.linalg
 from workflow import fourier
 from workflow.solvers import blas_cores, blas_threads
 
-__all__ = ["ContactJacobian", "StructuredSolve", "k_apply", "zb_apply"]
+__all__ = ["ContactJacobian", "StructuredSolve", "k_apply", "large_blas", "zb_apply"]
 
 #: The preconditioner's precision by default (:class:`StructuredSolve`): single.
 SINGLE = True
@@ -82,6 +82,14 @@ SINGLE = True
 #: 201 → 173 s, factorisations 45 → 36 s); at 256 pairs 35.8 → 35.0 s a sweep (12 % with the
 #: double-precision preconditioner of session 13); smaller products only spin.
 THREADED_MIN_DOFS = 768
+
+
+def large_blas(dofs: int):
+    """BLAS threads for dense work on ``dofs`` contact DOFs: every core this process may use
+    (:func:`workflow.solvers.blas_cores`) from :data:`THREADED_MIN_DOFS` up, else the
+    caller's setting (one thread inside :func:`workflow.engine.frf`)."""
+    n = blas_cores() if dofs >= THREADED_MIN_DOFS else 1
+    return blas_threads(n) if n > 1 else contextlib.nullcontext()
 
 #: Up to this many contact DOFs (3p) the harmonic blocks are inverted explicitly and applied as
 #: one batched product instead of Nh+1 triangular solves, and Zr is held as real harmonic
@@ -457,11 +465,8 @@ class StructuredSolve:
     reusable = True
 
     def _blas(self, op):
-        """BLAS threads of this solver's work on ``op``: every core this process may use
-        (:func:`workflow.solvers.blas_cores`) from :data:`THREADED_MIN_DOFS` contact DOFs up,
-        else the caller's (one, in :func:`workflow.engine.frf`)."""
-        n = blas_cores() if op.nr >= THREADED_MIN_DOFS else 1
-        return blas_threads(n) if n > 1 else contextlib.nullcontext()
+        """BLAS threads of this solver's work on ``op`` (:func:`large_blas`)."""
+        return large_blas(op.nr)
 
     def factor(self, op) -> bool:
         """Take a fresh operator; the preconditioner is kept unless stale."""

@@ -79,7 +79,7 @@ def refine_peak(rc, sweep, law, static, variant, xtol_hz: float, **kw) -> Peak |
     ``kw``: sweep_variant's solver options. None if no grid point converged."""
     from scipy.optimize import minimize_scalar
 
-    from reduction.condense import condense
+    from workflow.engine.linear import condensed
     from workflow.engine.frf import sweep_variant
 
     if not sweep.converged.any():
@@ -105,7 +105,7 @@ def refine_peak(rc, sweep, law, static, variant, xtol_hz: float, **kw) -> Peak |
         return (1.0 - w) * solved[below][1] + w * solved[above][1]
 
     def minus_amplitude(f):
-        c = condense(rc, 2 * np.pi * f, variant.nh)
+        c = condensed(rc, 2 * np.pi * f, variant.nh)
         seed_ = seed(f)
         r = sweep_variant(rc, [c], law, static, variant, seeds=[seed_], **kw)
         if not r.converged[0]:
@@ -119,7 +119,7 @@ def refine_peak(rc, sweep, law, static, variant, xtol_hz: float, **kw) -> Peak |
         minimize_scalar(minus_amplitude, bounds=(lo, hi), method="bounded", options={"xatol": xtol_hz})
     f_pk = max(solved, key=lambda g: solved[g][0])
     a_pk, U_pk, c_pk = solved[f_pk]
-    c_pk = condense(rc, 2 * np.pi * f_pk, variant.nh) if c_pk is None else c_pk
+    c_pk = condensed(rc, 2 * np.pi * f_pk, variant.nh) if c_pk is None else c_pk
     return Peak(hz=f_pk, amplitude=a_pk, Ur=U_pk, cond=c_pk, evaluations=len(solved), grid_index=i)
 
 

@@ -28,10 +28,10 @@ def resolve(rc, f_hz: float, Ur: np.ndarray, law, static, *, method: str, nh: in
             eps_path=()) -> tuple:
     """Observed amplitude (m) at ``f_hz`` solved from the harmonics ``Ur`` with
     ``law``, ``method``, ``nh``, ``nit``; (amplitude or None, converged)."""
-    from reduction.condense import condense
+    from workflow.engine.linear import condensed
     from workflow.hb import HBProblem
 
-    c = condense(rc, 2 * np.pi * f_hz, nh)
+    c = condensed(rc, 2 * np.pi * f_hz, nh)
     prob = HBProblem(c.Zr, c.Fr, law, nh, nit, method, max_passes=opt.max_passes, static=static)
     U = np.zeros((nh + 1, prob.nr), dtype=complex)
     m = min(nh + 1, Ur.shape[0])

@@ -177,7 +177,7 @@ def _approach(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> N
     step follows: the Coulomb oscillator at μN/F0 = 0.7, ζ = 0, β = 0.5 (the mass sticking
     twice a period), Nh = 5, nit = 64, lost from β = 0.611 both ways, converges by four
     steps (``tests/workflow/test_verification.py``). ``solve_kw``: :func:`solve_point`'s."""
-    from reduction.condense import condense
+    from workflow.engine.linear import condensed
 
     if APPROACH_STEPS < 1:
         return
@@ -192,7 +192,7 @@ def _approach(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> N
             path = [(cond[j].omega, xs[j])]
             steps = np.linspace(cond[j].omega, cond[i].omega, APPROACH_STEPS + 1)[1:]
             for k, w in enumerate(steps):
-                c = cond[i] if k == len(steps) - 1 else condense(rc, float(w), cond[i].nh)
+                c = cond[i] if k == len(steps) - 1 else condensed(rc, float(w), cond[i].nh)
                 q = prob.with_linear(c.Zr, c.Fr)
                 pr = solve_point(q, secant_guesses(path[-2:], float(w)), **solve_kw)
                 its += pr.iterations
@@ -377,7 +377,7 @@ def _carried(prob, last, x_low, tol: float, maxiter: int, eps_path):
 
 def _linear(rc, omega: float, nh: int):
     """(Zr, Fr, dZr/dω, dFr/dω) at ω (rad/s) for harmonics 0…nh."""
-    from reduction.condense import condense
+    from workflow.engine.linear import condensed
 
-    c = condense(rc, omega, nh, derivative=True)
+    c = condensed(rc, omega, nh, derivative=True)
     return c.Zr, c.Fr, c.dZr, c.dFr

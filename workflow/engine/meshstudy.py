@@ -40,13 +40,14 @@ def mesh_law(model, *, mu, eps_n: float, eps_t: float, gap: float, factor: float
     from workflow.engine import penalty
     from workflow.engine.study import contact_law
 
-    from reduction.condense import condense, relative_coordinates
+    from reduction.condense import relative_coordinates
+    from workflow.engine.linear import condensed
 
     rc = relative_coordinates(model) if rc is None else rc
     law = contact_law(model, mu=model.friction(mu)[0], eps_n=eps_n, eps_t=eps_t, gap=gap, factor=factor, rc=rc)
     if per_area > 0:
         return area_penalty(law, model.area, per_area), ()
-    return law, penalty.path_of(law, np.real(condense(rc, 0.0, 0).Zr[0]))
+    return law, penalty.path_of(law, np.real(condensed(rc, 0.0, 0).Zr[0]))
 
 
 def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xtol: float, solver_kw: dict,
@@ -65,16 +66,16 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
     engine's static state at every frequency. ``solver_kw``: ``solver``,
     ``tol``, ``maxiter``, ``max_passes`` of :func:`workflow.engine.frf.sweep_variant`.
     """
-    from reduction.condense import condense, relative_coordinates
+    from reduction.condense import relative_coordinates
     from workflow.engine.compare import refine_peak
     from workflow.engine.frf import sweep_variant
-    from workflow.engine.linear import first_excited_mode
+    from workflow.engine.linear import condensed, first_excited_mode
     from workflow.engine.study import static_state
 
     rc = relative_coordinates(model) if rc is None else rc
     f_tied, _ = first_excited_mode(rc)
     grid = np.linspace((1 - band) * f_tied, (1 + band) * f_tied, int(points))
-    cond = [condense(rc, 2 * np.pi * f, variant.nh) for f in grid]
+    cond = [condensed(rc, 2 * np.pi * f, variant.nh) for f in grid]
     static = static_state(cond[0].Zr, cond[0].Fr, law, solver_kw["max_passes"])
     kw = dict(solver_kw, eps_path=eps_path)
     sw = sweep_variant(rc, cond, law, static, variant, **kw)
@@ -110,11 +111,12 @@ def static_gaps(model, law, vertex: np.ndarray, max_passes: int, rc=None) -> dic
     ``"linear"`` layout) has no midside pairs: its midside gaps are the mean
     of the gaps at the edge's two ends (the two flank surfaces are linear
     between the vertices; exact on the planar dovetail flanks)."""
-    from reduction.condense import condense, relative_coordinates
+    from reduction.condense import relative_coordinates
+    from workflow.engine.linear import condensed
     from workflow.engine.study import static_state
 
     rc = relative_coordinates(model) if rc is None else rc
-    c = condense(rc, 0.0, 0)
+    c = condensed(rc, 0.0, 0)
     gap = np.asarray(law.gap, dtype=float)
     out = {"pairs_in_contact": None, "midside_gap_min_m": None, "vertex_only_midside_gap_min_m": None,
            "vertex_load_share": None}

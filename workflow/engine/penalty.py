@@ -104,10 +104,10 @@ def unresolved_stiffness(rc, omega: float, harmonics: int = HARMONICS) -> np.nda
     of a study (on the dovetail the stiffness is flat in h). A cyclic model is
     sampled on the excitation's nodal diameter. The median ignores the few h that
     sit on a resonance of the structure with the interface free."""
-    from reduction.condense import condense
+    from workflow.engine.linear import condensed
 
     base = rc.harmonic(1) if hasattr(rc, "by_nd") else rc
-    Z = condense(base, float(omega), int(harmonics)).Zr[2:]
+    Z = condensed(base, float(omega), int(harmonics)).Zr[2:]
     d = np.diagonal(Z, axis1=1, axis2=2)                           # (H−1, 3p)
     with np.errstate(divide="ignore", invalid="ignore"):
         c = np.median(np.real(1.0 / d), axis=0).reshape(-1, 3)    # m/N

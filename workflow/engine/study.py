@@ -52,7 +52,8 @@ def contact_law(model, *, mu, eps_n: float = 0.0, eps_t: float = 0.0, gap: float
     otherwise the automatic rule, sampled at ``omega_hz`` — default the first
     excited tied mode), ``gap`` (m) added to the model's own gaps.
     ``rc``: the model's relative coordinates if already computed."""
-    from reduction.condense import condense, relative_coordinates
+    from reduction.condense import relative_coordinates
+    from workflow.engine.linear import condensed
     from workflow.contact import ContactLaw
 
     rc = relative_coordinates(model) if rc is None else rc
@@ -65,7 +66,7 @@ def contact_law(model, *, mu, eps_n: float = 0.0, eps_t: float = 0.0, gap: float
                 omega_hz = None     # no tied mode to sample at: the large penalty (penalty.choose)
         if omega_hz:
             k_unres = penalty.unresolved_stiffness(rc, 2 * np.pi * float(omega_hz))
-    en, et = penalty.choose(condense(rc, 0.0, 0).Zr[0], eps_n, eps_t, factor, k_unres)
+    en, et = penalty.choose(condensed(rc, 0.0, 0).Zr[0], eps_n, eps_t, factor, k_unres)
     mu = np.broadcast_to(np.asarray(mu, dtype=float), (model.n_pairs,)).copy()
     return ContactLaw(mu=mu, eps_n=en, eps_t=et, gap=np.asarray(model.gap, dtype=float) + float(gap))
 
@@ -210,10 +211,10 @@ class FRFStudy:
 
 
 def _condense_grid(rc, freqs, nh_max):
-    from reduction.condense import condense
+    from workflow.engine.linear import condensed
 
     t = time.perf_counter()
-    cond = [condense(rc, 2 * np.pi * f, nh_max, derivative=False) for f in freqs]
+    cond = [condensed(rc, 2 * np.pi * f, nh_max, derivative=False) for f in freqs]
     return cond, time.perf_counter() - t
 
 

@@ -120,7 +120,8 @@ def first_tied_frequency(rc) -> float:
 def build_problem(model, law, opt: WearOptions, rc=None):
     """(HBProblem, RelativeCoordinates, ω) at the wear frequency, with the
     static state solved once (:func:`workflow.engine.static_state`)."""
-    from reduction.condense import condense, relative_coordinates
+    from reduction.condense import relative_coordinates
+    from workflow.engine.linear import condensed
     from workflow.engine.study import static_state
     from workflow.hb import HBProblem
 
@@ -132,7 +133,7 @@ def build_problem(model, law, opt: WearOptions, rc=None):
                          f"frequency of the model ({f_tied:.4g} Hz); 0 means at that resonance")
     omega = 2 * np.pi * opt.frequency_hz if opt.frequency_hz > 0 else w_tied
     nit = 2 * opt.nh + 1 if opt.method == "hdhb" else (opt.nit or 2 * opt.nh + 1)
-    cond = condense(rc, omega, opt.nh)
+    cond = condensed(rc, omega, opt.nh)
     st = static_state(cond.Zr, cond.Fr, law, opt.max_passes)
     return HBProblem(cond.Zr, cond.Fr, law, opt.nh, nit, opt.method, max_passes=opt.max_passes, static=st), rc, omega
 
@@ -269,7 +270,7 @@ def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path, *, worn=None, 
     result itself. Measured on the quick sector (16 pairs): the unworn rates move 2.1 %
     from Nh = 5 to 8, the worn steady state 1.3133 → 1.3144 µm (Nh = 7); without
     ``worn``, ``max_rel_change`` is the unworn rates' change."""
-    from reduction.condense import condense
+    from workflow.engine.linear import condensed
     from workflow.engine.cascade import solve_point
     from workflow.engine.epscheck import finer
     from workflow.hb import HBProblem
@@ -279,7 +280,7 @@ def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path, *, worn=None, 
     nh2, nit2 = finer(hb.nh, hb.nit)
     out = {"nh": nh2, "nit": nit2, "max_rel_change": None}
     try:
-        c = condense(rc, omega, nh2)
+        c = condensed(rc, omega, nh2)
     except BundleError as exc:      # a cyclic model reduced for no more harmonics
         return {**out, "reason": f"{exc}; reduction.cyclic_harmonics"}
     # the static state does not depend on Nh: the unworn point's is carried over
