@@ -170,6 +170,16 @@ def _ab(tm: TiedBasis, w: float):
     return 1 + 1j * w * tm.beta, w * w - 1j * w * tm.alpha, 1j * tm.beta, 2 * w - 1j * tm.alpha
 
 
+def _modal_terms(tm: TiedBasis, w: float):
+    """``(a, b, da, db, a − bμ, P = D'_ry Φ)`` at w = jω [rad/s], or None at an undamped tied
+    resonance (a − bμ = 0 for some mode), where the LU path reports the singularity."""
+    a, b, da, db = _ab(tm, w)
+    den = a - b * tm.mu
+    if not np.all(den != 0):
+        return None
+    return a, b, da, db, den, a * tm.PK - b * tm.PM
+
+
 @dataclass
 class Condensed:
     """Per-harmonic condensed dynamic stiffness and load at one ω.
@@ -324,14 +334,13 @@ def _condense_modal(rc: RelativeCoordinates, tm: TiedBasis, j: int, omega: float
     """:func:`_condense_harmonic` through :class:`TiedBasis`; None at an undamped tied
     resonance (a − bμ = 0), which the LU path reports as singular."""
     r = rc.n_rel
-    a, b, da, db = _ab(tm, j * omega)
-    den = a - b * tm.mu
-    if not np.all(den != 0):
+    terms = _modal_terms(tm, j * omega)
+    if terms is None:
         return None
+    a, b, da, db, den, P = terms
     d = 1.0 / den
     if not np.all(np.isfinite(d)):
         return None
-    P = a * tm.PK - b * tm.PM
     up = np.triu(zsyrk(1.0, P * np.sqrt(d), trans=0, lower=0))   # P diag(d) Pᵀ, complex symmetric
     Z = a * rc.K[:r, :r] - b * rc.M[:r, :r] - up - np.triu(up, 1).T
     f = harmonic_load(rc, j)
@@ -374,10 +383,9 @@ def _tied_response(rc: RelativeCoordinates, j: int, omega: float, f: np.ndarray,
     tm = tied_basis(rc)
     if tm is None:
         return None
-    r = rc.n_rel
-    a, b, _, _ = _ab(tm, j * omega)
-    den = a - b * tm.mu
-    if not np.all(den != 0):
+    terms = _modal_terms(tm, j * omega)
+    if terms is None:
         return None
+    den, P = terms[4:]
     # Φᵀ D'_yr u = Pᵀ u (D symmetric)
-    return tm.Phi @ ((tm.Phi.T @ f[r:] - (a * tm.PK - b * tm.PM).T @ u) / den)
+    return tm.Phi @ ((tm.Phi.T @ f[rc.n_rel:] - P.T @ u) / den)

@@ -91,6 +91,7 @@ def large_blas(dofs: int):
     n = blas_cores() if dofs >= THREADED_MIN_DOFS else 1
     return blas_threads(n) if n > 1 else contextlib.nullcontext()
 
+
 #: Up to this many contact DOFs (3p) the harmonic blocks are inverted explicitly and applied as
 #: one batched product instead of Nh+1 triangular solves, and Zr is held as real harmonic
 #: blocks (:func:`real_blocks`): at these sizes the solves are Python-call bound, not

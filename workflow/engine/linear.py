@@ -14,6 +14,7 @@ import scipy.linalg
 
 from workflow.errors import BundleError, SceneError
 
+
 def condensed(rc, omega: float, nh: int, **kw):
     """:func:`reduction.condense.condense` of ``rc`` at ``omega`` (rad/s), harmonics 0…``nh``,
     on every core for a large interface (:func:`workflow.linsolve.large_blas`): the engine
