@@ -31,6 +31,15 @@ harmonic blocks alone 166–200 (three stalled at 10⁻⁴…10⁻⁶), pair blo
 block misses is the coupling of a slipping pair's harmonics to its neighbours'
 through Zb (``G̃_p(h, h') Zb_h'[p, q]``); a cluster of neighbours holds it.
 
+Newton asks for each step only the accuracy it needs (Eisenstat–Walker forcing
+terms, :func:`workflow.solvers.forcing`): 10⁻² while ‖R‖ is far from the
+tolerance, tighter as it falls. Measured on the interface-scaling sectors (HBM
+Nh = 7, nit = 64, 9 points, `python -m workflow.bench.structured_split`, one run
+each, alone), GMRES iterations and seconds a sweep, every step to 10⁻¹⁰ → forcing
+terms: 64 pairs 1193 → 458, 1.47 → 1.22 s; 128 pairs 1583 → 499, 7.7 → 4.8 s;
+256 pairs 1152 → 451, 15.9 → 10.9 s; 512 pairs 2616 → 928, 102.0 → 56.9 s; the
+Newton iterations 104 → 106 at 512 pairs, the peaks equal to 4e-9.
+
 The preconditioner is *lagged*: kept across Newton steps (and ε-path steps
 and chord-free trial points) until the GMRES iterations it has cost beyond
 :data:`REFRESH_ITERS` a solve add up to one factorisation
@@ -118,8 +127,9 @@ CLUSTER_DOFS = 180
 #: GMRES iterations they save (above).
 CLUSTER_MIN_DOFS = 384
 
-#: GMRES tolerance relative to ‖rhs‖ (inexact Newton: the nonlinear residual
-#: decides convergence; a tighter linear solve only costs GMRES iterations).
+#: GMRES tolerance relative to ‖rhs‖ of a tight solve: the default of :meth:`StructuredSolve.solve`
+#: and the floor of the looser tolerances Newton passes it (:func:`workflow.solvers.forcing`;
+#: the nonlinear residual decides convergence).
 GMRES_RTOL = 1e-10
 #: GMRES iterations per Newton step (one cycle, no restart: restarted GMRES
 #: stagnates where slipping pairs couple the harmonics strongly).
@@ -134,8 +144,9 @@ STALE_RESIDUAL = 1e-4
 #: searches 6.4 → 3.1 s, 20 → 24 of them), 128 pairs 19.6 → 15.1 s (87 → 78 Newton
 #: iterations); HBM 128 and 256 pairs and paper-frf's 16 pairs unchanged (0–1 searches).
 LM_ITERS = 8
-#: GMRES iterations per solve that fresh blocks give on easy points; the iterations
-#: beyond it are what lagged blocks cost (:meth:`StructuredSolve._account`).
+#: GMRES iterations per solve to :data:`GMRES_RTOL` that fresh blocks give on easy points
+#: (a proportional share for a looser solve: GMRES's residual falls about geometrically); the
+#: iterations beyond it are what lagged blocks cost (:meth:`StructuredSolve._account`).
 REFRESH_ITERS = 25
 #: one factorisation of the harmonic blocks costs about as many GMRES iterations as
 #: ``FACTOR_ITERS[1]·(3p / FACTOR_ITERS[0])^FACTOR_ITERS[2]`` (3p contact DOFs): LU is
@@ -474,10 +485,14 @@ class StructuredSolve:
         with self._blas(op):
             return self._factor(op)
 
-    def solve(self, R):
-        """The Newton step dx of ``J dx = −R`` (None if nothing finite came out): :meth:`_solve`."""
+    #: :func:`workflow.solvers.newton` may pass a linear tolerance (an inexact Newton step)
+    inexact = True
+
+    def solve(self, R, rtol: float | None = None):
+        """The Newton step dx of ``J dx = −R`` (None if nothing finite came out) to the relative
+        linear residual ``rtol`` (:data:`GMRES_RTOL` if None or below it): :meth:`_solve`."""
         with self._blas(self.op):
-            return self._solve(R)
+            return self._solve(R, GMRES_RTOL if rtol is None else max(rtol, GMRES_RTOL))
 
     def lm_step(self, R, nu):
         """Levenberg–Marquardt step: :meth:`_lm_step`."""
@@ -604,8 +619,8 @@ class StructuredSolve:
             z = z + self._harmonic_solve(r - self._k_pre(z))
             return (z + self._cluster_solve(r - self._k_pre(z))).astype(float, copy=False)
 
-    def _k_solve(self, b):
-        """Solve K z = b (coefficient space) by right-preconditioned flexible GMRES
+    def _k_solve(self, b, rtol: float = GMRES_RTOL):
+        """Solve K z = b (coefficient space) to ``rtol`` by right-preconditioned flexible GMRES
         (PETSc's FGMRES: the preconditioned directions are kept, so a preconditioner that is
         not an exact linear map — single precision — still gives the true residual):
         (z, relative residual ‖Kz − b‖/‖b‖, iterations)."""
@@ -620,7 +635,7 @@ class StructuredSolve:
             ksp.setType(PETSc.KSP.Type.FGMRES)
             ksp.setOperators(A)
             ksp.setGMRESRestart(GMRES_RESTART)
-            ksp.setTolerances(rtol=GMRES_RTOL, atol=0.0, divtol=1e300, max_it=GMRES_RESTART)
+            ksp.setTolerances(rtol=rtol, atol=0.0, divtol=1e300, max_it=GMRES_RESTART)
             pc = ksp.getPC()
             pc.setType(PETSc.PC.Type.PYTHON)
             pc.setPythonContext(_Apply(self._precond))
@@ -638,29 +653,28 @@ class StructuredSolve:
                 o.destroy()
         self.stats["gmres_iterations"] += its
         self.stats["solves"] += 1
-        self._account(its)
+        self._account(its, rtol)
         return z, rel, its
 
-    def _account(self, its: int) -> None:
+    def _account(self, its: int, rtol: float = GMRES_RTOL) -> None:
         """Lagged blocks are refactored once the GMRES iterations beyond
         :data:`REFRESH_ITERS` they have cost add up to one factorisation
         (:data:`FACTOR_ITERS`). Refactoring at the first solve over the
         threshold (the rule before) renewed the blocks at every Newton step of the
         strongly slipping points, where even fresh blocks need 35–60 iterations,
         while a factorisation costs 16 (128 pairs) to 112 (512 pairs) iterations."""
-        self._excess += max(0, its - REFRESH_ITERS)
+        self._excess += max(0.0, its - REFRESH_ITERS * np.log(rtol) / np.log(GMRES_RTOL))
         dofs, at, power = FACTOR_ITERS
         if self._excess >= at * (self._lu[0][1] / dofs) ** power:
             self._refresh = True
 
-    def _solve(self, R):
+    def _solve(self, R, rtol: float):
         """The Newton step dx of ``J dx = −R`` (None if nothing finite came out).
 
-        An inexact Newton step: GMRES stops at :data:`GMRES_RTOL` or after
-        :data:`GMRES_RESTART` iterations, whichever first — a direction with a
-        relative linear residual of 10⁻⁴ is as good as exact for the line
-        search, and the nonlinear residual decides convergence. Blocks from an
-        older J that leave more than :data:`STALE_RESIDUAL` are refactored from
+        An inexact Newton step: GMRES stops at ``rtol`` or after
+        :data:`GMRES_RESTART` iterations, whichever first; the nonlinear residual
+        decides convergence. Blocks from an older J that leave more than
+        :data:`STALE_RESIDUAL` (or ``rtol``, if looser) are refactored from
         the current J and the solve repeated once; single-precision blocks that
         still leave more are given up for double precision (the blocks of an
         extreme ε can be too ill-conditioned for float32) and the solve repeated."""
@@ -668,17 +682,18 @@ class StructuredSolve:
         b = -np.asarray(R, float).reshape(op.nc, op.nr)
         if op._left_inv is not None:
             b = op._left_inv @ b
-        z, rel, _ = self._k_solve(b.ravel())
-        if rel > STALE_RESIDUAL and self._lu_op is not op:
+        stale = max(STALE_RESIDUAL, rtol)
+        z, rel, _ = self._k_solve(b.ravel(), rtol)
+        if rel > stale and self._lu_op is not op:
             self._factor_blocks(op)
-            z, rel, _ = self._k_solve(b.ravel())
-        if rel > STALE_RESIDUAL and self._real is not np.float64:
+            z, rel, _ = self._k_solve(b.ravel(), rtol)
+        if rel > stale and self._real is not np.float64:
             self._real = np.float64
             self.stats["precision"] = "double"
             self._lu, self._zr_pre = None, (None, None, None)
             self._factor(op)
-            z, rel, _ = self._k_solve(b.ravel())
-        if rel > STALE_RESIDUAL:
+            z, rel, _ = self._k_solve(b.ravel(), rtol)
+        if rel > stale:
             self.stats["failures"] += 1
         z = z.reshape(op.nc, op.nr)
         dx = z if op._right_inv is None else op._right_inv @ z

@@ -267,6 +267,36 @@ class _LMFallback:
         return ok, xt, Rt, None
 
 
+#: Inexact Newton (Eisenstat & Walker 1996, SIAM J. Sci. Comput. 17, "choice 2"): a linear
+#: solver that accepts a tolerance (``lin.inexact``, the structured GMRES) solves step k only to
+#: the relative linear residual ``η_k = γ (‖R_k‖/‖R_{k−1}‖)^α`` (η_0 = ``ETA_MAX``), kept
+#: ≥ γ η_{k−1}^α when that exceeds 0.1 (their safeguard against η falling too fast), ≥ half the
+#: step to the tolerance, ``0.5·tol·scale/‖R_k‖`` (a tighter step cannot change the verdict),
+#: and ≤ ``ETA_MAX``. Once the last ``CREEP_STEPS`` steps together cut ‖R‖ by less than
+#: ``1 − CREEP_RATIO`` the next is solved to the solver's own tolerance: there, on the kinks of
+#: the friction residual, loose directions made Newton creep. A loose direction that fails its
+#: line search is solved again tight before anything else is tried.
+FORCING_GAMMA, FORCING_ALPHA, ETA_MAX = 0.9, 2.0, 1e-2
+CREEP_STEPS, CREEP_RATIO = 3, 0.9
+
+
+def forcing(history: list, eta_previous: float | None, floor: float) -> float | None:
+    """η_k of :data:`ETA_MAX`'s rule from ‖R‖ of x0 and of every accepted iterate
+    (``history``, the last is ‖R_k‖), η_{k−1} (None: that step was tight) and the floor
+    ``tol·scale`` (units of R); None: solve tight."""
+    norm = history[-1]
+    if len(history) < 2 or history[-2] <= 0.0:
+        eta = ETA_MAX
+    elif len(history) > CREEP_STEPS and norm > CREEP_RATIO * history[-1 - CREEP_STEPS]:
+        return None
+    else:
+        eta = FORCING_GAMMA * (norm / history[-2]) ** FORCING_ALPHA
+        guard = 0.0 if eta_previous is None else FORCING_GAMMA * eta_previous ** FORCING_ALPHA
+        if guard > 0.1:
+            eta = max(eta, guard)
+    return min(ETA_MAX, max(eta, 0.5 * floor / norm if norm > 0.0 else ETA_MAX))
+
+
 def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxiter: int = 50,
            max_backtracks: int = 20, armijo: float = 1e-4, lm_fallback: bool = True,
            reuse_ratio: float = 0.0, callback=None, linear=None) -> SolveResult:
@@ -274,7 +304,8 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
 
     Each step solves ``J dx = −R`` with ``linear`` (default :class:`DenseLU`;
     :class:`workflow.linsolve.StructuredSolve` for the matrix-free J of
-    :meth:`workflow.hb.HBProblem.residual_operator`) and halves the step until
+    :meth:`workflow.hb.HBProblem.residual_operator`, an iterative solve asked only
+    for the accuracy of :func:`forcing`) and halves the step until
     ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖``, which keeps Newton from cycling
     across the kinks of the friction residual; trial points use ``fun``
     (residual only) when given. Where no step length decreases ‖R‖ (a kink),
@@ -313,6 +344,8 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     history.append(norm)
     fresh = True        # the factor in ``lin`` is of J at x (False: a chord step)
     lm = _LMFallback() if lm_fallback else None
+    inexact = getattr(lin, "inexact", False)
+    eta = None          # the last step's linear tolerance (inexact solvers; None: tight)
     for it in range(maxiter + 1):
         if norm <= tol * scale:
             return done("converged", True, R, it)
@@ -320,9 +353,17 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
             return done("max iterations", False, R, it)
         if J is not None and not lin.factor(J):
             return done("non-finite Jacobian", False, R, it)
-        dx = lin.solve(R)
+        if inexact:
+            eta = forcing(history, eta, tol * scale)
+            dx = lin.solve(R, eta)
+        else:
+            dx = lin.solve(R)
         accepted, xt, Rt = (False, None, None) if dx is None else \
             _line_search(fun, x, dx, norm, armijo, max_backtracks, nfev)
+        if not accepted and eta is not None and J is not None:      # the loose direction failed: solve tight
+            dx = lin.solve(R)
+            accepted, xt, Rt = (False, None, None) if dx is None else \
+                _line_search(fun, x, dx, norm, armijo, max_backtracks, nfev)
         if not accepted and not fresh:      # a chord direction failed: refresh J, try again
             (R, J), fresh = jac(x), True
             continue

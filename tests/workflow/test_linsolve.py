@@ -228,7 +228,7 @@ def test_dense_newton_follows_a_structured_newton_that_stops_below_the_matrix_fr
     below the matrix-free size, by Newton on the dense J from the best guess, before MINPACK;
     the point is reported "newton-dense" and equals the plain dense Newton root."""
     monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
-    monkeypatch.setattr(StructuredSolve, "solve", lambda self, R: None)
+    monkeypatch.setattr(StructuredSolve, "solve", lambda self, R, rtol=None: None)
     prob = _problem("hbm", 29.0)
     assert not cascade.matrix_free(prob.n)
     calls = []
@@ -315,6 +315,8 @@ def test_lagged_blocks_are_renewed_when_their_extra_gmres_iterations_cost_a_fact
     extra = max(1, int(np.ceil(budget / 3)))
     over = linsolve.REFRESH_ITERS + extra
     lin._account(linsolve.REFRESH_ITERS)            # at the threshold: free
+    lin._account(5, 1e-2)                            # a solve to 1e-2: its share, 25·2/10 = 5, is free too
+    assert lin._excess < 1e-9
     for _ in range(int(np.ceil(budget / extra)) - 1):
         lin._account(over)
         assert lin.factor(op) and lin.stats["factorizations"] == 1    # blocks kept
@@ -352,7 +354,7 @@ def test_large_structured_solves_run_blas_on_the_cores_and_restore_the_count(mon
     R, op = prob.residual_operator(_slipping_state(prob) * 1.05)
     seen = []
     k_solve = StructuredSolve._k_solve
-    monkeypatch.setattr(StructuredSolve, "_k_solve", lambda self, b: (seen.append(get()), k_solve(self, b))[1])
+    monkeypatch.setattr(StructuredSolve, "_k_solve", lambda self, b, *a: (seen.append(get()), k_solve(self, b, *a))[1])
     monkeypatch.setattr(linsolve, "blas_cores", lambda: 2)
     with solvers.blas_threads(1):
         lin = StructuredSolve()
@@ -409,3 +411,40 @@ def test_cluster_blocks_are_the_blocks_of_the_dense_k(method):
     for q in range(p):
         ref = K6[:, q, :, :, q, :].reshape(pairs[q].shape)
         assert np.abs(pairs[q] - ref).max() <= 1e-12 * np.abs(ref).max()
+
+
+
+@pytest.mark.parametrize("omega_hz", [25.0, 27.0, 29.0])
+def test_inexact_newton_steps_reach_the_same_root(omega_hz, monkeypatch):
+    """Newton with the structured solve takes Eisenstat–Walker linear tolerances
+    (workflow.solvers.forcing): GMRES stops at each step's own tolerance, and the root
+    equals the one of steps solved to GMRES_RTOL within the residual tolerance."""
+    from workflow import linsolve, solvers
+
+    prob = _problem("hbm", omega_hz)
+    tol = 1e-9
+    x0 = _slipping_state(prob) * 1.03
+    seen = []
+    k_solve = StructuredSolve._k_solve
+
+    def spy(self, b, rtol=linsolve.GMRES_RTOL):
+        out = k_solve(self, b, rtol)
+        seen.append((rtol, out[1]))
+        return out
+
+    roots = {}
+    for eta_max in (0.0, solvers.ETA_MAX):
+        monkeypatch.setattr(solvers, "ETA_MAX", eta_max)
+        monkeypatch.setattr(StructuredSolve, "_k_solve", spy)
+        seen.clear()
+        res = prob.solve(x0, tol=tol, maxiter=80, linear="structured", linsolver=StructuredSolve())
+        assert res.converged
+        roots[eta_max] = res.x
+        assert all(rel <= rtol for rtol, rel in seen)              # each solve to its own tolerance
+        assert seen[0][0] == max(eta_max, linsolve.GMRES_RTOL)     # the first step: η_0
+    exact, loose = roots[0.0], roots[solvers.ETA_MAX]
+    scale = prob.residual_scale()
+    assert np.linalg.norm(prob.residual(loose)) <= tol * scale
+    _, J = prob.residual_jacobian(exact)
+    bound = 2 * tol * scale * np.linalg.norm(np.linalg.inv(J), 2)
+    assert np.linalg.norm(loose - exact) <= max(bound, 1e-12 * np.linalg.norm(exact))

@@ -4,7 +4,8 @@ import pytest
 
 from hbmodels import condense, law_for, root_model
 from workflow.hb import HBProblem
-from workflow.solvers import newton, powell
+from workflow import solvers
+from workflow.solvers import forcing, newton, powell
 
 
 def _problem():
@@ -150,3 +151,49 @@ def test_newton_creeping_on_levenberg_marquardt_steps_stops_as_stalled(monkeypat
     monkeypatch.setattr(S, "STALL_LM_STEPS", 10 ** 9)
     full = newton(lambda x: (x.copy(), J), x0, maxiter=50, tol=1e-10)
     assert np.allclose(full.history[:len(r.history)], r.history, rtol=1e-12)
+
+
+def test_forcing_terms_follow_eisenstat_walker():
+    """η_k = γ(‖R_k‖/‖R_{k−1}‖)^α, their safeguard γη_{k−1}^α above 0.1, the floor
+    0.5·tol·scale/‖R_k‖, the cap ETA_MAX (Eisenstat & Walker 1996, choice 2); tight
+    (None) once the last CREEP_STEPS steps cut ‖R‖ by less than 1 − CREEP_RATIO."""
+    g, a, cap = solvers.FORCING_GAMMA, solvers.FORCING_ALPHA, solvers.ETA_MAX
+    assert forcing([1.0], None, 1e-12) == cap                            # the first step
+    assert np.isclose(forcing([1.0, 0.01], 1e-3, 1e-15), g * 0.01 ** a)  # fast decrease: tighter
+    assert forcing([1.0, 0.5], 1e-3, 1e-15) == cap                       # slower: the cap
+    assert np.isclose(forcing([1.0, 1e-6], 0.5, 1e-15), min(cap, g * 0.5 ** a))  # the safeguard
+    assert np.isclose(forcing([1.0, 1e-3], 1e-3, 1e-8), 0.5 * 1e-8 / 1e-3)  # never past the tolerance
+    creep = [1.0] + [1.0 - 0.01 * k for k in range(1, solvers.CREEP_STEPS + 1)]
+    assert forcing(creep, 1e-3, 1e-15) is None                           # creeping: solve tight
+    assert forcing(creep[:-1], 1e-3, 1e-15) == cap                       # not yet CREEP_STEPS steps of it
+
+
+class _LooseSolve(solvers.DenseLU):
+    """An inexact linear solver: the exact step plus an error of relative size rtol in
+    the residual (the worst a Krylov solver stopped at rtol may leave)."""
+    inexact = True
+
+    def __init__(self):
+        super().__init__()
+        self.rtols = []
+
+    def solve(self, R, rtol=None):
+        dx = super().solve(R)
+        self.rtols.append(rtol)
+        if rtol is None:
+            return dx
+        e = np.linalg.solve(self.J, np.ones_like(R))
+        return dx + rtol * np.linalg.norm(R) / np.linalg.norm(np.ones_like(R)) * e
+
+
+def test_inexact_newton_keeps_superlinear_convergence():
+    def fj(x):
+        R = np.array([x[0] ** 2 + x[1] ** 2 - 4.0, x[0] - x[1]])
+        return R, np.array([[2 * x[0], 2 * x[1]], [1.0, -1.0]])
+    lin = _LooseSolve()
+    r = newton(fj, [3.0, 1.0], tol=1e-14, scale=4.0, linear=lin)
+    assert r.converged and np.allclose(r.x, [np.sqrt(2), np.sqrt(2)], rtol=1e-13)
+    loose = [e for e in lin.rtols if e is not None]
+    assert lin.rtols[0] == solvers.ETA_MAX and min(loose) < 1e-5     # tightens as Newton converges
+    h = r.history
+    assert h[-2] < 1e-5 * h[0] and r.iterations <= 8

@@ -39,9 +39,9 @@ def split(reduced: Path, method: str, nh: int = 7, nit: int = 64, points: int = 
         stats["factorizations"] += 1
         seq.append("F")
 
-    def timed_solve(self, b):
+    def timed_solve(self, b, *args):
         t = time.perf_counter()
-        out = k_solve(self, b)
+        out = k_solve(self, b, *args)
         stats["gmres_s"] += time.perf_counter() - t
         stats["gmres_iterations"] += out[2]
         stats["solves"] += 1
