@@ -176,3 +176,49 @@ def test_the_tied_frequencies_come_from_the_condensations_basis(rotating_bundle,
     f0, s0 = tied_modes(rc)
     np.testing.assert_allclose(f, f0, rtol=1e-9)
     np.testing.assert_allclose(s, s0, atol=1e-9)
+
+
+@pytest.mark.parametrize("split", [10.0, 3.0])
+def test_the_high_modes_series_condenses_as_the_rank_update_and_the_lu_do(rotating_bundle, monkeypatch, split):
+    """Tied modes far above the excitation enter Z_r through their power series in
+    (b/a)·μ (reduction.condense.HighModeSeries): Z_r, F_r and their ω-derivatives equal the
+    rank update over every mode to round-off, and the LU path as closely as that does. This
+    small sector's tied modes span only 58× its first tied frequency (the 512-pair sector's
+    1.7e4×), so the split is lowered to 10× and 3× and the series lengthened to 40 terms: at
+    10× it serves every harmonic up to 6× the first tied frequency; those beyond its remainder
+    bound (9× at a split of 10×, 3× at 3×) take the full rank update."""
+    import reduction.condense as cd
+    from reduction.reduce import reduce_bundle
+
+    bundle, summary, _ = rotating_bundle
+    rc = relative_coordinates(reduce_bundle(bundle, 10))
+    w1 = 2 * np.pi * summary["first_tied_hz"]
+    monkeypatch.setattr(cd, "SERIES_MIN_DOFS", 0)
+    monkeypatch.setattr(cd, "SERIES_SPLIT", split)
+    monkeypatch.setattr(cd, "SERIES_TERMS", 40)
+    tm = cd.tied_basis(rc)
+    series = cd._high_mode_series(rc, tm)
+    assert series is not None and 0 < len(series.low) < len(tm.mu)
+    used = []
+    coefficients = cd._series_coefficients
+    monkeypatch.setattr(cd, "_series_coefficients", lambda *a: used.append(coefficients(*a)) or used[-1])
+    for omega in (0.0, w1, 3 * w1):
+        used.clear()
+        tm.series = series
+        with_series = condense(rc, omega, 3, derivative=True)
+        assert used[0] is not None                        # harmonic 0: always the series
+        if split == 10.0 and omega <= w1:
+            assert all(u is not None for u in used)
+        if omega == 3 * w1:
+            assert used[-1] is None                       # harmonic 3 at 9 w1: the rank update
+            assert split == 3.0 or used[1] is not None
+        tm.series = False
+        rank_update = condense(rc, omega, 3, derivative=True)
+        monkeypatch.setattr(cd, "TIED_BASIS", False)
+        rc.tied = None
+        lu = condense(rc, omega, 3, derivative=True)
+        monkeypatch.setattr(cd, "TIED_BASIS", True)
+        rc.tied = tm
+        for name, floor in (("Zr", 0), ("Fr", 0), ("dZr", np.abs(lu.Zr).max() / w1), ("dFr", np.abs(lu.Fr).max() / w1)):
+            _close(getattr(with_series, name), getattr(rank_update, name), 1e-13, floor)
+            _close(getattr(with_series, name), getattr(lu, name), 1e-10, floor)

@@ -1,13 +1,16 @@
-"""Condensation onto the contact DOFs (eq. 3): the tied basis against one LU per harmonic.
+"""Condensation onto the contact DOFs (eq. 3): one LU per harmonic, the tied basis's rank
+update, and the tied basis with its high modes summed as a series.
 
 ``python -m workflow.bench.condense REDUCED.npz [REDUCED.npz ...] [--nh 7] [--out DIR]``
 
-For each reduced model: seconds to make its tied basis once
-(:func:`reduction.condense.tied_basis`), seconds per frequency of condensing harmonics
-0…Nh (best of 200, 212 and 224 Hz) and of one :func:`reduction.condense.recover`, by
-both paths (:data:`reduction.condense.TIED_BASIS` on and off), and the largest relative
-difference of Z_r between them (per harmonic, over its largest entry). Wall times of this
-process with the BLAS threads it is given. Writes ``condense.jsonl`` (one line a model).
+For each reduced model and path (``lu``: :data:`reduction.condense.TIED_BASIS` off;
+``tied_basis``: on, the rank update over every mode; ``series``: on, with
+:class:`reduction.condense.HighModeSeries`): seconds to make its basis (and series) once,
+seconds per frequency of condensing harmonics 0…Nh (best of 200, 212 and 224 Hz) without
+and with the ω-derivatives, and of one :func:`reduction.condense.recover`; and the largest
+relative difference of Z_r and dZ_r/dω of each tied path from the LU's (per harmonic, over its
+largest entry). Wall times of this process with the BLAS threads it is given. Writes
+``condense.jsonl`` (one line a model).
 """
 from __future__ import annotations
 
@@ -25,28 +28,36 @@ def compare(path: Path, nh: int = 7, freqs_hz=(200.0, 212.0, 224.0)) -> dict:
 
     model = ReducedModel.load(path)
     row, Z = {"pairs": int(model.n_pairs), "nh": nh}, {}
-    flag = cd.TIED_BASIS
+    flags = cd.TIED_BASIS, cd.SERIES_MIN_DOFS
     try:
-        for tied in (False, True):
-            cd.TIED_BASIS = tied
+        for name, tied, series in (("lu", False, False), ("tied_basis", True, False), ("series", True, True)):
+            cd.TIED_BASIS, cd.SERIES_MIN_DOFS = tied, (flags[1] if series else np.inf)
             rc = cd._relative(model)        # fresh coordinates: no basis kept from the other path
             t = time.perf_counter()
-            cd.tied_basis(rc)
+            tm = cd.tied_basis(rc)
+            if tm is not None:
+                cd._high_mode_series(rc, tm)
             made = time.perf_counter() - t
-            times = []
+            times, dtimes = [], []
             for f in freqs_hz:
                 t = time.perf_counter()
                 c = cd.condense(rc, 2 * np.pi * f, nh)
                 times.append(time.perf_counter() - t)
+                t = time.perf_counter()
+                dc = cd.condense(rc, 2 * np.pi * f, nh, derivative=True)
+                dtimes.append(time.perf_counter() - t)
             t = time.perf_counter()
             cd.recover(rc, 2 * np.pi * freqs_hz[-1], np.full_like(c.Fr, 1e-6))
-            row["tied_basis" if tied else "lu"] = dict(basis_s=made, condense_s=min(times),
-                                                       recover_s=time.perf_counter() - t)
-            Z[tied] = c.Zr
+            row[name] = dict(basis_s=made, condense_s=min(times), condense_derivative_s=min(dtimes),
+                             recover_s=time.perf_counter() - t)
+            Z[name] = dc
     finally:
-        cd.TIED_BASIS = flag
-    row["max_rel_diff"] = float(max(np.abs(Z[True][j] - Z[False][j]).max() / np.abs(Z[False][j]).max()
-                                    for j in range(nh + 1)))
+        cd.TIED_BASIS, cd.SERIES_MIN_DOFS = flags
+    for name in ("tied_basis", "series"):
+        for q in ("Zr", "dZr"):
+            A, B = getattr(Z[name], q), getattr(Z["lu"], q)
+            row[f"{name}_{q}_max_rel_diff"] = float(max(np.abs(A[j] - B[j]).max() / np.abs(B[j]).max()
+                                                        for j in range(nh + 1) if np.abs(B[j]).max() > 0))
     return row
 
 
