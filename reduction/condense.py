@@ -444,13 +444,14 @@ def _condense_modal(rc: RelativeCoordinates, tm: TiedBasis, j: int, omega: float
     # the modes of the rank update: all of them, or the low ones beside the series
     k = slice(None) if coef is None else series.low
     Pk, dk = a * tm.PK[:, k] - b * tm.PM[:, k], d[k]
+    Pd = Pk * dk
     if coef is None:
         up = np.triu(zsyrk(1.0, Pk * np.sqrt(dk), trans=0, lower=0))   # P diag(d) Pᵀ, complex symmetric
         Z = a * rc.K[:r, :r] - b * rc.M[:r, :r] - up - np.triu(up, 1).T
     else:
         parts = _combine(np.array([c for c in coef if c is not None]), series.S, r)
         Z = parts[0]
-        Z -= (Pk * dk) @ Pk.T
+        Z -= Pd @ Pk.T
     f = harmonic_load(rc, j)
     h = tm.Phi.T @ f[r:]                                          # Φᵀ f_y
     g = d * h
@@ -460,7 +461,6 @@ def _condense_modal(rc: RelativeCoordinates, tm: TiedBasis, j: int, omega: float
     # d/dω = j d/dw
     dP = da * tm.PK[:, k] - db * tm.PM[:, k]
     dd = -(da - db * tm.mu) * d * d
-    Pd = Pk * dk
     dZ = (da * rc.K[:r, :r] - db * rc.M[:r, :r]) if coef is None else parts[1]
     dZ = j * (dZ - dP @ Pd.T - Pd @ dP.T - (Pk * dd[k]) @ Pk.T)
     dF = j * -(_p_times(tm, da, db, g) + _p_times(tm, a, b, dd * h))

@@ -38,7 +38,7 @@ Nh = 7, nit = 64, 9 points, `python -m workflow.bench.structured_split`, one run
 each, alone), GMRES iterations and seconds a sweep, every step to 10⁻¹⁰ → forcing
 terms: 64 pairs 1193 → 458, 1.47 → 1.22 s; 128 pairs 1583 → 499, 7.7 → 4.8 s;
 256 pairs 1152 → 451, 15.9 → 10.9 s; 512 pairs 2616 → 928, 102.0 → 56.9 s; the
-Newton iterations 104 → 106 at 512 pairs, the peaks equal to 4e-9.
+Newton iterations 104 → 106 at 512 pairs, the peaks equal to 3e-9.
 
 The preconditioner is *lagged*: kept across Newton steps (and ε-path steps
 and chord-free trial points) until the GMRES iterations it has cost beyond

@@ -207,6 +207,18 @@ def _line_search(fun, x, dx, norm, armijo, max_backtracks, count):
     return False, xt, Rt
 
 
+def _searched_direction(fun, lin, x, R, norm, eta, retry, armijo, max_backtracks, count):
+    """The Newton direction of ``lin`` (to the linear tolerance ``eta`` of :func:`forcing`;
+    None: the solver's own) and its line search; a loose direction that fails is solved again
+    tight if ``retry``. (dx or None, accepted, x_trial, R_trial)."""
+    dx = lin.solve(R) if eta is None else lin.solve(R, eta)
+    accepted, xt, Rt = (False, None, None) if dx is None else \
+        _line_search(fun, x, dx, norm, armijo, max_backtracks, count)
+    if not accepted and eta is not None and retry:
+        return _searched_direction(fun, lin, x, R, norm, None, False, armijo, max_backtracks, count)
+    return dx, accepted, xt, Rt
+
+
 def _lm_search(fun, lin, x, R, norm, armijo, max_backtracks, count, nu_last=None):
     """Levenberg–Marquardt steps of growing damping: (accepted, x_trial, R_trial, ν accepted).
 
@@ -303,15 +315,13 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     """Newton–Raphson with backtracking line search on ‖R‖₂.
 
     Each step solves ``J dx = −R`` with ``linear`` (default :class:`DenseLU`;
-    :class:`workflow.linsolve.StructuredSolve` for the matrix-free J of
-    :meth:`workflow.hb.HBProblem.residual_operator`, an iterative solve asked only
-    for the accuracy of :func:`forcing`) and halves the step until
-    ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖``, which keeps Newton from cycling
-    across the kinks of the friction residual; trial points use ``fun``
-    (residual only) when given. Where no step length decreases ‖R‖ (a kink),
-    ``lm_fallback`` tries Levenberg–Marquardt steps ("line search failed" if
-    none does); a run of them that makes no headway stops the solve as
-    "stalled" (:class:`_LMFallback`).
+    :class:`workflow.linsolve.StructuredSolve` for the matrix-free J of the HB residual, an
+    iterative solve asked only for the accuracy of :func:`forcing`) and halves the step until
+    ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖``, which keeps Newton from cycling across the kinks of
+    the friction residual; trial points use ``fun`` (residual only) when given. Where no step
+    length decreases ‖R‖ (a kink), ``lm_fallback`` tries Levenberg–Marquardt steps ("line search
+    failed" if none does); a run of them that makes no headway stops the solve as "stalled"
+    (:class:`_LMFallback`).
 
     tol, scale: converged when ``‖R‖₂ ≤ tol·scale`` (module docstring).
     reuse_ratio: if > 0, keep the factor of an earlier Jacobian (a chord step)
@@ -344,8 +354,7 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     history.append(norm)
     fresh = True        # the factor in ``lin`` is of J at x (False: a chord step)
     lm = _LMFallback() if lm_fallback else None
-    inexact = getattr(lin, "inexact", False)
-    eta = None          # the last step's linear tolerance (inexact solvers; None: tight)
+    inexact, eta = getattr(lin, "inexact", False), None    # eta: the last step's linear tolerance (None: tight)
     for it in range(maxiter + 1):
         if norm <= tol * scale:
             return done("converged", True, R, it)
@@ -353,17 +362,9 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
             return done("max iterations", False, R, it)
         if J is not None and not lin.factor(J):
             return done("non-finite Jacobian", False, R, it)
-        if inexact:
-            eta = forcing(history, eta, tol * scale)
-            dx = lin.solve(R, eta)
-        else:
-            dx = lin.solve(R)
-        accepted, xt, Rt = (False, None, None) if dx is None else \
-            _line_search(fun, x, dx, norm, armijo, max_backtracks, nfev)
-        if not accepted and eta is not None and J is not None:      # the loose direction failed: solve tight
-            dx = lin.solve(R)
-            accepted, xt, Rt = (False, None, None) if dx is None else \
-                _line_search(fun, x, dx, norm, armijo, max_backtracks, nfev)
+        eta = forcing(history, eta, tol * scale) if inexact else None
+        dx, accepted, xt, Rt = _searched_direction(fun, lin, x, R, norm, eta, J is not None, armijo,
+                                                   max_backtracks, nfev)
         if not accepted and not fresh:      # a chord direction failed: refresh J, try again
             (R, J), fresh = jac(x), True
             continue
