@@ -218,8 +218,9 @@ def _high_mode_series(rc: RelativeCoordinates, tm: TiedBasis) -> HighModeSeries 
             S[0], S[1] = rc.K[:r, :r], rc.M[:r, :r]
             for n in range(SERIES_TERMS):
                 w = x ** n
-                S[2 + 3 * n] = (PK * w) @ PK.T
-                KM = (PK * w) @ PM.T
+                Kw = PK * w
+                S[2 + 3 * n] = Kw @ PK.T
+                KM = Kw @ PM.T
                 S[3 + 3 * n] = KM + KM.T
                 S[4 + 3 * n] = (PM * w) @ PM.T
             tm.series = HighModeSeries(low=np.flatnonzero(~high), mu_c=mu_c, S=S.reshape(len(S), r * r))
