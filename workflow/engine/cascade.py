@@ -15,7 +15,7 @@ usual first; each later attempt exists because a measured case needed it):
    then MINPACK's Powell from Newton's best iterate, then (below the matrix-free
    size, where Powell already is the matrix-free pseudo-time) pseudo-transient
    continuation from the best guess (:func:`_ptc`);
-3. the solver from each guess in turn (``short`` iterations each);
+3. the solver from each guess in turn, the smallest residual first (``short`` iterations each);
 4. ``smooth`` (aliased variants): a guess from the same Nh with many time
    samples, whose residual is far smoother;
 5. **continuation in ε** from ε·10⁻³ by decades, starting at the stuck
@@ -445,9 +445,8 @@ def _cascade(prob, guesses, solver: str, tol: float, maxiter: int, smooth, eps_p
                                                                         eps_path, tol, maxiter)):
             return PointResult(best.res, best.total, "pseudo-time")
         solver = "powell"
-    for k, x0 in enumerate(guesses):
-        if x0 is None:
-            continue
+    for k in sorted(norms, key=norms.get):
+        x0 = guesses[k]
         res = along_eps_path(prob, x0, eps_path, tol, short, run, solver) if solver != "powell" else \
             run(prob, x0, solver, short)
         if best.keep(res):
