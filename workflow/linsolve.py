@@ -15,9 +15,11 @@ shares one operator::
 * ``E`` — the penalties ε per contact DOF.
 
 Neither factor is (n × n): K is applied matrix-free and solved by flexible
-GMRES (PETSc's FGMRES, Saad 1993), right-preconditioned by the exact
-harmonic-diagonal blocks of K itself, ``K_hh = Zb_hh + G̃_hh (E − Zb_hh)``
-(one LU of size 3p or 6p per harmonic) combined, multiplicatively (cluster,
+GMRES (PETSc's FGMRES, Saad 1993), right-preconditioned by the
+harmonic-diagonal blocks of K, ``K_hh = Zb_hh + G̃_hh (E − Zb_hh)`` (one complex
+LU of size 3p per harmonic, with the complex-linear part of G̃_hh:
+:meth:`ContactJacobian.complex_harmonic_blocks`; exact real blocks below
+:data:`INVERSE_MAX_DOFS`) combined, multiplicatively (cluster,
 harmonic, cluster), with the exact *cluster*-diagonal blocks ``K_CC`` (all
 harmonics of a few neighbouring pairs, :func:`pair_clusters`; blocks of about
 :data:`CLUSTER_DOFS` unknowns). Why both: a stuck pair's rows are ≈ ε
@@ -45,8 +47,16 @@ and chord-free trial points) until the GMRES iterations it has cost beyond
 :data:`REFRESH_ITERS` a solve add up to one factorisation
 (:meth:`StructuredSolve._account`), refactored from the current K then. GMRES always solves with
 the current K, so every step is an (inexact) Newton step, never a chord step.
-Memory: the harmonic blocks, (Nh+1)·(6p)² reals, and the cluster blocks, three
+Memory: the harmonic blocks, (Nh+1)·(3p)² complex numbers, and the cluster blocks, three
 arrays of (p/s)·(3·s·nc)² (50 MB at 512 pairs) — nothing of size n².
+
+The harmonic LUs are complex (session 21): a slipping pair's (cos, sin) block of G̃_hh
+does not commute with the rotation of (cos, sin), so the exact K_hh is a real (6p)² matrix,
+but its anti-linear part is the slipping pairs' alone, which the cluster blocks hold
+exactly. Measured on the interface-scaling sectors (9 points, alone, against the exact real
+blocks formed in float32): 512 pairs HBM factorisations 6.5 → 1.9 s, GMRES 19.9 → 17.2 s
+(594 → 585 iterations), the sweep 37.0 → 31.4 s; HDHB 38.7 → 33.8 s (669 → 692 iterations);
+256 pairs HBM 8.0 → 7.7 s, HDHB 7.0 → 6.6 s; the peaks equal to 4e-10.
 
 The preconditioner runs in *single precision* (:data:`SINGLE`): its LUs, cluster
 inverses and its own copy of Zr (complex64) and G̃. The solve is memory-bound
@@ -149,12 +159,15 @@ LM_ITERS = 8
 #: iterations beyond it are what lagged blocks cost (:meth:`StructuredSolve._account`).
 REFRESH_ITERS = 25
 #: one factorisation of the harmonic blocks costs about as many GMRES iterations as
-#: ``FACTOR_ITERS[1]·(3p / FACTOR_ITERS[0])^FACTOR_ITERS[2]`` (3p contact DOFs): LU is
-#: O((6p)³) per harmonic, a GMRES iteration O((3p)²) memory-bound products, and the LU
-#: leaves the cache sooner. Measured on the sector, HBM, Nh = 7, one BLAS thread: 0.17 s
-#: a factorisation against 10.8 ms an iteration at 128 pairs (16), 12.2 s against 109 ms
-#: at 512 pairs (112).
-FACTOR_ITERS = (384.0, 16.0, 1.4)
+#: ``FACTOR_ITERS[1]·(3p / FACTOR_ITERS[0])^FACTOR_ITERS[2]`` (3p contact DOFs). Measured with
+#: the complex blocks (sweeps of the interface-scaling sectors, HBM Nh = 7, alone): 0.020 s a
+#: factorisation against 4.8 ms a GMRES iteration at 128 pairs (4), 0.11 s against 9.9 ms at
+#: 256 (11), 0.66 s against 29.7 ms at 512 (22). With the constants of the real (6p)² blocks,
+#: (384, 16, 1.4) — 16 and 112 iterations at 128 and 512 pairs — the cheaper blocks were renewed
+#: too seldom: 512 pairs HBM 32.1 → 29.4 s a sweep (GMRES 585 → 444 iterations, 3 → 5
+#: factorisations), HDHB 34.6 → 27.2 s; 256 pairs HBM 7.0 → 6.5 s, HDHB 6.1 → 6.3 s; 128 pairs
+#: unchanged (3.3 s, 3.0–3.1 s); the same peaks to 1e-9.
+FACTOR_ITERS = (384.0, 6.0, 0.93)
 
 
 def zb_apply(Zr, y, conj_transpose: bool = False):
@@ -421,25 +434,58 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
         rows and columns (pair, coefficient, c) (:meth:`cluster_parts`)."""
         return _cluster_k(self.Gt[idx], *self.cluster_parts(idx))
 
-    def harmonic_blocks(self):
-        """Yields (idx, K_hh), the exact harmonic-diagonal blocks of K, (s·nr)² each — one
-        at a time, so that a caller factoring them in single precision never holds all of
-        them in double (at 512 pairs, Nh = 7: 0.5 GB)."""
+    def complex_harmonic_blocks(self, dtype=np.float64):
+        """Yields (idx, B_h), the preconditioner's harmonic blocks for its LUs: harmonic 0's
+        exact real block K_00 (:meth:`harmonic_blocks`), then per harmonic h ≥ 1 the complex
+        (nr × nr) ``B_h = (I − Ĝ_h) Z_h + Ĝ_h E`` in the precision of ``dtype`` (complex64 for
+        float32), Ĝ_h the complex-linear part of each pair's (cos, sin) block of G̃_hh:
+        ``ĝ = (g_cc + g_ss)/2 + i (g_cs − g_sc)/2`` for ``U = u_c − i u_s``. That is K_hh
+        exactly where G̃_hh commutes with the rotation of (cos, sin) — stuck (G̃ ≈ I) and
+        separated (G̃ = 0) pairs, most of an interface; a slipping pair's anti-linear part
+        (its coupling of U_h to conj(U_h)) is left to the cluster blocks, which hold every
+        harmonic of a pair exactly. Half the bytes and a quarter of the flops of the real
+        (2nr)² block: measured at 512 pairs (HBM Nh = 7, 9 points, alone) the factorisations
+        6.5 → 1.9 s a sweep and GMRES 19.9 → 17.2 s for 594 → 585 iterations (module docstring)."""
         nc, nr, p = self.nc, self.nr, self.p
         G5 = self.Gt.reshape(p, nc, 3, nc, 3)
+        ip = np.arange(p)
+        cdt = np.result_type(dtype, np.complex64)
+        for h in range(self.nh + 1):
+            idx = _harmonic_index(h)
+            if h == 0:
+                Zh, Gp, t = self.Zr[0].real, G5[:, 0, :, 0, :], dtype
+            else:
+                c, s = idx
+                Zh, t = self.Zr[h], cdt
+                Gp = 0.5 * (G5[:, c, :, c, :] + G5[:, s, :, s, :]) + 0.5j * (G5[:, c, :, s, :] - G5[:, s, :, c, :])
+            B = np.matmul((np.eye(3) - Gp).astype(t), Zh.astype(t).reshape(p, 3, nr))
+            for d in range(3):
+                B[ip, :, 3 * ip + d] += Gp[:, :, d] * self.eps[3 * ip + d, None]
+            yield idx, B.reshape(nr, nr)
+
+    def harmonic_blocks(self, dtype=np.float64):
+        """Yields (idx, K_hh), the exact harmonic-diagonal blocks of K, (s·nr)² each in
+        ``dtype`` — one at a time, so that a caller factoring them in single precision never
+        holds all of them in double (at 512 pairs, Nh = 7: 0.5 GB), and formed in ``dtype``:
+        pair by pair, ``K_hh = (I − G̃_hh) Zb_hh + G̃_hh E`` (E touches only the pair's own
+        columns), one product that reads Zb_hh's rows once. Forming them in double and by
+        ``Zb + G̃ (E − Zb)`` took 1.7 s of each 3.0 s factorisation at 512 pairs."""
+        nc, nr, p = self.nc, self.nr, self.p
+        G5 = self.Gt.reshape(p, nc, 3, nc, 3)
+        ip = np.arange(p)
         for h in range(self.nh + 1):
             idx = _harmonic_index(h)
             s = len(idx)
             Z = self.Zr[h]
-            Zh = (Z.real.copy() if s == 1 else fourier.real_block(Z)).reshape(s, nr, s, nr)
-            Mh = -Zh
-            for a in range(s):
-                Mh[a, np.arange(nr), a, np.arange(nr)] += self.eps
+            Zh = Z.real.astype(dtype) if s == 1 else fourier.real_block(Z, dtype)
             # rows (s, p, 3) → per pair (p, 3s) to meet G̃_hh (p, 3s, 3s)
-            Mp = np.ascontiguousarray(Mh.reshape(s, p, 3, s * nr).transpose(1, 0, 2, 3)).reshape(p, 3 * s, s * nr)
+            rows = Zh.reshape(s, p, 3, s * nr).transpose(1, 0, 2, 3).reshape(p, 3 * s, s * nr)
             Gh = G5[:, idx][:, :, :, idx].reshape(p, 3 * s, 3 * s)
-            GM = np.matmul(Gh, Mp).reshape(p, s, 3, s * nr).transpose(1, 0, 2, 3).reshape(s * nr, s * nr)
-            yield idx, Zh.reshape(s * nr, s * nr) + GM
+            K = np.matmul((np.eye(3 * s) - Gh).astype(dtype), rows).reshape(p, 3 * s, s, nr)
+            for a in range(s):
+                for c in range(3):
+                    K[ip, :, a, 3 * ip + c] += Gh[:, :, 3 * a + c] * self.eps[3 * ip + c, None]
+            yield idx, K.reshape(p, s, 3, s * nr).transpose(1, 0, 2, 3).reshape(s * nr, s * nr)
 
 
 class StructuredSolve:
@@ -553,13 +599,12 @@ class StructuredSolve:
     def _factor_blocks(self, op):
         self._inv = self._invert_blocks(op) if op.nr <= INVERSE_MAX_DOFS else None
         lus = []
-        for idx, K in (() if self._inv is not None else op.harmonic_blocks()):
-            try:
-                with np.errstate(over="ignore"):
-                    K = K.astype(self._real, copy=False)
-                lus.append((idx, scipy.linalg.lu_factor(K, overwrite_a=True, check_finite=False)))
-            except (ValueError, np.linalg.LinAlgError):
-                lus.append((idx, None))
+        with np.errstate(over="ignore", invalid="ignore"):  # out of float32: caught by solve(), double then
+            for idx, K in (() if self._inv is not None else op.complex_harmonic_blocks(self._real)):
+                try:
+                    lus.append((idx, scipy.linalg.lu_factor(K, overwrite_a=True, check_finite=False)))
+                except (ValueError, np.linalg.LinAlgError):
+                    lus.append((idx, None))
         self._lu = ((op.nc, op.nr), lus)
         self._lu_op = op
         self._refresh = False
@@ -569,9 +614,9 @@ class StructuredSolve:
     def _invert_blocks(self, op):
         """(K_00⁻¹, stacked K_hh⁻¹ (Nh, 2nr, 2nr)) in the preconditioner's precision, or None
         if a block is singular (the LUs then, which pass a singular block's rows through)."""
-        blocks = [K for _, K in op.harmonic_blocks()]
         try:
             with np.errstate(all="ignore"):
+                blocks = [K for _, K in op.harmonic_blocks(self._real)]
                 inv0 = np.linalg.inv(blocks[0].astype(self._real, copy=False))
                 invh = np.linalg.inv(np.stack(blocks[1:]).astype(self._real, copy=False)) if op.nh else None
         except np.linalg.LinAlgError:
@@ -588,9 +633,14 @@ class StructuredSolve:
             if invh is not None:
                 out[1:] = np.matmul(invh, Y[1:].reshape(nc // 2, 2 * nr, 1)).reshape(nc - 1, nr)
             return out.ravel()
-        for idx, lu in self._lu[1]:
-            b = Y[idx].ravel()
-            out[idx] = (b if lu is None else scipy.linalg.lu_solve(lu, b, check_finite=False)).reshape(len(idx), nr)
+        for idx, lu in self._lu[1]:     # complex blocks for h ≥ 1 (:meth:`ContactJacobian.complex_harmonic_blocks`)
+            if lu is None:
+                out[idx] = Y[idx]
+            elif len(idx) == 1:
+                out[idx[0]] = scipy.linalg.lu_solve(lu, Y[idx[0]], check_finite=False)
+            else:
+                X = scipy.linalg.lu_solve(lu, Y[idx[0]] - 1j * Y[idx[1]], check_finite=False)
+                out[idx[0]], out[idx[1]] = X.real, -X.imag
         return out.ravel()
 
     def _cluster_solve(self, x):
@@ -662,7 +712,7 @@ class StructuredSolve:
         (:data:`FACTOR_ITERS`). Refactoring at the first solve over the
         threshold (the rule before) renewed the blocks at every Newton step of the
         strongly slipping points, where even fresh blocks need 35–60 iterations,
-        while a factorisation costs 16 (128 pairs) to 112 (512 pairs) iterations."""
+        while a factorisation costs 4 (128 pairs) to 22 (512 pairs) iterations."""
         self._excess += max(0.0, its - REFRESH_ITERS * np.log(rtol) / np.log(GMRES_RTOL))
         dofs, at, power = FACTOR_ITERS
         if self._excess >= at * (self._lu[0][1] / dofs) ** power:

@@ -414,6 +414,55 @@ def test_cluster_blocks_are_the_blocks_of_the_dense_k(method):
 
 
 
+@pytest.mark.parametrize("method", ["hbm", "hdhb"])
+def test_harmonic_blocks_are_the_blocks_of_the_dense_k(method):
+    """K_hh = (I − G̃_hh) Zb_hh + G̃_hh E is K restricted to one harmonic's (cos, sin)
+    coefficients of every pair; formed in float32 it equals them to float32 round-off."""
+    from workflow.linsolve import ContactJacobian
+
+    prob = _problem(method)
+    x = _slipping_state(prob) * 1.05
+    _, op = prob.residual_operator(x)
+    assert np.any(np.abs(op.Gt) > 0) and np.any(op.Gt != np.eye(op.Gt.shape[1]))   # slipping pairs
+    K = ContactJacobian(op.Zr, op.eps, op.Gt).todense()       # coefficient space, no L_r, L_p
+    K4 = K.reshape(op.nc, op.nr, op.nc, op.nr)
+    for dtype, rtol in ((np.float64, 1e-12), (np.float32, 1e-6)):
+        for idx, b in op.harmonic_blocks(dtype):
+            assert b.dtype == dtype
+            ref = K4[idx][:, :, idx].reshape(b.shape)
+            assert np.abs(b - ref).max() <= rtol * np.abs(ref).max()
+
+
+def test_complex_harmonic_blocks_are_k_with_the_complex_linear_part_of_g():
+    """The LUs' complex blocks B_h (h ≥ 1) are K_hh with each pair's (cos, sin) block of G̃_hh
+    replaced by its complex-linear part (ĝ = (g_cc + g_ss)/2 + i (g_cs − g_sc)/2): exactly
+    the real K_hh of that G̃, in the real form [[Re B, Im B], [−Im B, Re B]]; harmonic 0's block
+    is K_00 itself. Slipping pairs have an anti-linear part, so B_h is not K_hh there."""
+    from workflow import fourier
+    from workflow.linsolve import ContactJacobian
+
+    prob = _problem("hbm")
+    _, op = prob.residual_operator(_slipping_state(prob) * 1.05)
+    nc, p = op.nc, op.p
+    G = op.Gt.reshape(p, nc, 3, nc, 3).copy()
+    for h in range(1, op.nh + 1):
+        c, s = 2 * h - 1, 2 * h
+        a = 0.5 * (G[:, c, :, c, :] + G[:, s, :, s, :])
+        b = 0.5 * (G[:, c, :, s, :] - G[:, s, :, c, :])
+        G[:, c, :, c, :], G[:, s, :, s, :], G[:, c, :, s, :], G[:, s, :, c, :] = a, a, b, -b
+    linear = ContactJacobian(op.Zr, op.eps, G.reshape(op.Gt.shape))
+    gap = 0.0
+    for (idx, B), (_, K), (_, K_true) in zip(op.complex_harmonic_blocks(), linear.harmonic_blocks(),
+                                             op.harmonic_blocks()):
+        R = B.real if len(idx) == 1 else fourier.real_block(B)
+        assert np.abs(R - K).max() <= 1e-12 * np.abs(K).max()
+        gap = max(gap, np.abs(K_true - K).max() / np.abs(K_true).max())
+    assert gap > 1e-3                                           # the slipping pairs' anti-linear part
+    for (_, B64), (_, B32) in zip(op.complex_harmonic_blocks(), op.complex_harmonic_blocks(np.float32)):
+        assert B32.dtype in (np.float32, np.complex64)
+        assert np.abs(B32 - B64).max() <= 1e-6 * np.abs(B64).max()
+
+
 @pytest.mark.parametrize("omega_hz", [25.0, 27.0, 29.0])
 def test_inexact_newton_steps_reach_the_same_root(omega_hz, monkeypatch):
     """Newton with the structured solve takes Eisenstat–Walker linear tolerances

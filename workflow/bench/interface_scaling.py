@@ -36,6 +36,8 @@ from pathlib import Path
 
 PAIRS = (16, 32, 64, 128, 256, 512)
 FIT_MIN_PAIRS = 64
+#: Issue #16's bound on the growth of seconds per converged point from FIT_MIN_PAIRS up (drawn in the plot)
+GROWTH_BOUND = 1.5
 
 
 def grid(pairs: int) -> tuple[int, int]:
@@ -198,6 +200,8 @@ def _plot(rows, fit, path: Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
+    import numpy as np
 
     from workflow.report.png import finish_axes, write_figure
 
@@ -209,7 +213,14 @@ def _plot(rows, fit, path: Path) -> Path:
             f = fit.get(f"{q}:{m}:{s}")
             lab = f"{m} {s}" + (f" (∝ pairs^{f['b']:.2f})" if f else "")
             ax.loglog([p for p, _ in pts], [y for _, y in pts], "o-", label=lab)
+        ref = sorted((r["pairs"], r[q]) for r in rows if r["pairs"] >= FIT_MIN_PAIRS and r["method"] == "hbm")
+        if q == "s_per_point" and len(ref) > 1:     # the growth bound of issue #16 through the first fitted point
+            x = np.array([ref[0][0], ref[-1][0]], float)
+            ax.loglog(x, ref[0][1] * (x / x[0]) ** GROWTH_BOUND, "k--", lw=0.8, label=f"∝ pairs^{GROWTH_BOUND:g}")
         finish_axes(ax, "contact pairs", unit, which="both")
+        ticks = sorted({r["pairs"] for r in rows})
+        ax.set_xticks(ticks, [str(t) for t in ticks])
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     fig.suptitle("bladewear: harmonic balance vs contact pairs (1 BLAS thread; structured solve ≥ 256 pairs: all cores)")
     write_figure(fig, path)
     return path
