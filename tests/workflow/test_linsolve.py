@@ -515,3 +515,20 @@ def test_cascade_tries_the_guess_with_the_smaller_residual_first():
     assert alone.converged and both.converged and alone.iterations > 0
     assert both.how == "guess1" and both.iterations == alone.iterations
     assert np.array_equal(both.result.x, alone.result.x)
+
+
+def test_cascade_resumes_a_guess_that_ran_out_of_iterations_while_converging(monkeypatch):
+    """Attempt 3: a guess's Newton that stops at its budget (15 here) well below the guesses'
+    ‖R‖ is resumed where it stopped — the same iterates as one longer Newton, to the bit —
+    instead of the cascade starting again from far. Gated by RESUME_RATIO: here ‖R‖ fell to
+    1.4e-2 of the start in 15 steps, so the default 1e-3 leaves it to the later attempts."""
+    prob = _problem("hbm", 25.0)
+    tol, far = 1e-9, prob.x0()
+    longer = prob.solve(far, tol=tol, maxiter=60, max_backtracks=10)
+    assert longer.converged and 15 < longer.iterations <= 30
+    pr = cascade.solve_point(prob, [far], solver="newton", tol=tol, maxiter=60)
+    assert pr.converged and pr.how != "resumed"
+    monkeypatch.setattr(cascade, "RESUME_RATIO", 0.1)
+    pr = cascade.solve_point(prob, [far], solver="newton", tol=tol, maxiter=60)
+    assert pr.converged and pr.how == "resumed"
+    assert pr.iterations == longer.iterations and np.array_equal(pr.result.x, longer.x)
