@@ -464,12 +464,11 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
             yield idx, B.reshape(nr, nr)
 
     def harmonic_blocks(self, dtype=np.float64):
-        """Yields (idx, K_hh), the exact harmonic-diagonal blocks of K, (s·nr)² each in
-        ``dtype`` — one at a time, so that a caller factoring them in single precision never
-        holds all of them in double (at 512 pairs, Nh = 7: 0.5 GB), and formed in ``dtype``:
-        pair by pair, ``K_hh = (I − G̃_hh) Zb_hh + G̃_hh E`` (E touches only the pair's own
-        columns), one product that reads Zb_hh's rows once. Forming them in double and by
-        ``Zb + G̃ (E − Zb)`` took 1.7 s of each 3.0 s factorisation at 512 pairs."""
+        """Yields (idx, K_hh), the exact harmonic-diagonal blocks of K, (s·nr)² each, formed in
+        ``dtype`` pair by pair as ``K_hh = (I − G̃_hh) Zb_hh + G̃_hh E`` (E touches only the
+        pair's own columns): the small interfaces' explicit inverses
+        (:meth:`StructuredSolve._invert_blocks`); the LUs of larger ones take
+        :meth:`complex_harmonic_blocks`."""
         nc, nr, p = self.nc, self.nr, self.p
         G5 = self.Gt.reshape(p, nc, 3, nc, 3)
         ip = np.arange(p)
