@@ -131,6 +131,8 @@ class TiedBasis:
     PM: np.ndarray
     # :func:`_high_mode_series`, made on first use: None not yet, False not worth it
     series: object = field(default=None, repr=False, compare=False)
+    # ``O_y Φ`` of :func:`_recover_modal`, made on first use
+    O_phi: np.ndarray | None = field(default=None, repr=False, compare=False)
 
 
 #: Tied modes above ``SERIES_SPLIT`` × the first tied frequency enter Z_r through their
@@ -486,6 +488,11 @@ def recover(rc, omega: float, Ur: np.ndarray) -> np.ndarray:
     its own ND for a cyclic ``rc``: sector 0's complex amplitudes) and maps
     ``z = [u_r; y]`` to the observed DOFs.
     """
+    if isinstance(rc, RelativeCoordinates):
+        tm = tied_basis(rc)
+        out = None if tm is None else _recover_modal(rc, tm, omega, np.asarray(Ur))
+        if out is not None:
+            return out
     out = np.empty((Ur.shape[0], rc.harmonic(0).O.shape[0]), dtype=complex)
     for j in range(Ur.shape[0]):
         rj = rc.harmonic(j)
@@ -497,6 +504,30 @@ def recover(rc, omega: float, Ur: np.ndarray) -> np.ndarray:
             y = np.linalg.solve(D[r:, r:], f[r:] - D[r:, :r] @ Ur[j]) if D.shape[0] > r else np.zeros(0, complex)
         out[j] = rj.O[:, :r] @ Ur[j] + rj.O[:, r:] @ y
     return out
+
+
+def _recover_modal(rc: RelativeCoordinates, tm: TiedBasis, omega: float, Ur: np.ndarray):
+    """:func:`recover` through :class:`TiedBasis`, every harmonic at once (None at an undamped
+    tied resonance): ``O z = O_r u_j + (O_y Φ) diag(1/(a_j − b_j μ)) (Φᵀ f_yj − a_j PKᵀ u_j +
+    b_j PMᵀ u_j)``. PK, PM and Φ are read once for all harmonics instead of once per harmonic,
+    and ``O_y Φ`` (n_obs × n_y) is kept on ``tm``: at 512 pairs the per-harmonic solves were
+    7 % of a sweep's time."""
+    r, nh1 = rc.n_rel, Ur.shape[0]
+    terms = [_modal_terms(tm, j * omega) for j in range(nh1)]
+    if any(t is None for t in terms):
+        return None
+    a = np.array([t[0] for t in terms])
+    b = np.array([t[1] for t in terms])
+    den = np.stack([t[4] for t in terms], axis=1)                     # (n_y, Nh+1)
+    if tm.O_phi is None:
+        tm.O_phi = rc.O[:, r:] @ tm.Phi
+    U = np.concatenate([Ur.T.real, Ur.T.imag], axis=1)                # (3p, 2(Nh+1)) real
+    K, M = tm.PK.T @ U, tm.PM.T @ U
+    PTu = a * (K[:, :nh1] + 1j * K[:, nh1:]) - b * (M[:, :nh1] + 1j * M[:, nh1:])
+    fy = np.stack([harmonic_load(rc, j)[r:] for j in range(nh1)], axis=1)
+    F = tm.Phi.T @ np.concatenate([fy.real, fy.imag], axis=1)
+    q = (F[:, :nh1] + 1j * F[:, nh1:] - PTu) / den
+    return (rc.O[:, :r] @ Ur.T + tm.O_phi @ q).T
 
 
 def _tied_response(rc: RelativeCoordinates, j: int, omega: float, f: np.ndarray, u: np.ndarray):

@@ -185,11 +185,13 @@ class HBProblem:
             return self._to_samples(zb_apply(self.Zr, self._to_coef(y)))
         return zb_apply(self.Zr, y)
 
-    def _apply_Rlin(self, y):
-        """Rlin y for y (nc, nr): Zb y, Ec Zb y (TCM) or H y."""
-        if self.method == "tcm":
-            return self._Ec @ zb_apply(self.Zr, y)
-        return self._apply_A(y)
+    def _linear(self, x):
+        """(y, A y, Rlin y) for the unknowns x, y = x as (nc, nr): one product with Zb serves
+        the DLFT predictor and the residual's linear part (Rlin = A for HBM and HDHB, Ec·A
+        for TCM); at 512 pairs that product is the residual's largest cost."""
+        y = np.asarray(x, dtype=float).reshape(self.nc, self.nr)
+        Ay = self._apply_A(y)
+        return y, Ay, (self._Ec @ Ay if self.method == "tcm" else Ay)
 
     def _dense_parts(self):
         """The dense (n × n) Rlin and A (N/m), formed on first use and kept —
@@ -320,10 +322,10 @@ class HBProblem:
         return fourier.to_time(self.harmonics(x), self.nit).reshape(self.nit, self.p, 3)
 
     # --------------------------------------------------------------- contact
-    def _predictor(self, x):
-        y = np.asarray(x, dtype=float).reshape(self.nc, self.nr)
-        a = self.a_F - self._apply_A(y) + self._eps * (y + self._shift)
-        return a
+    def _predictor(self, x, linear=None):
+        """The DLFT predictor a (eqs. 11–12) at x (N); ``linear``: :meth:`_linear` of x, if made."""
+        y, Ay, _ = self._linear(x) if linear is None else linear
+        return self.a_F - Ay + self._eps * (y + self._shift)
 
     def _dlft(self, a, jacobian):
         lam_u = (self.basis @ a).reshape(self.nit, self.p, 3)
@@ -403,9 +405,9 @@ class HBProblem:
         x = np.asarray(x, dtype=float)
         if x.shape != (self.n,):
             raise ValueError(f"x must have shape ({self.n},), got {x.shape}")
-        a = self._predictor(x)
-        res = self._dlft(a, jacobian)
-        R = self._apply_Rlin(x.reshape(self.nc, self.nr)).ravel() - self.r_F.ravel() + self._lam_rows(res.lam.reshape(self.nit, self.nr)).ravel()
+        lin = self._linear(x)
+        res = self._dlft(self._predictor(x, lin), jacobian)
+        R = lin[2].ravel() - self.r_F.ravel() + self._lam_rows(res.lam.reshape(self.nit, self.nr)).ravel()
         self.stats["evaluations"] += 1
         if not jacobian:
             return R, None, None
@@ -447,9 +449,9 @@ class HBProblem:
         x = np.asarray(x, dtype=float)
         if x.shape != (self.n,):
             raise ValueError(f"x must have shape ({self.n},), got {x.shape}")
-        res = self._dlft(self._predictor(x), True)
-        R = self._apply_Rlin(x.reshape(self.nc, self.nr)).ravel() - self.r_F.ravel() \
-            + self._lam_rows(res.lam.reshape(self.nit, self.nr)).ravel()
+        lin = self._linear(x)
+        res = self._dlft(self._predictor(x, lin), True)
+        R = lin[2].ravel() - self.r_F.ravel() + self._lam_rows(res.lam.reshape(self.nit, self.nr)).ravel()
         self.stats["evaluations"] += 1
         self.stats["jacobians"] += 1
         Gt = self.coefficient_blocks(self.contact_blocks(res.dlam))
