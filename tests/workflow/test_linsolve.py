@@ -532,3 +532,25 @@ def test_cascade_resumes_a_guess_that_ran_out_of_iterations_while_converging(mon
     pr = cascade.solve_point(prob, [far], solver="newton", tol=tol, maxiter=60)
     assert pr.converged and pr.how == "resumed"
     assert pr.iterations == longer.iterations and np.array_equal(pr.result.x, longer.x)
+
+
+def test_cascade_ends_with_newton_on_the_whole_budget(monkeypatch):
+    """Attempt 9: from the 6-pair model's linear solution at 24 Hz, Newton creeps for some
+    30 steps before its stick/slip pattern settles; every shorter attempt fails (the point
+    was lost), one Newton run with the whole budget converges — to the root of a plain
+    Newton from the same start, within the residual tolerance."""
+    prob = _problem("hbm", 24.0)
+    tol, far = 1e-9, prob.x0()
+    plain = prob.solve(far, tol=tol, maxiter=100, max_backtracks=10)
+    assert plain.converged and plain.iterations > 25
+    monkeypatch.setattr(cascade, "FULL_BUDGET", False)
+    lost = cascade.solve_point(prob, [far], solver="newton", tol=tol, maxiter=100)
+    assert not lost.converged and lost.how == "failed"
+    monkeypatch.setattr(cascade, "FULL_BUDGET", True)
+    pr = cascade.solve_point(prob, [far], solver="newton", tol=tol, maxiter=100)
+    assert pr.converged and pr.how == "full-budget" and pr.iterations > lost.iterations
+    scale = prob.residual_scale()
+    assert np.linalg.norm(prob.residual(pr.result.x)) <= tol * scale
+    _, J = prob.residual_jacobian(plain.x)
+    bound = 2 * tol * scale * np.linalg.norm(np.linalg.inv(J), 2)
+    assert np.linalg.norm(pr.result.x - plain.x) <= max(bound, 1e-12 * np.linalg.norm(plain.x))
