@@ -222,3 +222,53 @@ def test_the_high_modes_series_condenses_as_the_rank_update_and_the_lu_do(rotati
         for name, floor in (("Zr", 0), ("Fr", 0), ("dZr", np.abs(lu.Zr).max() / w1), ("dFr", np.abs(lu.Fr).max() / w1)):
             _close(getattr(with_series, name), getattr(rank_update, name), 1e-13, floor)
             _close(getattr(with_series, name), getattr(lu, name), 1e-10, floor)
+
+
+def test_all_harmonics_at_once_equal_the_condensation_harmonic_by_harmonic(rotating_bundle, monkeypatch):
+    """Where every harmonic takes the high-mode series, `condense` forms Z_r of all of them in one
+    product with the series' stack (reduction.condense._condense_all): the same Z_r and F_r as
+    harmonic by harmonic (the derivative path, which keeps that loop) and as the LU. Where a
+    harmonic is beyond the series (3 w1 here: harmonic 3 at 9 w1), the loop serves them all."""
+    import reduction.condense as cd
+    from reduction.reduce import reduce_bundle
+
+    bundle, summary, _ = rotating_bundle
+    rc = relative_coordinates(reduce_bundle(bundle, 10))
+    w1 = 2 * np.pi * summary["first_tied_hz"]
+    monkeypatch.setattr(cd, "SERIES_MIN_DOFS", 0)
+    monkeypatch.setattr(cd, "SERIES_SPLIT", 10.0)
+    monkeypatch.setattr(cd, "SERIES_TERMS", 40)
+    monkeypatch.setattr(cd, "CHUNK", 1000)          # several chunks of the stack's columns
+    for omega, at_once in ((0.0, True), (w1, True), (3 * w1, False)):
+        assert (cd._condense_all(rc, omega, 3) is not None) == at_once
+        fast = condense(rc, omega, 3)
+        loop = condense(rc, omega, 3, derivative=True)
+        monkeypatch.setattr(cd, "TIED_BASIS", False)
+        tm, rc.tied = rc.tied, None
+        lu = condense(rc, omega, 3)
+        monkeypatch.setattr(cd, "TIED_BASIS", True)
+        rc.tied = tm
+        for name in ("Zr", "Fr"):
+            _close(getattr(fast, name), getattr(loop, name), 1e-14)
+            _close(getattr(fast, name), getattr(lu, name), 1e-10)
+
+
+def test_the_diagonals_equal_those_of_the_condensed_stiffness(rotating_bundle):
+    """`diagonal` (the automatic penalty's sampling of 33 harmonics) sums the tied modes per
+    contact DOF instead of forming Z_r; a model without a tied basis (damping not Rayleigh)
+    takes the diagonals of `condense`."""
+    import reduction.condense as cd
+    from reduction.reduce import reduce_bundle
+
+    bundle, summary, _ = rotating_bundle
+    rc = relative_coordinates(reduce_bundle(bundle, 10))
+    assert cd.tied_basis(rc) is not None
+    for omega in (0.0, 2 * np.pi * summary["first_tied_hz"]):
+        ref = np.diagonal(condense(rc, omega, 12).Zr, axis1=1, axis2=2)
+        _close(cd.diagonal(rc, omega, 12), ref, 1e-12)
+    model = _random_model(seed=4)
+    A = np.random.default_rng(1).standard_normal(model.C.shape)
+    model.C = model.C + 1e-3 * (A + A.T)
+    rc = relative_coordinates(model)
+    assert cd.tied_basis(rc) is None
+    np.testing.assert_array_equal(cd.diagonal(rc, 2.9, 2), np.diagonal(condense(rc, 2.9, 2).Zr, axis1=1, axis2=2))

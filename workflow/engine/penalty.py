@@ -104,11 +104,12 @@ def unresolved_stiffness(rc, omega: float, harmonics: int = HARMONICS) -> np.nda
     of a study (on the dovetail the stiffness is flat in h). A cyclic model is
     sampled on the excitation's nodal diameter. The median ignores the few h that
     sit on a resonance of the structure with the interface free."""
-    from workflow.engine.linear import condensed
+    from reduction.condense import diagonal
+    from workflow.linsolve import large_blas
 
     base = rc.harmonic(1) if hasattr(rc, "by_nd") else rc
-    Z = condensed(base, float(omega), int(harmonics)).Zr[2:]
-    d = np.diagonal(Z, axis1=1, axis2=2)                           # (H−1, 3p)
+    with large_blas(int(base.n_rel)):
+        d = diagonal(base, float(omega), int(harmonics))[2:]       # (H−1, 3p)
     with np.errstate(divide="ignore", invalid="ignore"):
         c = np.median(np.real(1.0 / d), axis=0).reshape(-1, 3)    # m/N
     c = np.stack([c[:, 0], 0.5 * (c[:, 1] + c[:, 2])], axis=1)
