@@ -52,3 +52,32 @@ def test_frf_study_reports_the_refined_peak_of_its_most_converged_sweep():
     assert abs(pk["hz"] - fn * np.sqrt(1 - 2 * zeta ** 2)) <= 2 * pk["xtol_hz"]
     assert pk["amplitude_m"] == pytest.approx(force / (2 * zeta * k * np.sqrt(1 - zeta ** 2)), rel=1e-8)
     assert pk["amplitude_m"] > 1.3 * pk["grid_amplitude_m"]
+
+
+def test_the_peak_search_shares_one_structured_solve(monkeypatch):
+    """Where the structured linear solve applies (forced here on the damped oscillator), the
+    search's points share one: each point starts from the last one's lagged blocks instead of
+    a factorisation of its own, and the peak is still the closed-form one."""
+    from reduction.condense import relative_coordinates
+    from workflow import engine, linsolve
+    from workflow.engine import cascade
+    from workflow.engine.compare import refine_peak
+    from workflow.verification import models
+
+    m, fn, zeta, force = 1.0, 10.0, 0.02, 1.0
+    k = m * (2 * np.pi * fn) ** 2
+    model, _ = models.coulomb(m, k, 2 * zeta * np.sqrt(k * m), 1.0, force, 0.0)
+    law = engine.contact_law(model, mu=0.0)
+    v = engine.Variant("hbm", 1, 16)
+    opt = engine.FRFOptions(reference=None, eps_check_factor=0.0, refine_peak=False)
+    study = engine.frf(model, law, [v], band_hz=(9.0, 11.4), points=7, options=opt)
+    monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
+    made = []
+    init = linsolve.StructuredSolve.__init__
+    monkeypatch.setattr(linsolve.StructuredSolve, "__init__", lambda self, *a, **kw: (made.append(self), init(self, *a, **kw))[1])
+    pk = refine_peak(relative_coordinates(model), study.runs[0], law, study.static, v, 1e-7 * fn, solver="newton",
+                     tol=opt.tol, maxiter=opt.max_iterations, max_passes=opt.max_passes, eps_path=opt.eps_path)
+    assert len(made) == 1 and made[0].stats["solves"] > 0
+    assert made[0].stats["factorizations"] < pk.evaluations - 7
+    assert pk.hz == pytest.approx(fn * np.sqrt(1 - 2 * zeta ** 2), rel=1e-6)
+    assert pk.amplitude == pytest.approx(force / (2 * zeta * k * np.sqrt(1 - zeta ** 2)), rel=1e-8)

@@ -71,7 +71,7 @@ def observed(rc, omega, Ur) -> tuple[float, float]:
 def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: float, maxiter: int,
                   max_passes: int = 20, progress=None, log=None,
                   smooth_nit: int = 64, seeds: list | None = None, eps_path=(),
-                  pseudo: dict | None = None) -> SweepResult:
+                  pseudo: dict | None = None, linsolver=None) -> SweepResult:
     """Sweep ``v`` over the precomputed condensations ``cond`` (one per frequency).
 
     ``static``: the :class:`~workflow.hb.StaticState` (its tangential stick
@@ -87,7 +87,10 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     ``seeds`` (optional, one per frequency): complex harmonics (≥1, 3p) of
     U_r from another solve at that frequency (e.g. a lower Nh), tried first;
     missing harmonics are zero. ``eps_path``, ``pseudo``: see
-    :func:`workflow.engine.cascade.solve_point`.
+    :func:`workflow.engine.cascade.solve_point`. ``linsolver``: a
+    :class:`~workflow.linsolve.StructuredSolve` to start from (one kept across sweeps at
+    nearby frequencies, e.g. the peak search's points): its lagged blocks precondition the
+    first point; by default the first point makes its own.
 
     The sweep runs upwards, each point from its converged lower neighbours (secant
     predictor); a point lost on the way is then tried once more downwards, from its
@@ -114,8 +117,11 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     for i in (progress(idx, total=n, label=v.label) if progress else idx):
         c = cond[i]
         t0 = time.perf_counter()
-        prob = HBProblem(c.Zr, c.Fr, law, v.nh, v.nit, v.method, max_passes=max_passes, static=static) \
-            if prob is None else prob.with_linear(c.Zr, c.Fr)
+        if prob is None:
+            prob = HBProblem(c.Zr, c.Fr, law, v.nh, v.nit, v.method, max_passes=max_passes, static=static)
+            prob.linsolver = linsolver
+        else:
+            prob = prob.with_linear(c.Zr, c.Fr)
         guesses = []
         if seeds is not None and seeds[i] is not None:
             U = np.zeros((v.nh + 1, prob.nr), dtype=complex)
