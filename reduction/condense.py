@@ -271,12 +271,31 @@ def _modal_terms(tm: TiedBasis, w: float):
     return a, b, da, db, den
 
 
+def _stacked_terms(tm: TiedBasis, omega: float, m: int):
+    """:func:`_modal_terms` of harmonics 0…m−1 at ω [rad/s] and their stacks: (terms, a (m,),
+    b (m,), 1/(a − bμ) (n_y, m)), or None at an undamped tied resonance of one of them."""
+    terms = [_modal_terms(tm, j * omega) for j in range(m)]
+    if any(t is None for t in terms):
+        return None
+    return (terms, np.array([t[0] for t in terms]), np.array([t[1] for t in terms]),
+            1.0 / np.stack([t[4] for t in terms], axis=1))
+
+
+def _real_times(A: np.ndarray, Z: np.ndarray) -> np.ndarray:
+    """A Z for a real matrix A and complex columns Z (n, k), as one real product that reads A once."""
+    k = Z.shape[1]
+    X = A @ np.concatenate([Z.real, Z.imag], axis=1)
+    return X[:, :k] + 1j * X[:, k:]
+
+
 def _p_times(tm: TiedBasis, a, b, z: np.ndarray, transpose: bool = False) -> np.ndarray:
-    """``P z = (a PK − b PM) z`` (``Pᵀ z`` if ``transpose``) for a complex vector z without
-    forming the complex P: real products that read PK and PM once each."""
-    zz = np.stack([z.real, z.imag], axis=1)
-    K, M = (tm.PK.T @ zz, tm.PM.T @ zz) if transpose else (tm.PK @ zz, tm.PM @ zz)
-    return a * (K[:, 0] + 1j * K[:, 1]) - b * (M[:, 0] + 1j * M[:, 1])
+    """``P z = (a PK − b PM) z`` (``Pᵀ z`` if ``transpose``) for a complex vector z, or for the
+    columns of z (n, k) with a, b (k,) — one harmonic a column — without forming the complex P:
+    real products that read PK and PM once each."""
+    K, M = (tm.PK.T, tm.PM.T) if transpose else (tm.PK, tm.PM)
+    Z = z[:, None] if z.ndim == 1 else z
+    out = a * _real_times(K, Z) - b * _real_times(M, Z)
+    return out[:, 0] if z.ndim == 1 else out
 
 
 @dataclass
@@ -414,9 +433,10 @@ def _condense_all(rc: RelativeCoordinates, omega: float, nh: int) -> Condensed |
     series = None if tm is None else _high_mode_series(rc, tm)
     if series is None:
         return None
-    terms = [_modal_terms(tm, j * omega) for j in range(nh + 1)]
-    if any(t is None for t in terms):
+    stacked = _stacked_terms(tm, omega, nh + 1)
+    if stacked is None:
         return None
+    terms, a, b, d = stacked
     coef = [_series_coefficients(t[0], t[1], t[2], t[3], series.mu_c, False) for t in terms]
     if any(c is None for c in coef):
         return None
@@ -428,16 +448,13 @@ def _condense_all(rc: RelativeCoordinates, omega: float, nh: int) -> Condensed |
     for k in range(0, r * r, CHUNK):
         X = G @ series.S[:, k:k + CHUNK]
         flat.real[:, k:k + CHUNK], flat.imag[:, k:k + CHUNK] = X[:m], X[m:]
-    a = np.array([t[0] for t in terms])
-    b = np.array([t[1] for t in terms])
-    d = 1.0 / np.stack([t[4] for t in terms], axis=1)                    # (n_y, Nh+1)
     low = series.low
     for j in range(m):
         Pk = a[j] * tm.PK[:, low] - b[j] * tm.PM[:, low]
         Zr[j] -= (Pk * d[low, j]) @ Pk.T
     fy = np.stack([harmonic_load(rc, j) for j in range(m)], axis=1)      # (n, Nh+1)
     g = d * _real_times(tm.Phi.T, fy[r:])                                # Φᵀ f_y / (a − bμ)
-    Fr = (fy[:r] - a * _real_times(tm.PK, g) + b * _real_times(tm.PM, g)).T
+    Fr = (fy[:r] - _p_times(tm, a, b, g)).T
     return Condensed(omega=omega, Zr=Zr, Fr=np.ascontiguousarray(Fr))
 
 
@@ -447,25 +464,16 @@ def diagonal(rc, omega: float, nh: int) -> np.ndarray:
     with ``P = a PK − b PM``, three real products for all harmonics (at 512 pairs and 33
     harmonics 5.2 s through :func:`condense` and 1.2 GB). Else the diagonals of :func:`condense`."""
     tm = tied_basis(rc) if isinstance(rc, RelativeCoordinates) else None
-    terms = None if tm is None else [_modal_terms(tm, j * omega) for j in range(nh + 1)]
-    if terms is None or any(t is None for t in terms):
+    stacked = None if tm is None else _stacked_terms(tm, omega, nh + 1)
+    if stacked is None:
         return np.diagonal(condense(rc, omega, nh).Zr, axis1=1, axis2=2).copy()
     r = rc.n_rel
-    a = np.array([t[0] for t in terms])
-    b = np.array([t[1] for t in terms])
-    d = 1.0 / np.stack([t[4] for t in terms], axis=1)                    # (n_y, Nh+1)
+    _, a, b, d = stacked
     kk = _real_times(tm.PK * tm.PK, d)
     km = _real_times(tm.PK * tm.PM, d)
     mm = _real_times(tm.PM * tm.PM, d)
     out = a * np.diag(rc.K)[:r, None] - b * np.diag(rc.M)[:r, None] - (a * a * kk - 2 * a * b * km + b * b * mm)
     return np.ascontiguousarray(out.T)
-
-
-def _real_times(A: np.ndarray, Z: np.ndarray) -> np.ndarray:
-    """A Z for a real matrix A and complex columns Z, as one real product."""
-    k = Z.shape[1]
-    X = A @ np.concatenate([Z.real, Z.imag], axis=1)
-    return X[:, :k] + 1j * X[:, k:]
 
 
 def _condense_harmonic(rc: RelativeCoordinates, j: int, omega: float, derivative: bool):
@@ -585,20 +593,14 @@ def _recover_modal(rc: RelativeCoordinates, tm: TiedBasis, omega: float, Ur: np.
     and ``O_y Φ`` (n_obs × n_y) is kept on ``tm``: at 512 pairs the per-harmonic solves were
     7 % of a sweep's time."""
     r, nh1 = rc.n_rel, Ur.shape[0]
-    terms = [_modal_terms(tm, j * omega) for j in range(nh1)]
-    if any(t is None for t in terms):
+    stacked = _stacked_terms(tm, omega, nh1)
+    if stacked is None:
         return None
-    a = np.array([t[0] for t in terms])
-    b = np.array([t[1] for t in terms])
-    den = np.stack([t[4] for t in terms], axis=1)                     # (n_y, Nh+1)
+    _, a, b, d = stacked
     if tm.O_phi is None:
         tm.O_phi = rc.O[:, r:] @ tm.Phi
-    U = np.concatenate([Ur.T.real, Ur.T.imag], axis=1)                # (3p, 2(Nh+1)) real
-    K, M = tm.PK.T @ U, tm.PM.T @ U
-    PTu = a * (K[:, :nh1] + 1j * K[:, nh1:]) - b * (M[:, :nh1] + 1j * M[:, nh1:])
     fy = np.stack([harmonic_load(rc, j)[r:] for j in range(nh1)], axis=1)
-    F = tm.Phi.T @ np.concatenate([fy.real, fy.imag], axis=1)
-    q = (F[:, :nh1] + 1j * F[:, nh1:] - PTu) / den
+    q = d * (_real_times(tm.Phi.T, fy) - _p_times(tm, a, b, Ur.T, transpose=True))
     return (rc.O[:, :r] @ Ur.T + tm.O_phi @ q).T
 
 

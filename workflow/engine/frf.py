@@ -122,14 +122,8 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
             prob.linsolver = linsolver
         else:
             prob = prob.with_linear(c.Zr, c.Fr)
-        guesses = []
-        if seeds is not None and seeds[i] is not None:
-            U = np.zeros((v.nh + 1, prob.nr), dtype=complex)
-            m = min(len(seeds[i]), v.nh + 1)
-            U[:m] = seeds[i][:m]
-            guesses.append(prob.unknowns_from_harmonics(U))
         below = [(cond[j].omega, xs[j]) for j in range(i) if xs[j] is not None][-2:]
-        guesses += secant_guesses(below, c.omega) or [prob.x0()]     # no neighbour: static + tied linear response
+        guesses = _guesses(prob, None if seeds is None else seeds[i], below, c.omega)
         snit = smooth_nit if v.nit < smooth_nit else 2 * v.nit
 
         def smooth(c=c, guess=guesses[-1], prob=prob):
@@ -151,6 +145,19 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     out.total_seconds = time.perf_counter() - t_all
     out.cpu_seconds = time.process_time() - c_all
     return out
+
+
+def _guesses(prob, seed, below: list, omega: float) -> list:
+    """A point's guesses (unknown vectors): the ``seed``'s harmonics (complex, ≥1 × 3p, missing
+    ones zero) if given, then the secant through the converged neighbours ``below`` [(ω, x), …]
+    and the nearest of them — or, with no neighbour, the static state plus the tied linear response."""
+    guesses = []
+    if seed is not None:
+        U = np.zeros((prob.nh + 1, prob.nr), dtype=complex)
+        m = min(len(seed), prob.nh + 1)
+        U[:m] = seed[:m]
+        guesses.append(prob.unknowns_from_harmonics(U))
+    return guesses + (secant_guesses(below, omega) or [prob.x0()])
 
 
 def _downwards(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> None:
