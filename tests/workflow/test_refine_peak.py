@@ -81,3 +81,41 @@ def test_the_peak_search_shares_one_structured_solve(monkeypatch):
     assert made[0].stats["factorizations"] < pk.evaluations - 7
     assert pk.hz == pytest.approx(fn * np.sqrt(1 - 2 * zeta ** 2), rel=1e-6)
     assert pk.amplitude == pytest.approx(force / (2 * zeta * k * np.sqrt(1 - zeta ** 2)), rel=1e-8)
+
+
+def test_the_peak_search_keeps_only_the_peaks_condensation(monkeypatch):
+    """Each point of the search condenses its frequency (302 MB at 512 pairs); only the highest
+    point's condensation is kept — the one Peak returns, at the peak's frequency."""
+    import gc
+    import weakref
+
+    from reduction.condense import relative_coordinates
+    from workflow import engine
+    from workflow.engine import linear
+    from workflow.engine.compare import refine_peak
+    from workflow.verification import models
+
+    m, fn, zeta, force = 1.0, 10.0, 0.02, 1.0
+    k = m * (2 * np.pi * fn) ** 2
+    model, _ = models.coulomb(m, k, 2 * zeta * np.sqrt(k * m), 1.0, force, 0.0)
+    law = engine.contact_law(model, mu=0.0)
+    v = engine.Variant("hbm", 1, 16)
+    opt = engine.FRFOptions(reference=None, eps_check_factor=0.0, refine_peak=False)
+    study = engine.frf(model, law, [v], band_hz=(9.0, 11.4), points=7, options=opt)
+    refs, most = [], []
+    condensed = linear.condensed
+
+    def counted(*a, **kw):
+        gc.collect()
+        most.append(sum(r() is not None for r in refs))     # the search's condensations still held
+        c = condensed(*a, **kw)
+        refs.append(weakref.ref(c))
+        return c
+
+    monkeypatch.setattr(linear, "condensed", counted)
+    pk = refine_peak(relative_coordinates(model), study.runs[0], law, study.static, v, 1e-7 * fn, solver="newton",
+                     tol=opt.tol, maxiter=opt.max_iterations, max_passes=opt.max_passes, eps_path=opt.eps_path)
+    assert len(refs) == pk.evaluations - 7 > 5 and max(most) == 1
+    gc.collect()
+    assert [r() for r in refs if r() is not None] == [pk.cond]
+    assert pk.cond.omega == pytest.approx(2 * np.pi * pk.hz, rel=1e-15)

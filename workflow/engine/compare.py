@@ -118,8 +118,16 @@ def refine_peak(rc, sweep, law, static, variant, xtol_hz: float, **kw) -> Peak |
         r = sweep_variant(rc, [c], law, static, variant, seeds=[seed_], linsolver=shared, **kw)
         if not r.converged[0]:
             return 0.0  # an unconverged point cannot be the peak
-        solved[float(f)] = (float(r.amplitude[0]), r.Ur[0], c)
-        return -float(r.amplitude[0])
+        a = float(r.amplitude[0])
+        if a > max(v[0] for v in solved.values()):
+            # only the highest point keeps its condensation, the one Peak returns: 302 MB a
+            # point at 512 pairs, which the search's 16 points used to hold all at once
+            for g, v in solved.items():
+                solved[g] = v[:2] + (None,)
+        else:
+            c = None
+        solved[float(f)] = (a, r.Ur[0], c)
+        return -a
 
     i = int(np.argmax(np.where(sweep.converged, sweep.amplitude, -np.inf)))
     lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]

@@ -100,7 +100,7 @@ def _at_peaks(rc, static, runs: list, opt, trial) -> dict:
     return {"max_rel_change": worst[0], "frequency_hz": worst[1], "runs": rows}
 
 
-def frf_runs(rc, cond, law, static, runs: list, opt) -> dict:
+def frf_runs(rc, law, static, runs: list, opt) -> dict:
     """ε-check of each run at its peak: ε × ``opt.eps_check_factor``, from the converged
     state by half a decade then the full step.
 
@@ -127,7 +127,7 @@ def nh_runs(rc, law, static, runs: list, opt) -> dict:
     return _at_peaks(rc, static, runs, opt, trial)
 
 
-def reference(rc, cond, law, static, ref, opt, checks=()) -> dict:
+def reference(rc, law, static, ref, opt, checks=()) -> dict:
     """The reference's own convergence at its peak: relative change of the
     amplitude with nit × 2, Nh × 1.5 (nit scaled alike) and ε × the ε-check
     factor; ``max_rel_change`` is the largest of the nit and Nh trials (the reference's

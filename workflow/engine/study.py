@@ -317,6 +317,9 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
         _warm_up(cond[len(cond) // 2], law, static)
         runs = _variants(rc, cond, freqs, law, static, variants, opt, comm, log)
         ref = _reference(rc, cond, freqs, law, static, runs, opt, comm, log) if opt.reference else None
+        # nothing after the sweeps reads the grid's condensations (302 MB a frequency at 512
+        # pairs): the checks and the peak search condense their own points
+        del cond
         if comm is not None and comm.Get_rank() != 0:
             return None
         for r in runs + ([ref] if ref is not None else []):
@@ -327,7 +330,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
                          tied_mode=None if mode_index is None else mode_index + 1, runs=runs,
                          reference=ref, tied=tied, sliding=sliding, static=static, law=law,
                          condense_seconds=t_cond, condensation=condensation(rc))
-        _check(study, rc, cond, opt, log)
+        _check(study, rc, opt, log)
         if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:
             study.peak = _refined_peak(rc, law, static, ref if ref is not None else _most_harmonics(runs), opt,
                                        reference=ref is not None)
@@ -335,13 +338,13 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
     return study
 
 
-def _check(study: FRFStudy, rc, cond, opt, log) -> None:
+def _check(study: FRFStudy, rc, opt, log) -> None:
     """The study's convergence checks, in place: the ε-check of every run, the Nh-check, the
     reference's own check (:mod:`workflow.engine.epscheck`)."""
     law, static, runs, ref = study.law, study.static, study.runs, study.reference
     if opt.eps_check_factor > 0:
         every = runs + ([ref] if ref is not None else [])
-        study.eps_check = epscheck.judged(epscheck.frf_runs(rc, cond, law, static, every, opt))
+        study.eps_check = epscheck.judged(epscheck.frf_runs(rc, law, static, every, opt))
         if log is not None:
             log.info(epscheck.log_line(f"ε-check (ε × {opt.eps_check_factor:g}, the penalty's sensitivity)",
                                        "the worst peak", study.eps_check))
@@ -357,7 +360,7 @@ def _check(study: FRFStudy, rc, cond, opt, log) -> None:
         if log is not None:
             log.info(epscheck.log_line("Nh-check (1.5×Nh, convergence)", "the worst peak", study.nh_check))
     if ref is not None and opt.reference_check and opt.sweep == "grid":
-        study.reference_convergence = epscheck.reference(rc, cond, law, static, ref, opt,
+        study.reference_convergence = epscheck.reference(rc, law, static, ref, opt,
                                                          checks=[c for c in (study.eps_check, study.nh_check) if c])
 
 
