@@ -54,33 +54,54 @@ def test_frf_study_reports_the_refined_peak_of_its_most_converged_sweep():
     assert pk["amplitude_m"] > 1.3 * pk["grid_amplitude_m"]
 
 
-def test_the_peak_search_shares_one_structured_solve(monkeypatch):
-    """Where the structured linear solve applies (forced here on the damped oscillator), the
-    search's points share one: each point starts from the last one's lagged blocks instead of
-    a factorisation of its own, and the peak is still the closed-form one."""
+#: the damped oscillator of these tests: m, f_n [Hz], ζ, F0
+OSC = (1.0, 10.0, 0.02, 1.0)
+
+
+def _search(monkeypatch, patch: dict):
+    """The peak search on the damped oscillator's 7-point grid (μ = 0), after ``patch``
+    ({(object, attribute): value}, through ``monkeypatch``): (Peak, points of the grid)."""
     from reduction.condense import relative_coordinates
-    from workflow import engine, linsolve
-    from workflow.engine import cascade
+    from workflow import engine
     from workflow.engine.compare import refine_peak
     from workflow.verification import models
 
-    m, fn, zeta, force = 1.0, 10.0, 0.02, 1.0
+    m, fn, zeta, force = OSC
     k = m * (2 * np.pi * fn) ** 2
     model, _ = models.coulomb(m, k, 2 * zeta * np.sqrt(k * m), 1.0, force, 0.0)
     law = engine.contact_law(model, mu=0.0)
     v = engine.Variant("hbm", 1, 16)
     opt = engine.FRFOptions(reference=None, eps_check_factor=0.0, refine_peak=False)
     study = engine.frf(model, law, [v], band_hz=(9.0, 11.4), points=7, options=opt)
-    monkeypatch.setattr(cascade, "STRUCTURED_MIN_UNKNOWNS", 0)
-    made = []
-    init = linsolve.StructuredSolve.__init__
-    monkeypatch.setattr(linsolve.StructuredSolve, "__init__", lambda self, *a, **kw: (made.append(self), init(self, *a, **kw))[1])
+    for (obj, name), value in patch.items():
+        monkeypatch.setattr(obj, name, value)
     pk = refine_peak(relative_coordinates(model), study.runs[0], law, study.static, v, 1e-7 * fn, solver="newton",
                      tol=opt.tol, maxiter=opt.max_iterations, max_passes=opt.max_passes, eps_path=opt.eps_path)
-    assert len(made) == 1 and made[0].stats["solves"] > 0
-    assert made[0].stats["factorizations"] < pk.evaluations - 7
+    return pk, len(study.freqs_hz)
+
+
+def _closed_form(pk):
+    m, fn, zeta, force = OSC
+    k = m * (2 * np.pi * fn) ** 2
     assert pk.hz == pytest.approx(fn * np.sqrt(1 - 2 * zeta ** 2), rel=1e-6)
     assert pk.amplitude == pytest.approx(force / (2 * zeta * k * np.sqrt(1 - zeta ** 2)), rel=1e-8)
+
+
+def test_the_peak_search_shares_one_structured_solve(monkeypatch):
+    """Where the structured linear solve applies (forced here on the damped oscillator), the
+    search's points share one: each point starts from the last one's lagged blocks instead of
+    a factorisation of its own, and the peak is still the closed-form one."""
+    from workflow import linsolve
+    from workflow.engine import cascade
+
+    made = []
+    init = linsolve.StructuredSolve.__init__
+    pk, grid = _search(monkeypatch, {
+        (cascade, "STRUCTURED_MIN_UNKNOWNS"): 0,
+        (linsolve.StructuredSolve, "__init__"): lambda self, *a, **kw: (made.append(self), init(self, *a, **kw))[1]})
+    assert len(made) == 1 and made[0].stats["solves"] > 0
+    assert made[0].stats["factorizations"] < pk.evaluations - grid
+    _closed_form(pk)
 
 
 def test_the_peak_search_keeps_only_the_peaks_condensation(monkeypatch):
@@ -89,19 +110,8 @@ def test_the_peak_search_keeps_only_the_peaks_condensation(monkeypatch):
     import gc
     import weakref
 
-    from reduction.condense import relative_coordinates
-    from workflow import engine
     from workflow.engine import linear
-    from workflow.engine.compare import refine_peak
-    from workflow.verification import models
 
-    m, fn, zeta, force = 1.0, 10.0, 0.02, 1.0
-    k = m * (2 * np.pi * fn) ** 2
-    model, _ = models.coulomb(m, k, 2 * zeta * np.sqrt(k * m), 1.0, force, 0.0)
-    law = engine.contact_law(model, mu=0.0)
-    v = engine.Variant("hbm", 1, 16)
-    opt = engine.FRFOptions(reference=None, eps_check_factor=0.0, refine_peak=False)
-    study = engine.frf(model, law, [v], band_hz=(9.0, 11.4), points=7, options=opt)
     refs, most = [], []
     condensed = linear.condensed
 
@@ -112,10 +122,9 @@ def test_the_peak_search_keeps_only_the_peaks_condensation(monkeypatch):
         refs.append(weakref.ref(c))
         return c
 
-    monkeypatch.setattr(linear, "condensed", counted)
-    pk = refine_peak(relative_coordinates(model), study.runs[0], law, study.static, v, 1e-7 * fn, solver="newton",
-                     tol=opt.tol, maxiter=opt.max_iterations, max_passes=opt.max_passes, eps_path=opt.eps_path)
-    assert len(refs) == pk.evaluations - 7 > 5 and max(most) == 1
+    pk, grid = _search(monkeypatch, {(linear, "condensed"): counted})
+    assert len(refs) == pk.evaluations - grid > 5 and max(most) == 1
     gc.collect()
     assert [r() for r in refs if r() is not None] == [pk.cond]
     assert pk.cond.omega == pytest.approx(2 * np.pi * pk.hz, rel=1e-15)
+    _closed_form(pk)
