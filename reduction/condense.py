@@ -271,10 +271,10 @@ def _modal_terms(tm: TiedBasis, w: float):
     return a, b, da, db, den
 
 
-def _stacked_terms(tm: TiedBasis, omega: float, m: int):
-    """:func:`_modal_terms` of harmonics 0…m−1 at ω [rad/s] and their stacks: (terms, a (m,),
-    b (m,), 1/(a − bμ) (n_y, m)), or None at an undamped tied resonance of one of them."""
-    terms = [_modal_terms(tm, j * omega) for j in range(m)]
+def _stacked_terms(tm: TiedBasis, omega: float, harmonics):
+    """:func:`_modal_terms` of ``harmonics`` (m of them) at ω [rad/s] and their stacks: (terms,
+    a (m,), b (m,), 1/(a − bμ) (n_y, m)), or None at an undamped tied resonance of one of them."""
+    terms = [_modal_terms(tm, j * omega) for j in harmonics]
     if any(t is None for t in terms):
         return None
     return (terms, np.array([t[0] for t in terms]), np.array([t[1] for t in terms]),
@@ -433,7 +433,7 @@ def _condense_all(rc: RelativeCoordinates, omega: float, nh: int) -> Condensed |
     series = None if tm is None else _high_mode_series(rc, tm)
     if series is None:
         return None
-    stacked = _stacked_terms(tm, omega, nh + 1)
+    stacked = _stacked_terms(tm, omega, range(nh + 1))
     if stacked is None:
         return None
     terms, a, b, d = stacked
@@ -464,7 +464,7 @@ def diagonal(rc, omega: float, nh: int) -> np.ndarray:
     with ``P = a PK − b PM``, three real products for all harmonics (at 512 pairs and 33
     harmonics 5.2 s through :func:`condense` and 1.2 GB). Else the diagonals of :func:`condense`."""
     tm = tied_basis(rc) if isinstance(rc, RelativeCoordinates) else None
-    stacked = None if tm is None else _stacked_terms(tm, omega, nh + 1)
+    stacked = None if tm is None else _stacked_terms(tm, omega, range(nh + 1))
     if stacked is None:
         return np.diagonal(condense(rc, omega, nh).Zr, axis1=1, axis2=2).copy()
     r = rc.n_rel
@@ -570,48 +570,39 @@ def recover(rc, omega: float, Ur: np.ndarray) -> np.ndarray:
     """
     if isinstance(rc, RelativeCoordinates):
         tm = tied_basis(rc)
-        out = None if tm is None else _recover_modal(rc, tm, omega, np.asarray(Ur))
+        out = None if tm is None else _recover_modal(rc, tm, omega, np.asarray(Ur), range(Ur.shape[0]))
         if out is not None:
             return out
     out = np.empty((Ur.shape[0], rc.harmonic(0).O.shape[0]), dtype=complex)
     for j in range(Ur.shape[0]):
         rj = rc.harmonic(j)
+        tm = tied_basis(rj)
+        row = None if tm is None else _recover_modal(rj, tm, omega, Ur[j:j + 1], [j])
+        if row is not None:
+            out[j] = row[0]
+            continue
         r = rj.n_rel
         f = harmonic_load(rj, j)
-        y = _tied_response(rj, j, omega, f, Ur[j])
-        if y is None:
-            D, _ = dynamic_stiffness(rj, j, omega, derivative=False)
-            y = np.linalg.solve(D[r:, r:], f[r:] - D[r:, :r] @ Ur[j]) if D.shape[0] > r else np.zeros(0, complex)
+        D, _ = dynamic_stiffness(rj, j, omega, derivative=False)
+        y = np.linalg.solve(D[r:, r:], f[r:] - D[r:, :r] @ Ur[j]) if D.shape[0] > r else np.zeros(0, complex)
         out[j] = rj.O[:, :r] @ Ur[j] + rj.O[:, r:] @ y
     return out
 
 
-def _recover_modal(rc: RelativeCoordinates, tm: TiedBasis, omega: float, Ur: np.ndarray):
-    """:func:`recover` through :class:`TiedBasis`, every harmonic at once (None at an undamped
-    tied resonance): ``O z = O_r u_j + (O_y Φ) diag(1/(a_j − b_j μ)) (Φᵀ f_yj − a_j PKᵀ u_j +
-    b_j PMᵀ u_j)``. PK, PM and Φ are read once for all harmonics instead of once per harmonic,
-    and ``O_y Φ`` (n_obs × n_y) is kept on ``tm``: at 512 pairs the per-harmonic solves were
-    7 % of a sweep's time."""
-    r, nh1 = rc.n_rel, Ur.shape[0]
-    stacked = _stacked_terms(tm, omega, nh1)
+def _recover_modal(rc: RelativeCoordinates, tm: TiedBasis, omega: float, Ur: np.ndarray, harmonics):
+    """:func:`recover` through :class:`TiedBasis` for the rows of Ur, harmonics ``harmonics``,
+    at once (None at an undamped tied resonance of one of them): ``O z = O_r u_j + (O_y Φ)
+    diag(1/(a_j − b_j μ)) (Φᵀ f_yj − a_j PKᵀ u_j + b_j PMᵀ u_j)`` (Φᵀ D'_yr u = Pᵀ u, D
+    symmetric). PK, PM and Φ are read once for all harmonics instead of once per harmonic, and
+    ``O_y Φ`` (n_obs × n_y) is kept on ``tm``: at 512 pairs the per-harmonic solves were 7 %
+    of a sweep's time."""
+    r = rc.n_rel
+    stacked = _stacked_terms(tm, omega, harmonics)
     if stacked is None:
         return None
     _, a, b, d = stacked
     if tm.O_phi is None:
         tm.O_phi = rc.O[:, r:] @ tm.Phi
-    fy = np.stack([harmonic_load(rc, j)[r:] for j in range(nh1)], axis=1)
+    fy = np.stack([harmonic_load(rc, j)[r:] for j in harmonics], axis=1)
     q = d * (_real_times(tm.Phi.T, fy) - _p_times(tm, a, b, Ur.T, transpose=True))
     return (rc.O[:, :r] @ Ur.T + tm.O_phi @ q).T
-
-
-def _tied_response(rc: RelativeCoordinates, j: int, omega: float, f: np.ndarray, u: np.ndarray):
-    """``y = D'_yy⁻¹ (f_y − D'_yr u)`` through :class:`TiedBasis` (None where they do not apply)."""
-    tm = tied_basis(rc)
-    if tm is None:
-        return None
-    terms = _modal_terms(tm, j * omega)
-    if terms is None:
-        return None
-    a, b, den = terms[0], terms[1], terms[4]
-    # Φᵀ D'_yr u = Pᵀ u (D symmetric), P = a PK − b PM
-    return tm.Phi @ ((tm.Phi.T @ f[rc.n_rel:] - _p_times(tm, a, b, u, transpose=True)) / den)
