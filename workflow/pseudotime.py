@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -332,10 +333,14 @@ def _explicit(tr: _Tracker, x0, *, cfl, max_steps, growth, window):
 # ---------------------------------------------------------------- implicit (own)
 
 def _lu_solve(A, b, overwrite: bool = False):
+    """A⁻¹b, or None if A is singular or the solution is not finite (the caller shortens its
+    step or stops with a reason; an exactly zero pivot is not a warning to the user)."""
     try:
-        lu = scipy.linalg.lu_factor(A, check_finite=False, overwrite_a=overwrite)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", scipy.linalg.LinAlgWarning)
+            lu = scipy.linalg.lu_factor(A, check_finite=False, overwrite_a=overwrite)
         out = scipy.linalg.lu_solve(lu, b, check_finite=False)
-    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError, ValueError):
+    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError, scipy.linalg.LinAlgWarning, ValueError):
         return None
     return out if _finite(out) else None
 

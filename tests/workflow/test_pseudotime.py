@@ -103,3 +103,17 @@ def test_ser_jacobian_mass_is_one_lu_per_step_and_the_same_iteration(solved):
     assert fast.steps == slow.steps
     np.testing.assert_allclose(fast.history, slow.history, rtol=1e-6, atol=1e-9 * hb.residual_scale())
     np.testing.assert_allclose(fast.x, ref.x, atol=1e-7 * np.abs(ref.x).max())
+
+
+def test_a_singular_step_matrix_is_none_without_a_warning():
+    """An exactly singular step matrix (the undamped resonance of test_engine) gives None,
+    which the integrators handle, and no LinAlgWarning reaches the user's terminal."""
+    import warnings
+
+    from workflow.pseudotime import _lu_solve
+
+    A = np.diag([1.0, 2.0, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert _lu_solve(A, np.ones(3)) is None
+        np.testing.assert_allclose(_lu_solve(np.diag([1.0, 2.0, 4.0]), np.ones(3)), [1.0, 0.5, 0.25])
