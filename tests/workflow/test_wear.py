@@ -178,6 +178,70 @@ def test_wear_derivatives_match_finite_differences():
     np.testing.assert_allclose((sp.rate - sm.rate) / 2, st.G_x @ v, rtol=1e-3, atol=1e-22)
 
 
+@pytest.mark.parametrize("method", ["hbm", "tcm", "hdhb"])
+def test_rate_derivative_rows_equal_the_dense_product(method):
+    """∂rate/∂x is formed per pair from its rows of diag ε − A (HBProblem.penalty_rows, one
+    product per harmonic for HBM/TCM); it must be the (p × n)(n × n) product it replaced."""
+    hb = hb_problem(20.0, nh=2, nit=5 if method == "hdhb" else 32, method=method)
+    x = hb.solve(tol=1e-10).x
+    wp = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=1e-14)
+    g = np.random.default_rng(3).standard_normal((hb.p, 3 * hb.nc))
+    S = np.zeros((hb.p, hb.n))
+    np.put_along_axis(S, wp._rows, g, axis=1)
+    dense = S * np.tile(hb.law.eps().reshape(hb.nr), hb.nc)[None, :] - S @ hb.A
+    np.testing.assert_allclose(hb.penalty_rows(g[:, None, :])[:, 0, :], dense, rtol=0,
+                               atol=1e-13 * np.abs(dense).max())
+    st = wp.evaluate(x, np.array([1e-7, 0.0, 2e-7]), jacobian=True)
+    assert np.all(np.isfinite(st.G_x)) and st.G_x.shape == (hb.p, hb.n)
+
+
+def test_one_vector_solves_of_a_step_reuse_its_lu_and_equal_a_fresh_one(monkeypatch):
+    """A pseudo-time step's trapezoidal and vibration corrections solve with their own J for one
+    vector, by GMRES preconditioned with the step's LU (wear._near_solve): equal to a fresh LU's
+    solution to NEAR_RTOL, None where the preconditioner cannot reach it (a fresh LU then), and
+    a whole march factors fewer Jacobians for the same worn profile."""
+    import scipy.linalg
+
+    import workflow.wear as wear
+
+    hb = hb_problem(20.0, nh=3, nit=32)
+    x0 = hb.solve(tol=1e-10).x
+    wp = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=1e-14)
+    W = np.array([1e-7, 0.0, 2e-7])
+    ref = wp.evaluate(x0, W, jacobian=True)
+    assert wear._newton_parts(ref)
+    near = wp.evaluate(x0 + 1e-9 * np.random.default_rng(2).standard_normal(hb.n), 1.01 * W, jacobian=True)
+    b = near.R + near.R_W @ W
+    y = wear._near_solve(ref, near, b)
+    exact = np.linalg.solve(near.J, b)
+    assert y is not None
+    assert np.linalg.norm(near.J @ y - b) <= wear.NEAR_RTOL * np.linalg.norm(b)
+    np.testing.assert_allclose(y, exact, rtol=0, atol=1e-8 * np.abs(exact).max())
+    monkeypatch.setattr(wear, "NEAR_ITERS", 1)          # one iteration cannot reach 1e-11
+    assert wear._near_solve(ref, near, b) is None
+    monkeypatch.undo()
+
+    def march(use_near):
+        calls = [0]
+        real = scipy.linalg.lu_factor
+
+        def counted(*a, **k):
+            calls[0] += 1
+            return real(*a, **k)
+        with monkeypatch.context() as m:
+            m.setattr(scipy.linalg, "lu_factor", counted)
+            if not use_near:
+                m.setattr(wear, "_near_solve", lambda *a: None)
+            w = WearProblem(hb_problem(20.0, nh=3, nit=32), area=np.full(hb.p, 1e-6), k_w=1e-14)
+            h = pseudo_time_wear(w, x0, cycles_per_block=5e5, steady_tol=1e-4, tol=1e-9)
+        return h, calls[0]
+    (h_near, lus_near), (h_lu, lus_lu) = march(True), march(False)
+    assert h_near.steady and h_lu.steady
+    print(f"\nLU factorisations {lus_lu} → {lus_near}, profiles {profile_rel_diff(h_near.W, h_lu.W):.1e} apart")
+    assert lus_near < 0.75 * lus_lu, (lus_near, lus_lu)
+    assert profile_rel_diff(h_near.W, h_lu.W) <= 1e-3
+
+
 def test_schur_wear_step_equals_the_whole_augmented_solve():
     """The pseudo-time step eliminates Δx through J's LU (a p × p system per step
     length); it must be the solution of the whole (n + p) system at every h, and a
