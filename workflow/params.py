@@ -173,9 +173,10 @@ class PseudoTime:
     wear_dt_max: float = param(0.0, "blocks", "wear system: largest pseudo-time step in blocks of "
                                               "wear.cycles_per_block; 0: uncapped (the step control follows the "
                                               "wear trajectory)", min=0.0)
-    wear_rtol: float = param(3e-3, "", "wear system: local error of a pseudo-time step on W, relative to "
+    wear_rtol: float = param(1e-3, "", "wear system: local error of a pseudo-time step on W, relative to "
                                        "max(max W, normal interpenetration) (the worn profile is the end of the "
-                                       "trajectory: smaller = closer to the physical path)",
+                                       "trajectory: smaller = closer to the physical path; at 3e-3 the path "
+                                       "error reached the wear checks' 1e-3 tolerance, docs/contact-layout.md)",
                              min=0.0, min_exclusive=True)
 
 

@@ -49,7 +49,7 @@ class WearOptions:
     steady_tol: float = 1e-4
     reference_check: bool = False
     max_steps: int = 2000
-    rtol: float = 3e-3
+    rtol: float = 1e-3
     dt_max_blocks: float = 0.0
     eps_check_factor: float = penalty.CHECK_FACTOR
     nh_check: bool = True
