@@ -272,3 +272,24 @@ def test_numba_dlft_matches_numpy_dlft(jacobian, monkeypatch):
             assert np.allclose(f.lam_x_T, s.lam_x_T, rtol=1e-12, atol=1e-12 * scale)
             if jacobian:
                 assert np.allclose(f.dlam, s.dlam, rtol=1e-10, atol=1e-10 * max(1.0, np.abs(s.dlam).max()))
+
+
+def test_rows_of_the_jacobian_equal_the_rows_times_the_full_jacobian():
+    """``dlft_pass(rows=Q)`` (HBM's Galerkin projection applied before the periodic correction)
+    equals Q times the per-instant dλ/da, on the pass cases (stick, slip, separation, the
+    shaken-down state whose reference derivative is carried along the passes)."""
+    checked = 0
+    for E, lam_u, mu, ref in _pass_cases():
+        nit = E.shape[0]
+        m = E.shape[1]
+        Q = np.linalg.pinv(E)               # (m, nit): the least-squares coefficients of samples
+        for start in (ref, dlft_pass(lam_u, mu, ref, basis=E, max_passes=40, tol=1e-12).ref_T):
+            kw = dict(basis=E, jacobian=True, max_passes=40, tol=1e-12)
+            full = dlft_pass(lam_u, mu, start, **kw)
+            rows = dlft_pass(lam_u, mu, start, rows=Q, **kw)
+            want = np.tensordot(Q, full.dlam, axes=(1, 0))
+            assert rows.dlam.shape == (m,) + full.dlam.shape[1:]
+            assert np.abs(rows.dlam - want).max() <= 1e-12 * max(1.0, np.abs(want).max())
+            assert np.array_equal(rows.lam, full.lam)
+            checked += int(np.any(full.state == SLIP))
+    assert checked

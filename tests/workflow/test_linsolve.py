@@ -554,3 +554,56 @@ def test_cascade_ends_with_newton_on_the_whole_budget(monkeypatch):
     _, J = prob.residual_jacobian(plain.x)
     bound = 2 * tol * scale * np.linalg.norm(np.linalg.inv(J), 2)
     assert np.linalg.norm(pr.result.x - plain.x) <= max(bound, 1e-12 * np.linalg.norm(plain.x))
+
+
+@pytest.mark.parametrize("method", ["hbm", "tcm", "hdhb"])
+def test_line_search_points_from_two_products_equal_the_residual(method, monkeypatch):
+    """:meth:`HBProblem.residual_along`: R(x + α dx) from A x and A dx (A linear) equals the
+    residual evaluated afresh to round-off, makes one product with Zb for all its trial points,
+    and the Jacobian at the last trial point makes none."""
+    import workflow.hb as hbmod
+
+    prob = _problem(method)
+    x = _slipping_state(prob)
+    rng = np.random.default_rng(5)
+    x = x + 0.05 * np.abs(x).max() * rng.standard_normal(prob.n)
+    dx = 0.1 * np.abs(x).max() * rng.standard_normal(prob.n)
+    fresh = {a: prob.residual(x + a * dx) for a in (1.0, 0.5, 0.125)}
+    calls = []
+    zb = hbmod.zb_apply
+    monkeypatch.setattr(hbmod, "zb_apply", lambda *a, **k: calls.append(1) or zb(*a, **k))
+    prob.residual(x)
+    calls.clear()
+    at = prob.residual_along(x, dx)
+    for a, R in fresh.items():
+        xt, Rt = at(a)
+        assert np.array_equal(xt, x + a * dx)
+        assert np.abs(Rt - R).max() <= 1e-12 * np.abs(R).max()
+    assert len(calls) == 1                       # A dx; A x was the last residual's
+    prob.residual_operator(xt)
+    assert len(calls) == 1                       # the accepted point's A x is kept
+
+
+def test_structured_newton_line_search_makes_one_product_a_direction(monkeypatch):
+    """A structured Newton solve with backtracking makes one product with Zb per direction
+    (and one at the start), and reaches the root of a solve whose every trial point is
+    evaluated afresh (the same iterates to round-off)."""
+    import workflow.hb as hbmod
+    from workflow import solvers
+
+    prob = _problem("hbm", 27.0)
+    x0 = _slipping_state(prob) * 1.5          # far enough that the line search backtracks
+    tol = 1e-9
+    calls, trials = [], []
+    zb = hbmod.zb_apply
+    monkeypatch.setattr(hbmod, "zb_apply", lambda *a, **k: calls.append(1) or zb(*a, **k))
+    ls = solvers._line_search
+    monkeypatch.setattr(solvers, "_line_search", lambda *a: trials.append(1) or ls(*a))
+    res = prob.solve(x0, tol=tol, maxiter=80, linear="structured")
+    assert res.converged and res.function_evaluations > len(trials) + 1   # some step backtracked
+    assert len(calls) == len(trials) + 1
+    monkeypatch.setattr(prob, "residual_along", None)
+    ref = solvers.newton(prob.residual_operator, x0, fun=prob.residual, tol=tol, scale=prob.residual_scale(),
+                         maxiter=80, linear=StructuredSolve())
+    assert ref.converged and ref.iterations == res.iterations
+    assert np.abs(ref.x - res.x).max() <= 1e-9 * np.abs(ref.x).max()
