@@ -450,7 +450,7 @@ class HBProblem:
         return out.reshape(p, k, n)
 
     # -------------------------------------------------------------- residual
-    def _evaluate(self, x, jacobian, lin=None):
+    def _evaluate(self, x, jacobian, lin=None, form: bool = True):
         x = np.asarray(x, dtype=float)
         if x.shape != (self.n,):
             raise ValueError(f"x must have shape ({self.n},), got {x.shape}")
@@ -461,6 +461,8 @@ class HBProblem:
         if not jacobian:
             return R, None, None
         G = self.contact_blocks(res.dlam)
+        if not form:
+            return R, None, G
         J = self.Rlin + self._GM(G)
         self.stats["jacobians"] += 1
         return R, J, G
@@ -491,6 +493,27 @@ class HBProblem:
             G5 = np.einsum("am,pmcjd,jb->pacbd", self.T, G5, self.Tinv, optimize=True)
         return np.ascontiguousarray(G5).reshape(p, 3 * nc, 3 * nc)
 
+    def residual_blocks(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """(R, G): the residual and its per-pair contact blocks (:meth:`contact_blocks`), with
+        ``last_dlft.dlam`` per instant, J not formed: ``J = Rlin + G (diag ε − A)`` is
+        :meth:`operator` of G (the wear march's structured steps, :mod:`workflow.wear`)."""
+        R, _, G = self._evaluate(x, True, form=False)
+        self.stats["jacobians"] += 1
+        return R, G
+
+    def operator(self, G):
+        """``Rlin + G (diag ε − A)`` for per-pair blocks G (p, 3nc, 3nc) laid out as
+        :meth:`contact_blocks`, matrix-free: :class:`~workflow.linsolve.ContactJacobian`."""
+        left, right = {"hbm": (None, None), "tcm": (self._Ec if self.method == "tcm" else None, None),
+                       "hdhb": (getattr(self, "Tinv", None), getattr(self, "T", None))}[self.method]
+        return ContactJacobian(self.Zr, self._eps, self.coefficient_blocks(G), left=left, right=right)
+
+    def penalty_apply(self, v) -> np.ndarray:
+        """``(diag ε − A) v`` = ∂a/∂y · v for unknowns v (n,): (nc, nr) in the predictor's layout
+        (N per unit of v) — one product with Zb."""
+        y = np.asarray(v, dtype=float).reshape(self.nc, self.nr)
+        return self._eps * y - self._apply_A(y)
+
     def residual_operator(self, x):
         """(R, J) with J the matrix-free :class:`~workflow.linsolve.ContactJacobian`
         (the same ∂R/∂x as :meth:`residual_jacobian`, never formed): for
@@ -503,10 +526,7 @@ class HBProblem:
         R = lin[2].ravel() - self.r_F.ravel() + self._lam_rows(res.lam.reshape(self.nit, self.nr)).ravel()
         self.stats["evaluations"] += 1
         self.stats["jacobians"] += 1
-        Gt = self.coefficient_blocks(self.contact_blocks(res.dlam, projected=True))
-        left, right = {"hbm": (None, None), "tcm": (self._Ec if self.method == "tcm" else None, None),
-                       "hdhb": (getattr(self, "Tinv", None), getattr(self, "T", None))}[self.method]
-        return R, ContactJacobian(self.Zr, self._eps, Gt, left=left, right=right)
+        return R, self.operator(self.contact_blocks(res.dlam, projected=True))
 
     def residual_jacobian_omega(self, x, dZr, dFr):
         """(R, J, ∂R/∂ω) given the ω-derivatives of the linear part (contracts §5).

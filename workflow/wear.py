@@ -31,7 +31,9 @@ Two ways to the worn steady state (where every rate is 0):
   one linearly implicit (Rosenbrock–Euler) step of the whole system with its
   exact Jacobian — a Newton step on x and an implicit Euler step on W — with
   error control on W (:func:`pseudo_time_wear`). J is factored once per
-  state and Δx eliminated, so each step length tried costs a p × p solve.
+  state and Δx eliminated, so each step length tried costs a p × p solve —
+  or, from Newton's structured size up, J is never formed and each step is one
+  GMRES solve with the HB Jacobian's own structure (:mod:`workflow.wear_structured`).
 
 Both stop when the wear still to come, extrapolated from the decay of the
 largest rate (:func:`remaining_wear`), is at most ``steady_tol·max W``.
@@ -110,6 +112,15 @@ class WearState:
     #: (J⁻¹R, J⁻¹∂R/∂W, ∂rate/∂x·J⁻¹R, ∂rate/∂x·J⁻¹∂R/∂W, LU of J) once per state, or False if J is
     #: singular (:func:`_newton_parts`)
     newton_parts: tuple | bool | None = None
+    #: the same derivatives without (n × n) or (n × p) arrays (:mod:`workflow.wear_structured`):
+    #: J = ``hb.operator(G)``; ∂rate_i/∂x = g_i · ∂a_i/∂x; ∂R/∂W column i = w_i on pair i's rows
+    G: np.ndarray | None = None   # contact blocks (p, 3nc, 3nc) (HBProblem.contact_blocks)
+    g: np.ndarray | None = None   # ∂rate_i/∂a_i (p, 3nc) [m/cycle per N]
+    w: np.ndarray | None = None   # ∂R/∂W_i on pair i's rows (p, 3nc) [N/m]
+
+    @property
+    def has_jacobian(self) -> bool:
+        return self.J is not None or self.G is not None
 
 
 class WearProblem:
@@ -125,8 +136,13 @@ class WearProblem:
     (:meth:`HBProblem.contact_blocks`, :meth:`HBProblem.apply_contact_blocks`).
     """
 
-    def __init__(self, hb, area, k_w: float, share: float = 0.5, eps_path=()):
+    def __init__(self, hb, area, k_w: float, share: float = 0.5, eps_path=(), structured: bool | None = None):
+        from workflow import wear_structured
+
         self.hb = hb
+        #: the pseudo-time march's linear algebra: matrix-free J and GMRES (True), or J formed
+        #: and factored (False); None: by size (:data:`workflow.wear_structured.MIN_UNKNOWNS`)
+        self.structured = wear_structured.use(hb.n) if structured is None else bool(structured)
         #: :func:`workflow.engine.cascade.along_eps_path` factors for vibration solves
         #: that plain Newton does not finish (large ε shrinks its basin)
         self.eps_path = tuple(eps_path)
@@ -155,16 +171,21 @@ class WearProblem:
         self.hb.set_wear(np.maximum(np.asarray(W, dtype=float), 0.0))
 
     # evaluation ----------------------------------------------------------
-    def evaluate(self, x, W=None, jacobian: bool = False) -> WearState:
-        """R, wear rate and (optionally) all first derivatives at (x, W)."""
+    def evaluate(self, x, W=None, jacobian: bool = False, dense: bool | None = None) -> WearState:
+        """R, wear rate and (optionally) all first derivatives at (x, W): formed (J, ∂R/∂W,
+        ∂rate/∂x) if ``dense`` (None: unless :attr:`structured`), else as blocks (G, g, w)."""
         if W is not None:
             self.set_wear(W)
         hb = self.hb
         self.evaluations += 1
-        if jacobian:
+        dense = not self.structured if dense is None else dense
+        G = J = None
+        if jacobian and dense:
             R, J = hb.residual_jacobian(x)
+        elif jacobian:
+            R, G = hb.residual_blocks(x)
         else:
-            R, J = hb.residual(x), None
+            R = hb.residual(x)
         res = hb.last_dlft
         law = hb.law
         lam = res.lam
@@ -173,10 +194,21 @@ class WearProblem:
         st = WearState(R=R, rate=rate, lam=lam, slip=slip, J=J)
         if not jacobian:
             return st
-        st.G_x, st.G_W, st.R_W = self._derivatives(res, law, lam, slip)
+        g = self._rate_sensitivity(res, law, lam, slip)
+        # W_i enters a only through pair i's normal shift: da_{j,i,N}/dW_i = ε_N,i const_j
+        st.G_W = law.eps_n * (g[:, 0::3] @ self._const)
+        if dense:
+            st.G_x, st.R_W = self._derivatives(res, g)
+        else:
+            # ∂R/∂W_i: pair i's contact block times da_i/dW_i, on pair i's rows only
+            daW = np.zeros((self.p, 3 * self.nc))
+            daW[:, 0::3] = law.eps_n[:, None] * self._const[None, :]
+            st.G, st.g, st.w = G, g, np.einsum("pab,pb->pa", G, daW)
         return st
 
-    def _derivatives(self, res, law, lam, slip):
+    def _rate_sensitivity(self, res, law, lam, slip):
+        """∂rate_i/∂a_i (p, 3nc) [m/cycle per N]: the wear rate's derivative in pair i's
+        predictor (eq. 21 through the DLFT's dλ/da)."""
         hb, p, nc, nit = self.hb, self.p, self.nc, self.nit
         ncol = 3 * nc
         dlam = res.dlam                                        # (nit, p, 3, ncol): dλ/da_i
@@ -194,29 +226,36 @@ class WearProblem:
         ds = np.einsum("kic,kicn->kin", tdir, dX - np.roll(dX, 1, axis=0))
         pm = 0.5 * (pN + np.roll(pN, 1, axis=0))
         dpm = 0.5 * (dp + np.roll(dp, 1, axis=0))
-        g = self.k_w * (np.einsum("kin,ki->in", dpm, s) + np.einsum("ki,kin->in", pm, ds))   # (p, ncol)
+        return self.k_w * (np.einsum("kin,ki->in", dpm, s) + np.einsum("ki,kin->in", pm, ds))   # (p, ncol)
+
+    def _derivatives(self, res, g):
+        """(∂rate/∂x (p, n), ∂R/∂W (n, p)), formed, from g = :meth:`_rate_sensitivity`."""
+        hb, p, law = self.hb, self.p, self.hb.law
         # chain to x: a = a_F − A y + ε (y + shift)  ⇒  da/dy = diag(ε) − A; every row of a
         # belongs to one pair, so ∂rate/∂x has row i = g_i · (diag ε − A)[pair i's rows]
         G_x = hb.penalty_rows(g[:, None, :])[:, 0, :]
-        # W_i enters a only through pair i's normal shift: da_{j,i,N}/dW_i = ε_N,i const_j
-        G_W = law.eps_n * (g[:, 0::3] @ self._const)
         # ∂R/∂W: the residual's contact rows of pair i times da_i/dW_i
         daW = np.zeros((self.n, p))
         for i in range(p):
             daW[self._rows[i, 0::3], i] = law.eps_n[i] * self._const
-        G = hb.contact_blocks(dlam)
+        G = hb.contact_blocks(res.dlam)
         R_W = hb.apply_contact_blocks(G, daW)
-        return G_x, G_W, R_W
+        return G_x, R_W
 
     # solves --------------------------------------------------------------
-    def solve_hb(self, x0, W, *, tol, maxiter=50) -> tuple:
+    def solve_hb(self, x0, W, *, tol, maxiter=50, dense: bool | None = None) -> tuple:
         """R(x; W) = 0 from x0 (warm start): Newton (along the ε-path if any), else the
         engine's whole cascade (:func:`workflow.engine.cascade.solve_point`) from
-        Newton's best iterate and x0. Returns (SolveResult, WearState)."""
+        Newton's best iterate and x0. Returns (SolveResult, WearState); ``dense``: see
+        :meth:`evaluate` (Newton's linear solve follows it)."""
         self.set_wear(W)
         hb = self.hb
-        res = newton(hb.residual_jacobian, x0, fun=hb.residual, tol=tol, scale=hb.residual_scale(),
-                     maxiter=maxiter)
+        dense = not self.structured if dense is None else dense
+        if dense:
+            res = newton(hb.residual_jacobian, x0, fun=hb.residual, tol=tol, scale=hb.residual_scale(),
+                         maxiter=maxiter)
+        else:
+            res = hb.solve(x0, tol=tol, maxiter=maxiter, linear="structured", linsolver=self.linsolver())
         if not res.converged and self.eps_path:
             from workflow.engine.cascade import along_eps_path
 
@@ -239,7 +278,16 @@ class WearProblem:
             alt.jacobian_evaluations += res.jacobian_evaluations
             if alt.converged or (np.isfinite(alt.residual_norm) and alt.residual_norm < res.residual_norm):
                 res = alt
-        return res, self.evaluate(res.x, jacobian=True)
+        return res, self.evaluate(res.x, jacobian=True, dense=dense)
+
+    def linsolver(self):
+        """The structured linear solve of this problem's matrix-free steps (made once: its
+        preconditioner is lagged from step to step, :class:`workflow.linsolve.StructuredSolve`)."""
+        if getattr(self, "_linsolver", None) is None:
+            from workflow.linsolve import StructuredSolve
+
+            self._linsolver = StructuredSolve()
+        return self._linsolver
 
     def total_rate_jacobian(self, st: WearState) -> np.ndarray:
         """``d rate/dW`` (p, p) along the HB solution manifold: ∂rate/∂W − ∂rate/∂x J⁻¹ ∂R/∂W
@@ -444,7 +492,8 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     W = np.zeros(wp.p) if wp.W is None else wp.W
     solves = 0
     nje = 0
-    res, st = wp.solve_hb(x0, W, tol=tol)
+    # the implicit block's d rate/dW (total_rate_jacobian) takes J⁻¹∂R/∂W: J formed
+    res, st = wp.solve_hb(x0, W, tol=tol, dense=True if scheme == "implicit" else None)
     solves += 1
     nje += res.jacobian_evaluations + 1
     if not res.converged:
@@ -519,7 +568,8 @@ def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
     """
     solves = nje = 0
     Wn = W + N * st.rate          # explicit step, or the implicit predictor
-    res, stn = wp.solve_hb(x, Wn, tol=tol)
+    dense = True if scheme == "implicit" else None       # total_rate_jacobian forms J⁻¹∂R/∂W
+    res, stn = wp.solve_hb(x, Wn, tol=tol, dense=dense)
     solves, nje = 1, res.jacobian_evaluations + 1
     if scheme == "explicit":
         return res, stn, Wn, (solves, nje), True
@@ -534,7 +584,7 @@ def _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations):
         except np.linalg.LinAlgError:
             dW = -F
         Wn = np.maximum(Wn + dW, W)
-        res, stn = wp.solve_hb(res.x, Wn, tol=tol)
+        res, stn = wp.solve_hb(res.x, Wn, tol=tol, dense=dense)
         solves += 1
         nje += res.jacobian_evaluations + 1
         F = Wn - W - N * stn.rate
@@ -612,7 +662,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
         if ok and err <= rtol * ws:
             if order == 2:
                 xn, Wn, stn = _trapezoidal(wp, W, st, xn, Wn, stn, h, count)
-            elif stn.J is None:
+            elif not stn.has_jacobian:
                 stn = wp.evaluate(xn, Wn, jacobian=True)
             x, W, st = xn, Wn, stn
             t += h
@@ -738,7 +788,23 @@ def _near_solve(ref: WearState, st: WearState, b):
     return y
 
 
-def _augmented_step(st: WearState, h: float):
+def _j_solve(wp: WearProblem, ref: WearState, st: WearState, b, dW=None):
+    """``J⁻¹ (b + ∂R/∂W dW)`` with J of ``st`` (None: singular or not solved): GMRES on the
+    matrix-free J where the state has no J formed (:func:`workflow.wear_structured.solve`);
+    else GMRES preconditioned with ``ref``'s LU (:func:`_near_solve`), else st's own LU."""
+    if st.J is None:
+        from workflow import wear_structured
+
+        return wear_structured.solve(wp, st, b if dW is None else b + wear_structured.r_w_times(st, dW))
+    rhs = b if dW is None else b + st.R_W @ dW
+    y = _near_solve(ref, st, rhs)
+    if y is None:
+        parts = _newton_parts(st)
+        y = None if parts is None else parts[0] + (0.0 if dW is None else parts[1] @ dW)
+    return y
+
+
+def _augmented_step(wp: WearProblem, st: WearState, h: float):
     """(Δx, ΔW) of the linearly implicit step (see :func:`pseudo_time_wear`),
 
         [ J          ∂R/∂W        ] [Δx]   [ −R     ]
@@ -750,7 +816,13 @@ def _augmented_step(st: WearState, h: float):
     with a smaller h costs a p × p solve, not an (n + p) LU (measured to the
     worn steady state on the contact-convergence meshes at Nh = 5, old and new
     side by side: 42 pairs 46.9 → 49.7 s, 80 pairs 293 → 257 s). A singular J
-    (rcond < :data:`MIN_RCOND`) falls back to the whole (n + p) system."""
+    (rcond < :data:`MIN_RCOND`) falls back to the whole (n + p) system. A state without J
+    formed (``wp.structured``) takes :func:`workflow.wear_structured.augmented_step` (None if
+    its solve fails)."""
+    if st.J is None:                        # matrix-free (:mod:`workflow.wear_structured`)
+        from workflow import wear_structured
+
+        return wear_structured.augmented_step(wp, st, h)
     n, p = st.J.shape[0], st.rate.size
     parts = _newton_parts(st)
     if parts is not None:
@@ -780,7 +852,10 @@ def _wear_step(wp: WearProblem, x, W, st: WearState, h: float, x_tol: float, x_c
     then the relaxed vibration corrections at the new W; (x⁺, W⁺, state⁺, acceptable).
     The state at the trial point carries no Jacobian unless a correction needs one."""
     scale = wp.hb.residual_scale()
-    dx, dW = _augmented_step(st, h)
+    step = _augmented_step(wp, st, h)
+    if step is None:                    # a matrix-free solve failed: refused, h shrinks
+        return x, W, st, False
+    dx, dW = step
     xn = x + dx
     Wn = np.maximum(W + dW, W)          # wear never decreases
     stn = wp.evaluate(xn, Wn)
@@ -789,12 +864,9 @@ def _wear_step(wp: WearProblem, x, W, st: WearState, h: float, x_tol: float, x_c
             break
         stn = wp.evaluate(xn, Wn, jacobian=True)
         count["nje"] += 1
-        dx = _near_solve(st, stn, stn.R)
+        dx = _j_solve(wp, st, stn, stn.R)
         if dx is None:
-            parts = _newton_parts(stn)
-            if parts is None:
-                break
-            dx = parts[0]
+            break
         xn = xn - dx
         stn = wp.evaluate(xn, Wn)
         count["corrections"] += 1
@@ -818,12 +890,9 @@ def _trapezoidal(wp: WearProblem, W, st: WearState, xn, Wn, stn: WearState, h: f
     Nh-check 0.17 → 0.87 %.) The new state is evaluated with its Jacobian: the
     next step's."""
     Wc = np.maximum(W + 0.5 * h * (st.rate + stn.rate), W)
-    if stn.J is None:
+    if not stn.has_jacobian:
         stn = wp.evaluate(xn, Wn, jacobian=True)
-    shift = _near_solve(st, stn, stn.R + stn.R_W @ (Wc - Wn))
-    if shift is None:
-        parts = _newton_parts(stn)
-        shift = None if parts is None else parts[0] + parts[1] @ (Wc - Wn)
+    shift = _j_solve(wp, st, stn, stn.R, Wc - Wn)
     if shift is not None and np.all(np.isfinite(shift)):
         xn = xn - shift
     count["nje"] += 1

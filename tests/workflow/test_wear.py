@@ -258,14 +258,14 @@ def test_schur_wear_step_equals_the_whole_augmented_solve():
         st = wp.evaluate(x, W, jacobian=True)
         A = np.block([[st.J, st.R_W], [-h * st.G_x, np.eye(p) - h * np.diag(st.G_W)]])
         dz = np.linalg.solve(A, np.concatenate([-st.R, h * st.rate]))
-        dx, dW = _augmented_step(st, h)
+        dx, dW = _augmented_step(wp, st, h)
         assert st.newton_parts, "J is regular here: the Schur path must be taken"
         np.testing.assert_allclose(dx, dz[:n], rtol=0, atol=1e-9 * np.abs(dz[:n]).max())
         np.testing.assert_allclose(dW, dz[n:], rtol=0, atol=1e-9 * np.abs(dz[n:]).max())
     st = wp.evaluate(x, W, jacobian=True)
     st.J = np.zeros_like(st.J)
     st.J[np.arange(n - 1), np.arange(n - 1)] = 1.0                  # rank n − 1
-    dx, dW = _augmented_step(st, 1e6)
+    dx, dW = _augmented_step(wp, st, 1e6)
     assert st.newton_parts is False and np.all(np.isfinite(dx)) and np.all(np.isfinite(dW))
     for bad in (np.nan, np.inf):                                     # a non-finite J is never factored
         st = wp.evaluate(x, W, jacobian=True)
@@ -490,7 +490,7 @@ class _JumpWear:
         self.hb = SimpleNamespace(Zr=1e8 * np.eye(3)[None], nh=1, harmonics=lambda x: np.zeros((2, 3)),
                                   residual_scale=lambda: 1.0)
 
-    def solve_hb(self, x, W, tol):
+    def solve_hb(self, x, W, tol, dense=None):
         from types import SimpleNamespace
 
         W = np.asarray(W, dtype=float)
@@ -520,3 +520,66 @@ def test_implicit_block_with_no_root_is_shortened_and_the_march_ends_at_the_jump
     # no block overshot: each wore at most its target (block_tol × W scale) × the rate's growth over it
     steps = np.diff(np.asarray(h.max_wear))
     assert np.all(steps >= 0) and np.all(steps <= 1.05 * block_tol * scale)
+
+
+@pytest.mark.parametrize("method", ["hbm", "tcm", "hdhb"])
+def test_matrix_free_wear_step_equals_the_whole_augmented_solve(method):
+    """:mod:`workflow.wear_structured`: the step from the blocks (J never formed; ∂R/∂W and
+    ∂rate/∂x per pair) solves the same (n + p) system as the formed one, and a J-solve with
+    the matrix-free J equals the LU's."""
+    from workflow import wear_structured
+    from workflow.wear import _augmented_step, _j_solve
+
+    nit = {"hbm": 32, "tcm": 33, "hdhb": 5}[method]
+    hb = hb_problem(20.0, nh=2, nit=32)
+    sol = hb.solve(tol=1e-11)
+    hb2 = HBProblem(hb.Zr, hb.Fr, hb.law, 2, nit, method)
+    x0 = hb2.unknowns_from_harmonics(hb.harmonics(sol.x))
+    dense = WearProblem(hb2, area=np.full(hb2.p, 1e-6), k_w=1e-14, structured=False)
+    free = WearProblem(hb2, area=np.full(hb2.p, 1e-6), k_w=1e-14, structured=True)
+    W = np.array([1e-7, 0.0, 2e-7])
+    x = x0 + 1e-9 * np.random.default_rng(1).standard_normal(hb2.n)
+    n, p = hb2.n, hb2.p
+    for h in (1e3, 1e6, 1e9):
+        st = dense.evaluate(x, W, jacobian=True)
+        sf = free.evaluate(x, W, jacobian=True)
+        assert sf.J is None and sf.G_x is None and sf.R_W is None and sf.has_jacobian
+        np.testing.assert_array_equal(sf.rate, st.rate)
+        np.testing.assert_allclose(sf.G_W, st.G_W, rtol=1e-12, atol=0)
+        v = np.random.default_rng(2).standard_normal(p)
+        np.testing.assert_allclose(wear_structured.r_w_times(sf, v), st.R_W @ v, rtol=0,
+                                   atol=1e-12 * np.abs(st.R_W @ v).max())
+        u = np.random.default_rng(3).standard_normal(n)
+        np.testing.assert_allclose(wear_structured.rate_x_times(free, sf, u), st.G_x @ u, rtol=0,
+                                   atol=1e-11 * np.abs(st.G_x @ u).max())
+        A = np.block([[st.J, st.R_W], [-h * st.G_x, np.eye(p) - h * np.diag(st.G_W)]])
+        dz = np.linalg.solve(A, np.concatenate([-st.R, h * st.rate]))
+        dx, dW = _augmented_step(free, sf, h)
+        np.testing.assert_allclose(dx, dz[:n], rtol=0, atol=1e-7 * np.abs(dz[:n]).max())
+        np.testing.assert_allclose(dW, dz[n:], rtol=0, atol=1e-7 * np.abs(dz[n:]).max())
+    y = _j_solve(free, None, sf, sf.R, W)
+    np.testing.assert_allclose(y, np.linalg.solve(st.J, st.R + st.R_W @ W), rtol=0,
+                               atol=1e-7 * np.abs(y).max())
+
+
+def test_matrix_free_march_reaches_the_dense_worn_steady_state(monkeypatch):
+    """A whole pseudo-time march with J never formed (``structured``: every step, correction and
+    shift a GMRES solve, :mod:`workflow.wear_structured`) ends on the worn steady state of the
+    march with J formed and factored: the same profile to the march's path tolerance, about
+    the same steps — and no (n × n) Jacobian is made on the way."""
+    import workflow.hb as hbmod
+
+    hb = hb_problem(20.0, nh=3, nit=32)
+    x0 = hb.solve(tol=1e-10).x
+    kw = dict(cycles_per_block=5e5, steady_tol=1e-4, tol=1e-9)
+    dense = pseudo_time_wear(WearProblem(hb_problem(20.0, nh=3, nit=32), area=np.full(hb.p, 1e-6), k_w=1e-14,
+                                         structured=False), x0, **kw)
+
+    def formed(*a, **k):
+        raise AssertionError("the matrix-free march formed J")
+    monkeypatch.setattr(hbmod.HBProblem, "residual_jacobian", formed)
+    free = pseudo_time_wear(WearProblem(hb_problem(20.0, nh=3, nit=32), area=np.full(hb.p, 1e-6), k_w=1e-14,
+                                        structured=True), x0, **kw)
+    assert dense.steady and free.steady
+    assert abs(free.iterations - dense.iterations) <= 0.1 * dense.iterations
+    assert profile_rel_diff(free.W, dense.W) <= 1e-3

@@ -1,0 +1,78 @@
+"""The pseudo-time wear march's linear algebra without (n × n) arrays (issue #16).
+
+A step of :func:`workflow.wear.pseudo_time_wear` solves the augmented system
+
+    [ J          ∂R/∂W        ] [Δx]   [ −R     ]
+    [ −h ∂r/∂x   I − h ∂r/∂W  ] [ΔW] = [ h·rate ],
+
+and the dense path factors J (2n³/3 flops) for it. Both couplings are per pair:
+∂R/∂W's column i lives on pair i's residual rows (``w_i``, pair i's contact block
+times ∂a_i/∂W_i), ∂rate_i/∂x = g_i · ∂a_i/∂x with ``∂a/∂x = diag ε − A``, and
+∂rate/∂W is diagonal (``D = I − h diag ∂r/∂W``). Eliminating ΔW,
+
+    ΔW = D⁻¹ (h·rate + h ∂r/∂x Δx),
+    (J + h ∂R/∂W D⁻¹ ∂r/∂x) Δx = −R − ∂R/∂W D⁻¹ h·rate,
+
+and since ``J = Rlin + G (diag ε − A)`` with G block-diagonal over pairs, the
+matrix on the left is ``Rlin + (G + B)(diag ε − A)`` with the rank-one pair
+blocks ``B_i = (h/D_i) w_i g_iᵀ``: the HB Jacobian's own structure
+(:class:`workflow.linsolve.ContactJacobian`), solved by the structured GMRES of
+Newton (:class:`workflow.linsolve.StructuredSolve`) to its tight tolerance. Each
+step length tried is one such solve; the vibration corrections and the
+trapezoidal shift are solves with J itself.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def use(n: int) -> bool:
+    """Whether a march on n HB unknowns runs matrix-free: where Newton's linear solve is the
+    structured one (:func:`workflow.engine.cascade.linear_solver`, one switch for both).
+    Measured to the worn steady state on the interface-scaling sectors (HBM Nh = 3, nit = 64,
+    μ = 0.5, pseudo-time only, ``wear_rtol`` 1e-3, one run each, alone), J formed and
+    factored → matrix-free: 16 pairs (336 unknowns) 0.6 → 0.8 s; 32 pairs (672) 4.2 → 2.7 s;
+    64 pairs (1344) 12.5 → 4.6 s; 128 pairs (2688) 128.8 → 29.1 s and 0.80 → 0.36 GB; the
+    same steps to ±3 % and worn profiles 0.001–0.05 % apart (the march's own path noise at
+    this tolerance: 0.04–0.12 %, docs/contact-layout.md)."""
+    from workflow.engine.cascade import linear_solver
+
+    return linear_solver(n) == "structured"
+
+
+def r_w_times(st, v) -> np.ndarray:
+    """``∂R/∂W · v`` (n,) for v (p,) [m]: pair i's rows take ``w_i v_i`` (N)."""
+    p, m = st.w.shape
+    return (st.w * np.asarray(v, dtype=float)[:, None]).reshape(p, m // 3, 3).transpose(1, 0, 2).ravel()
+
+
+def rate_x_times(wp, st, v) -> np.ndarray:
+    """``∂rate/∂x · v`` (p,) [m/cycle] for unknowns v (n,): g_i · (∂a/∂x v) on pair i's rows."""
+    da = wp.hb.penalty_apply(v).ravel()[wp._rows]          # (p, 3nc)
+    return np.einsum("pa,pa->p", st.g, da)
+
+
+def solve(wp, st, b):
+    """``J⁻¹ b`` (n,) with J of the state ``st`` (its blocks G), or None if GMRES gave nothing
+    finite."""
+    lin = wp.linsolver()
+    if not lin.factor(wp.hb.operator(st.G)):
+        return None
+    dx = lin.solve(-np.asarray(b, dtype=float))      # J dx = b
+    return None if dx is None or not np.all(np.isfinite(dx)) else dx
+
+
+def augmented_step(wp, st, h: float):
+    """(Δx, ΔW) of the linearly implicit step (module docstring), or None where a solve failed."""
+    D = 1.0 - h * st.G_W
+    if not np.all(np.abs(D) > 0):
+        return None
+    B = (h / D)[:, None, None] * st.w[:, :, None] * st.g[:, None, :]
+    lin = wp.linsolver()
+    if not lin.factor(wp.hb.operator(st.G + B)):
+        return None
+    c = h * st.rate / D
+    dx = lin.solve(st.R + r_w_times(st, c))          # (J + B-part) dx = −R − ∂R/∂W c
+    if dx is None or not np.all(np.isfinite(dx)):
+        return None
+    return dx, c + h * rate_x_times(wp, st, dx) / D
