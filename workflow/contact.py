@@ -388,8 +388,10 @@ def _next_reference(ref, end, d, S, stuck, Dr, ncol: int, newton: bool):
 
 
 def _periodic_jacobian(dlam, S, state, Dr, ncol: int, periodic: bool, rows=None):
-    """dλ/da of the last pass including the start reference's dependence on a (``rows ·``
-    it over the instants, if given: the correction is linear in the instants' rows)."""
+    """dλ/da of the last pass including the start reference's dependence on a (``rows ·`` it over
+    the instants, if given: the correction is linear in the instants' rows, so the per-instant
+    (nit, p, 3, 3m) correction is never formed — at 512 pairs, nit = 64, Nh = 7 a 35 MB array;
+    the correction and the projection took 26 ms a Jacobian, 8 ms so)."""
     if rows is not None:
         dlam = (rows @ dlam.reshape(dlam.shape[0], -1)).reshape((rows.shape[0],) + dlam.shape[1:])
     dl = dlam[..., :ncol]
@@ -441,10 +443,8 @@ def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray 
         Newton step there would land elsewhere on the circle of periodic
         references, through a step whose derivative needs ∂²Φ).
     jacobian : also return ``dlam``.
-    rows : (r, nit), optional: return ``dlam`` combined over the instants, ``rows · dλ/da``
-        (r, p, 3, 3m) — HBM's Galerkin projection, applied before the periodic correction
-        below so that the (nit, p, 3, 3m) correction is never formed (at 512 pairs, nit = 64,
-        Nh = 7: a 35 MB array; the correction and projection took 26 ms a Jacobian, 8 ms so).
+    rows : (r, nit), optional: ``dlam`` as ``rows · dλ/da`` (r, p, 3, 3m), e.g. HBM's projection Q,
+        applied before the periodic correction (:func:`_periodic_jacobian`).
 
     Jacobian: the sensitivities of λ_x^T (per pair, 2 × (3m + 2)) are carried
     through the pass, with two extra columns for the start reference. For the

@@ -210,7 +210,7 @@ class HBProblem:
         """``α → (x + α dx, R(x + α dx))`` for a line search along dx from x: the linear part
         is ``A x + α A dx`` (A linear), so the trial points cost one product with Zb in all
         (A dx) instead of one each; the accepted point's is kept for its Jacobian
-        (:meth:`_linear`). Measured on the 512-pair sector (HBM Nh = 7, 9 points): 216 → 95
+        (:meth:`_linear`). Measured on the 512-pair sector (HBM Nh = 7, 9 points): 216 → 90
         products of 11.7 ms. Equal to :meth:`residual` to round-off (1e-16 of ‖A x‖)."""
         x = np.asarray(x, dtype=float)
         dx = np.asarray(dx, dtype=float)

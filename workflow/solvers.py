@@ -208,7 +208,9 @@ class DenseLU:
 
 
 def _line_search(fun, x, dx, norm, armijo, max_backtracks, count, along=None):
-    """Backtracking on ‖R‖₂: (accepted, x_trial, R_trial). ``along``: see :func:`newton`."""
+    """Backtracking on ‖R‖₂: (accepted, x_trial, R_trial). ``along(x, dx)``, if given: a callable
+    ``α → (x + α dx, R(x + α dx))``, which a residual with a linear part evaluates from two products
+    made once (:meth:`workflow.hb.HBProblem.residual_along`)."""
     alpha = 1.0
     xt = Rt = None
     at = None if along is None else along(x, dx)
@@ -350,9 +352,7 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     otherwise, or when a stale direction fails the line search — pays where
     forming and factoring J dominates (large Nh) and Newton converges only
     linearly anyway. callback(it, x, norm): after every accepted step.
-    along(x, dx): if given, a callable ``α → (x + α dx, R(x + α dx))`` for the line search's
-    trial points, which a residual with a linear part can evaluate from two products made
-    once (:meth:`workflow.hb.HBProblem.residual_along`).
+    along: the line search's trial points from x along dx, if given (:func:`_line_search`).
     """
     t0 = time.perf_counter()
     x = np.array(x0, dtype=float)
@@ -387,8 +387,7 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
         if J is not None and not lin.factor(J):
             return done("non-finite Jacobian", False, R, it)
         eta = forcing(history, eta, tol * scale) if inexact else None
-        dx, accepted, xt, Rt = _searched_direction(fun, lin, x, R, norm, eta, armijo, max_backtracks, nfev,
-                                                    along)
+        dx, accepted, xt, Rt = _searched_direction(fun, lin, x, R, norm, eta, armijo, max_backtracks, nfev, along)
         if not accepted and not fresh:      # a chord direction failed: refresh J, try again
             (R, J), fresh = jac(x), True
             continue

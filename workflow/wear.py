@@ -141,7 +141,7 @@ class WearProblem:
 
         self.hb = hb
         #: the pseudo-time march's linear algebra: matrix-free J and GMRES (True), or J formed
-        #: and factored (False); None: by size (:data:`workflow.wear_structured.MIN_UNKNOWNS`)
+        #: and factored (False); None: by size (:func:`workflow.wear_structured.use`)
         self.structured = wear_structured.use(hb.n) if structured is None else bool(structured)
         #: :func:`workflow.engine.cascade.along_eps_path` factors for vibration solves
         #: that plain Newton does not finish (large ε shrinks its basin)
@@ -196,14 +196,19 @@ class WearProblem:
             return st
         g = self._rate_sensitivity(res, law, lam, slip)
         # W_i enters a only through pair i's normal shift: da_{j,i,N}/dW_i = ε_N,i const_j
-        st.G_W = law.eps_n * (g[:, 0::3] @ self._const)
-        if dense:
-            st.G_x, st.R_W = self._derivatives(res, g)
-        else:
-            # ∂R/∂W_i: pair i's contact block times da_i/dW_i, on pair i's rows only
-            daW = np.zeros((self.p, 3 * self.nc))
-            daW[:, 0::3] = law.eps_n[:, None] * self._const[None, :]
-            st.G, st.g, st.w = G, g, np.einsum("pab,pb->pa", G, daW)
+        daW = np.zeros((self.p, 3 * self.nc))
+        daW[:, 0::3] = law.eps_n[:, None] * self._const[None, :]
+        st.G_W = np.einsum("pa,pa->p", g, daW)
+        # ∂R/∂W_i: pair i's contact block times da_i/dW_i, on pair i's rows only
+        w = np.einsum("pab,pb->pa", hb.contact_blocks(res.dlam) if dense else G, daW)
+        if not dense:
+            st.G, st.g, st.w = G, g, w
+            return st
+        # chain to x: a = a_F − A y + ε (y + shift)  ⇒  da/dy = diag(ε) − A; every row of a
+        # belongs to one pair, so ∂rate/∂x has row i = g_i · (diag ε − A)[pair i's rows]
+        st.G_x = hb.penalty_rows(g[:, None, :])[:, 0, :]
+        st.R_W = np.zeros((self.n, self.p))
+        st.R_W[self._rows, np.arange(self.p)[:, None]] = w
         return st
 
     def _rate_sensitivity(self, res, law, lam, slip):
@@ -227,20 +232,6 @@ class WearProblem:
         pm = 0.5 * (pN + np.roll(pN, 1, axis=0))
         dpm = 0.5 * (dp + np.roll(dp, 1, axis=0))
         return self.k_w * (np.einsum("kin,ki->in", dpm, s) + np.einsum("ki,kin->in", pm, ds))   # (p, ncol)
-
-    def _derivatives(self, res, g):
-        """(∂rate/∂x (p, n), ∂R/∂W (n, p)), formed, from g = :meth:`_rate_sensitivity`."""
-        hb, p, law = self.hb, self.p, self.hb.law
-        # chain to x: a = a_F − A y + ε (y + shift)  ⇒  da/dy = diag(ε) − A; every row of a
-        # belongs to one pair, so ∂rate/∂x has row i = g_i · (diag ε − A)[pair i's rows]
-        G_x = hb.penalty_rows(g[:, None, :])[:, 0, :]
-        # ∂R/∂W: the residual's contact rows of pair i times da_i/dW_i
-        daW = np.zeros((self.n, p))
-        for i in range(p):
-            daW[self._rows[i, 0::3], i] = law.eps_n[i] * self._const
-        G = hb.contact_blocks(res.dlam)
-        R_W = hb.apply_contact_blocks(G, daW)
-        return G_x, R_W
 
     # solves --------------------------------------------------------------
     def solve_hb(self, x0, W, *, tol, maxiter=50, dense: bool | None = None) -> tuple:
@@ -492,8 +483,7 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     W = np.zeros(wp.p) if wp.W is None else wp.W
     solves = 0
     nje = 0
-    # the implicit block's d rate/dW (total_rate_jacobian) takes J⁻¹∂R/∂W: J formed
-    res, st = wp.solve_hb(x0, W, tol=tol, dense=True if scheme == "implicit" else None)
+    res, st = wp.solve_hb(x0, W, tol=tol, dense=True if scheme == "implicit" else None)   # see _reference_block
     solves += 1
     nje += res.jacobian_evaluations + 1
     if not res.converged:
