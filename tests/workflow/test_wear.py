@@ -345,7 +345,7 @@ def _reduced_block_model():
                         area=np.full(p, 1e-6), gap=np.zeros(p), flank=np.zeros(p, int), position=pos)
 
 
-def test_wear_stage_on_a_reduced_model(tmp_path):
+def test_wear_stage_on_a_reduced_model(tmp_path, monkeypatch):
     import csv
     import json
 
@@ -362,6 +362,14 @@ def test_wear_stage_on_a_reduced_model(tmp_path):
     w.reference_check = True
     model = _reduced_block_model()
     model.save(tmp_path / "reduced.npz")
+    import workflow.wear as wear_mod
+    marched = []
+    pseudo = wear_mod.pseudo_time_wear
+
+    def recorded(*a, **k):
+        marched.append(k["rtol"])
+        return pseudo(*a, **k)
+    monkeypatch.setattr(wear_mod, "pseudo_time_wear", recorded)
 
     class Log:
         def info(self, msg):
@@ -389,10 +397,13 @@ def test_wear_stage_on_a_reduced_model(tmp_path):
     assert errs["explicit coarse"] > errs["explicit"]
     assert chk["self_diff"] == pytest.approx(3 * errs["explicit"], rel=0.05)   # normalised by different maxima
     assert len(list(csv.DictReader(open(out / "error_vs_time.csv")))) == 3
-    # the ε- and Nh-checks march again to the worn steady state and compare profiles
+    # the ε- and Nh-checks march again to the worn steady state and compare profiles, at a
+    # tenth of the march's step tolerance (wearstudy.CHECK_RTOL: their own path error below
+    # the checks' tolerance)
     for chk in (s["eps_check"], s["nh_check"]):
         assert chk["measure"] == "worn profile" and chk["steady"], chk
         assert 0 <= chk["max_rel_change"] < 0.05 and chk["unworn_rate_change"] >= 0, chk
+    assert sorted(marched) == sorted([scene["pseudotime"].wear_rtol] + 2 * [scene["pseudotime"].wear_rtol * 0.1])
 
 
 def test_reference_check_recovers_a_first_order_limit():

@@ -11,7 +11,7 @@ agreement, the reference's own convergence in its block size, and the
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -19,6 +19,15 @@ from workflow.engine import penalty
 from workflow.errors import BundleError, SceneError, SolverError
 
 METHODS = ("explicit", "implicit", "pseudo-time")
+#: The wear checks' second marches (Nh × 1.5, ε × 10) run at this fraction of ``WearOptions.rtol``
+#: (and ``CHECK_STEPS`` × its step budget): at the march's own tolerance their end on the
+#: worn-steady-state manifold moved by ~0.1 % of max W with changes that only touch round-off,
+#: the order of the checks' 1e-3 tolerance. Measured on paper-wear (48 pairs, Nh = 3, alone):
+#: the Nh-check read 0.21 %, 0.117 % and 0.098 % at 1e-3 (sessions 23 and 24, J formed and
+#: not), 0.0446 % and 0.0447 % at 1e-4 (J not formed / formed); ε × 10 0.14 / 0.136 / 0.075 %
+#: at 1e-3, 0.0855 / 0.0881 % at 1e-4. The march at 1e-4 took 621 steps against 186.
+CHECK_RTOL = 0.1
+CHECK_STEPS = 4
 
 
 @dataclass
@@ -265,9 +274,9 @@ def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path, *, worn=None, 
     The unworn point is re-solved from ``x``; ``unworn_rate_change`` is the change of
     the wear-rate profile, ``max|Δrate| / max rate``. With ``worn`` (a
     :class:`~workflow.wear.WearHistory` of this study) the pseudo-time march then runs
-    to the worn steady state at the finer Nh and ``max_rel_change`` is the change of
-    the worn profile, :func:`workflow.wear.profile_rel_diff` — the convergence of the
-    result itself. Measured on the quick sector (16 pairs): the unworn rates move 2.1 %
+    (at :data:`CHECK_RTOL` × the tolerance) to the worn steady state at the finer Nh and
+    ``max_rel_change`` is the change of the worn profile, :func:`workflow.wear.profile_rel_diff`
+    — the convergence of the result itself. Measured on the quick sector (16 pairs): the unworn rates move 2.1 %
     from Nh = 5 to 8, the worn steady state 1.3133 → 1.3144 µm (Nh = 7); without
     ``worn``, ``max_rel_change`` is the unworn rates' change."""
     from workflow.engine.linear import condensed
@@ -298,9 +307,10 @@ def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path, *, worn=None, 
 def eps_check(wp, x, opt: WearOptions, *, worn=None, track: int = 1) -> dict:
     """The wear with ε × ``opt.eps_check_factor``: the unworn point re-solved from
     ``x`` (``unworn_rate_change``: ``max|Δrate| / max rate``) and, with ``worn`` (a
-    :class:`~workflow.wear.WearHistory` of this study), the pseudo-time march to the
-    worn steady state at that ε (``max_rel_change``: the worn profile's change,
-    :func:`workflow.wear.profile_rel_diff`; without ``worn`` the unworn rates')."""
+    :class:`~workflow.wear.WearHistory` of this study), the pseudo-time march (at
+    :data:`CHECK_RTOL` × the tolerance) to the worn steady state at that ε (``max_rel_change``:
+    the worn profile's change, :func:`workflow.wear.profile_rel_diff`; without ``worn`` the
+    unworn rates')."""
     from workflow.engine.cascade import solve_point
 
     fac = float(opt.eps_check_factor)
@@ -329,7 +339,8 @@ def _changes(rate0, wp2, x2, opt: WearOptions, worn, track: int, where: str) -> 
     rates = _rate_change(rate0, wp2.evaluate(x2).rate)
     if worn is None:
         return {"measure": "unworn wear rates", "max_rel_change": rates, "unworn_rate_change": rates}
-    h = _march(wp2, x2, "pseudo-time", opt, track, opt.block_tol)
+    check = replace(opt, rtol=opt.rtol * CHECK_RTOL, max_steps=opt.max_steps * CHECK_STEPS)
+    h = _march(wp2, x2, "pseudo-time", check, track, opt.block_tol)
     wp2.set_wear(np.zeros(wp2.p))
     out = {"measure": "worn profile", "unworn_rate_change": rates, "seconds": h.seconds, "steady": bool(h.steady)}
     if h.steady:
