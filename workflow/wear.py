@@ -140,8 +140,9 @@ class WearProblem:
         from workflow import wear_structured
 
         self.hb = hb
-        #: the pseudo-time march's linear algebra: matrix-free J and GMRES (True), or J formed
-        #: and factored (False); None: by size (:func:`workflow.wear_structured.use`)
+        #: the linear algebra of the HB solves and pseudo-time steps: matrix-free J and GMRES
+        #: (True), or J formed and factored (False; the implicit reference march always forms
+        #: it); None: by size (:func:`workflow.wear_structured.use`)
         self.structured = wear_structured.use(hb.n) if structured is None else bool(structured)
         #: :func:`workflow.engine.cascade.along_eps_path` factors for vibration solves
         #: that plain Newton does not finish (large ε shrinks its basin)
