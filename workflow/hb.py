@@ -463,9 +463,14 @@ class HBProblem:
         G = self.contact_blocks(res.dlam)
         if not form:
             return R, None, G
-        J = self.Rlin + self._GM(G)
+        J = self.jacobian(G)
         self.stats["jacobians"] += 1
         return R, J, G
+
+    def jacobian(self, G) -> np.ndarray:
+        """``Rlin + G (diag ε − A)`` (n × n, N/m), formed, for contact blocks G
+        (:meth:`contact_blocks`); :meth:`operator` is the same matrix-free."""
+        return self.Rlin + self._GM(G)
 
     def residual(self, x) -> np.ndarray:
         """Residual R(x) (n,) in N (eq. 3 / 8 / 10 for hbm / tcm / hdhb)."""

@@ -181,10 +181,9 @@ class WearProblem:
         self.evaluations += 1
         dense = not self.structured if dense is None else dense
         G = J = None
-        if jacobian and dense:
-            R, J = hb.residual_jacobian(x)
-        elif jacobian:
+        if jacobian:
             R, G = hb.residual_blocks(x)
+            J = hb.jacobian(G) if dense else None
         else:
             R = hb.residual(x)
         res = hb.last_dlft
@@ -201,7 +200,7 @@ class WearProblem:
         daW[:, 0::3] = law.eps_n[:, None] * self._const[None, :]
         st.G_W = np.einsum("pa,pa->p", g, daW)
         # ∂R/∂W_i: pair i's contact block times da_i/dW_i, on pair i's rows only
-        w = np.einsum("pab,pb->pa", hb.contact_blocks(res.dlam) if dense else G, daW)
+        w = np.einsum("pab,pb->pa", G, daW)
         if not dense:
             st.G, st.g, st.w = G, g, w
             return st

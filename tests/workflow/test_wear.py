@@ -589,6 +589,7 @@ def test_matrix_free_march_reaches_the_dense_worn_steady_state(monkeypatch):
     def formed(*a, **k):
         raise AssertionError("the matrix-free march formed J")
     monkeypatch.setattr(hbmod.HBProblem, "residual_jacobian", formed)
+    monkeypatch.setattr(hbmod.HBProblem, "jacobian", formed)
     free = pseudo_time_wear(WearProblem(hb_problem(20.0, nh=3, nit=32), area=np.full(hb.p, 1e-6), k_w=1e-14,
                                         structured=True), x0, **kw)
     assert dense.steady and free.steady
