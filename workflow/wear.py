@@ -297,6 +297,8 @@ MIN_RCOND = 1e-14
 #: worn steady state (:func:`_trend`); constant-rate wear has γ = 1.
 PERSISTENT_GROWTH = 0.5
 PERSISTENT = ": persistent slip, no worn steady state"
+#: How a pseudo-time march that lost the vibration says so (:func:`_resolve_vibration`).
+UNSOLVABLE = "vibration not solvable at the reached wear"
 
 
 # ------------------------------------------------------------------ history
@@ -318,6 +320,10 @@ class WearHistory:
     reason        why it stopped
     persistent_slip  stopped because the wear rate does not decay (:func:`_trend`):
                   no worn steady state at this load
+    vibration_lost   stopped because no periodic vibration was found at the reached wear
+                  (the whole solver cascade failed); ``finer_nh``: the same wear re-solved at
+                  1.5×Nh by :func:`workflow.engine.wearstudy.finer_nh_resolve` (nh, nit,
+                  converged, iterations), which tells a truncation artefact from the physics
     """
 
     method: str
@@ -336,13 +342,16 @@ class WearHistory:
     final_rate: np.ndarray | None = None
     reason: str = ""
     persistent_slip: bool = False
+    vibration_lost: bool = False
+    finer_nh: dict | None = None
 
     def summary(self) -> dict:
         return {"seconds": self.seconds, "iterations": self.iterations, "max_wear_m": float(np.max(self.W)),
                 "steady": bool(self.steady), "hb_solves": self.hb_solves,
                 "jacobian_evaluations": self.jacobian_evaluations,
                 "cycles": float(self.cycles[-1]) if self.cycles else 0.0, "reason": self.reason,
-                "persistent_slip": bool(self.persistent_slip)}
+                "persistent_slip": bool(self.persistent_slip), "vibration_lost": bool(self.vibration_lost),
+                **({"finer_nh": self.finer_nh} if self.finer_nh is not None else {})}
 
 
 def remaining_wear(hist: WearHistory) -> float:
@@ -523,6 +532,7 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
             N *= 0.5
         else:
             reason = f"HB solve failed at block {k} after {MAX_BLOCK_HALVINGS} halvings: {res.reason}"
+            hist.vibration_lost = True
             break
         W, x, st = np.maximum(Wn, W), res.x, stn
         cyc += N
@@ -643,6 +653,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             (x, st, why), failed = _resolve_vibration(wp, x, st, W, tol, count), 0
         if why:
             reason, hist.persistent_slip = why, why.endswith(PERSISTENT)
+            hist.vibration_lost = why.startswith(UNSOLVABLE)
             break
         xn, Wn, stn, ok = _wear_step(wp, x, W, st, h, x_tol, x_corrections, count)
         err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))
@@ -675,11 +686,14 @@ def _finish(hist: WearHistory, wp: WearProblem, x, W, st: WearState, steady: boo
     """Final vibration solve of :func:`pseudo_time_wear` at the reached W (the
     profile is W; x to full tolerance for the outputs), then ``hist``'s end
     state; ``tols`` = (cycles per block, steady_tol, HB tol). A steady march
-    whose final solve is no longer steady is reported so."""
+    whose final solve is no longer steady is reported so; a march that lost the vibration
+    (``hist.vibration_lost``) is not solved again from the x the whole cascade just failed from."""
     N, steady_tol, tol = tols
-    res, stf = wp.solve_hb(x, W, tol=tol)
-    count["nje"] += res.jacobian_evaluations + 1
-    if res.converged:
+    res = None
+    if not hist.vibration_lost:
+        res, stf = wp.solve_hb(x, W, tol=tol)
+        count["nje"] += res.jacobian_evaluations + 1
+    if res is not None and res.converged:
         x, st = res.x, stf
         hist.max_rate[-1] = float(np.max(st.rate)) if np.size(st.rate) else 0.0   # same W, converged x
         if steady and not _steady_or_persistent(hist, N, steady_tol)[0]:
@@ -703,7 +717,7 @@ def _resolve_vibration(wp: WearProblem, x, st: WearState, W, tol: float, count: 
     count["nje"] += res.jacobian_evaluations
     count["reanchored"] += 1
     if not res.converged:
-        return x, st, f"vibration not solvable at the reached wear ({res.reason})"
+        return x, st, f"{UNSOLVABLE} ({res.reason})"
     return res.x, stx, ""
 
 

@@ -173,3 +173,47 @@ def test_reference_check_takes_the_nh_and_eps_trials_from_the_checks():
                                engine.FRFOptions(reference=opt.reference, eps_path=penalty.path_of(law, np.real(Zr0))))
     for key in ("nit_x2", "nh_5", "eps_x10"):
         assert got[key] == pytest.approx(fresh[key], rel=1e-9, abs=1e-12), key
+
+
+def test_a_march_that_loses_the_vibration_is_re_solved_at_a_finer_nh_and_says_what_to_raise(monkeypatch):
+    """The march's Nh-truncated balance is made to lose its root above a wear depth (as the
+    256-pair interface-scaling sector's Nh = 3 balance does at 1.1 µm, where Nh = 5 solves in
+    6 iterations): the march stops with ``vibration_lost``, is not solved a second time from
+    the x the cascade just failed from, and the study re-solves the same wear at 1.5×Nh
+    with the real cascade — a root there, so the advice is hb.harmonics, not the step budget."""
+    from workflow import extreme as X
+    from workflow import wear
+    from workflow.solvers import SolveResult
+
+    model = X.synthetic_model(2)
+    law = engine.contact_law(model, mu=0.3)
+    opt = engine.WearOptions(methods=("pseudo-time",), nh=2, nit=32, max_steps=400, compare_unworn=False,
+                             eps_check_factor=0.0, nh_check=False)
+    free = engine.worn_steady_state(model, law, opt).histories["pseudo-time"]
+    assert not free.vibration_lost and "finer_nh" not in free.summary()
+    limit = 0.3 * float(np.max(free.W))
+    lost = []
+    solve_hb, step = wear.WearProblem.solve_hb, wear._wear_step
+
+    def no_root_at_nh2(self, x0, W, **kw):
+        if self.hb.nh == 2 and np.max(W) > limit:
+            lost.append(float(np.max(W)))
+            return SolveResult(x=np.asarray(x0, float), converged=False, iterations=50, residual_norm=1.0,
+                               reason="no root (test)"), self.evaluate(x0, W)
+        return solve_hb(self, x0, W, **kw)
+
+    def refused_above(wp, x, W, st, *a):
+        xn, Wn, stn, ok = step(wp, x, W, st, *a)
+        return xn, Wn, stn, ok and not (wp.hb.nh == 2 and np.max(W) > limit)
+
+    monkeypatch.setattr(wear.WearProblem, "solve_hb", no_root_at_nh2)
+    monkeypatch.setattr(wear, "_wear_step", refused_above)
+    study = engine.worn_steady_state(model, law, opt)
+    h = study.histories["pseudo-time"]
+    assert h.vibration_lost and not h.steady and h.reason.startswith(wear.UNSOLVABLE), h.reason
+    assert len(lost) == 1                       # no second cascade in the final solve
+    assert limit < np.max(h.W) < np.max(free.W)
+    f = h.summary()["finer_nh"]
+    assert f["nh"] == 3 and f["nit"] == 48 and f["converged"] and f["iterations"] > 0, f
+    (line,) = study.unconverged()
+    assert "raise hb.harmonics" in line and "max_steps" not in line, line
