@@ -217,3 +217,49 @@ def test_a_march_that_loses_the_vibration_is_re_solved_at_a_finer_nh_and_says_wh
     assert f["nh"] == 3 and f["nit"] == 48 and f["converged"] and f["iterations"] > 0, f
     (line,) = study.unconverged()
     assert "raise hb.harmonics" in line and "max_steps" not in line, line
+
+
+def test_a_band_too_big_to_keep_is_condensed_point_by_point_with_the_same_sweeps(monkeypatch):
+    """The band's condensations are made when a sweep reaches them once the whole band would
+    not fit in engine.linear.KEEP_BYTES (512 pairs, Nh = 7: 302 MB a frequency): the sweeps
+    and their checks are the same as with the band held whole, at most KEEP_RECENT + 1
+    condensations are held, and their time is reported apart from the sweeps'."""
+    from workflow import extreme as X
+    from workflow.engine import linear
+    from reduction.condense import relative_coordinates
+
+    model = X.synthetic_model(3)
+    law = engine.contact_law(model, mu=0.3)
+    variants = [engine.Variant("hbm", 3, 32), engine.Variant("hdhb", 3, 7)]
+    whole = engine.frf(model, law, variants, points=9)
+    made, held = [], []
+    real = linear.condensed
+
+    def counted(rc, omega, nh, **kw):
+        made.append(nh)
+        return real(rc, omega, nh, **kw)
+
+    def watched(self, i, _get=linear.CondensedGrid.__getitem__):
+        out = _get(self, i)
+        held.append(len(self._kept))
+        return out
+
+    monkeypatch.setattr(linear, "KEEP_BYTES", 0)
+    monkeypatch.setattr(linear, "condensed", counted)
+    monkeypatch.setattr(linear.CondensedGrid, "__getitem__", watched)
+    parts = engine.frf(model, law, variants, points=9)
+    for a, b in zip(whole.runs, parts.runs):
+        np.testing.assert_array_equal(a.freqs_hz, b.freqs_hz)
+        np.testing.assert_allclose(b.amplitude, a.amplitude, rtol=1e-12)
+        np.testing.assert_array_equal(a.iterations, b.iterations)
+    assert max(held) <= linear.KEEP_RECENT + 1
+    assert made.count(3) >= 2 * 9 and made.count(1) == 9        # each sweep its own points; the linear FRFs at Nh = 1
+    assert parts.condense_seconds > 0.0
+
+    rc = relative_coordinates(model)
+    grid = linear.CondensedGrid(rc, 2 * np.pi * np.array([30.0, 31.0, 32.0, 33.0]), 2)
+    assert not grid.keep_all and len(grid) == 4
+    part = grid[1:3]
+    np.testing.assert_array_equal(part.omegas, grid.omegas[1:3])
+    np.testing.assert_array_equal(part[1].Zr, real(rc, grid.omegas[2], 2).Zr)
+    assert part.seconds == grid.seconds > 0.0       # one clock for a grid and its slices

@@ -100,7 +100,9 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     from workflow.hb import HBProblem
 
     n = len(cond)
-    out = SweepResult(variant=v, solver=solver, freqs_hz=np.array([c.omega / (2 * np.pi) for c in cond]),
+    omegas = _omegas(cond)
+    clock0 = getattr(cond, "seconds", 0.0)
+    out = SweepResult(variant=v, solver=solver, freqs_hz=omegas / (2 * np.pi),
                       amplitude=np.full(n, np.nan), amplitude_max=np.full(n, np.nan),
                       iterations=np.zeros(n, int), seconds=np.zeros(n), converged=np.zeros(n, bool))
     n_unknowns = (2 * v.nh + 1) * 3 * law.p
@@ -122,7 +124,7 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
             prob.linsolver = linsolver
         else:
             prob = prob.with_linear(c.Zr, c.Fr)
-        below = [(cond[j].omega, xs[j]) for j in range(i) if xs[j] is not None][-2:]
+        below = [(omegas[j], xs[j]) for j in range(i) if xs[j] is not None][-2:]
         guesses = _guesses(prob, None if seeds is None else seeds[i], below, c.omega)
         snit = smooth_nit if v.nit < smooth_nit else 2 * v.nit
 
@@ -142,9 +144,17 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
         kw = dict(solver=solver, tol=tol, maxiter=maxiter, eps_path=eps_path, pseudo=pseudo)
         _downwards(out, rc, cond, xs, prob, **kw)
         _approach(out, rc, cond, xs, prob, **kw)
-    out.total_seconds = time.perf_counter() - t_all
+    # a grid that condenses on demand (engine.linear.CondensedGrid) did so inside the sweep:
+    # reported apart, as the condensation of a grid made before it
+    out.total_seconds = time.perf_counter() - t_all - (getattr(cond, "seconds", 0.0) - clock0)
     out.cpu_seconds = time.process_time() - c_all
     return out
+
+
+def _omegas(cond) -> np.ndarray:
+    """The frequencies [rad/s] of a band's condensations without making any
+    (:class:`~workflow.engine.linear.CondensedGrid`), or of a list of them."""
+    return np.asarray(cond.omegas if hasattr(cond, "omegas") else [c.omega for c in cond], dtype=float)
 
 
 def _guesses(prob, seed, below: list, omega: float) -> list:
@@ -164,12 +174,12 @@ def _downwards(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> 
     """The sweep's second pass: from the top down, each point lost on the way up solved
     again from its converged upper neighbours (``xs``: converged unknowns per point, updated);
     ``solve_kw``: :func:`~workflow.engine.cascade.solve_point`'s options."""
-    n = len(cond)
+    n, omegas = len(cond), _omegas(cond)
     for i in range(n - 2, -1, -1):
         if out.converged[i] or xs[i + 1] is None:
             continue
         c, t0 = cond[i], time.perf_counter()
-        above = [(cond[j].omega, xs[j]) for j in (i + 2, i + 1) if j < n and xs[j] is not None]
+        above = [(omegas[j], xs[j]) for j in (i + 2, i + 1) if j < n and xs[j] is not None]
         prob = prob.with_linear(c.Zr, c.Fr)
         pr = solve_point(prob, secant_guesses(above, c.omega), **solve_kw)
         if pr.converged:
@@ -194,7 +204,7 @@ def _approach(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> N
 
     if APPROACH_STEPS < 1:
         return
-    n = len(cond)
+    n, omegas = len(cond), _omegas(cond)
     for i in range(n):
         if out.converged[i]:
             continue
@@ -202,10 +212,11 @@ def _approach(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> N
         for j in (i - 1, i + 1):
             if not 0 <= j < n or xs[j] is None:
                 continue
-            path = [(cond[j].omega, xs[j])]
-            steps = np.linspace(cond[j].omega, cond[i].omega, APPROACH_STEPS + 1)[1:]
+            path = [(omegas[j], xs[j])]
+            steps = np.linspace(omegas[j], omegas[i], APPROACH_STEPS + 1)[1:]
+            nh = cond.nh if hasattr(cond, "omegas") else cond[i].nh
             for k, w in enumerate(steps):
-                c = cond[i] if k == len(steps) - 1 else condensed(rc, float(w), cond[i].nh)
+                c = cond[i] if k == len(steps) - 1 else condensed(rc, float(w), nh)
                 q = prob.with_linear(c.Zr, c.Fr)
                 pr = solve_point(q, secant_guesses(path[-2:], float(w)), **solve_kw)
                 its += pr.iterations
@@ -214,7 +225,7 @@ def _approach(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> N
                 path.append((float(w), pr.result.x))
             if pr.converged:
                 pr = replace(pr, how=f"approached-{pr.how}")
-                _record(out, i, rc, q, cond[i].omega, pr, out.seconds[i] + time.perf_counter() - t0,
+                _record(out, i, rc, q, omegas[i], pr, out.seconds[i] + time.perf_counter() - t0,
                         its=out.iterations[i] + its - pr.iterations)
                 xs[i] = pr.result.x
                 break
@@ -300,7 +311,12 @@ def arclength_scale(cond: list) -> float:
     upper bound of the friction-damped response. The start point's own scale
     is useless where the interface is stuck (u_r = 0 there), and a scale far
     below the resonant amplitude makes the arclength all displacement and the
-    frequency crawl (measured: 300 steps for 2 of 10 Hz)."""
+    frequency crawl (measured: 300 steps for 2 of 10 Hz). A grid made on demand
+    (:class:`~workflow.engine.linear.CondensedGrid`) is read at Nh = 1, all this needs."""
+    if hasattr(cond, "omegas") and not cond.keep_all:
+        from workflow.engine.linear import CondensedGrid
+
+        cond = CondensedGrid(cond.rc, cond.omegas, 1, keep_bytes=0.0)
     return max(max(float(np.abs(np.linalg.solve(c.Zr[1], c.Fr[1])).max()) for c in cond), 1e-30)
 
 

@@ -211,11 +211,17 @@ class FRFStudy:
 
 
 def _condense_grid(rc, freqs, nh_max):
-    from workflow.engine.linear import condensed
+    """The band's :class:`~workflow.engine.linear.CondensedGrid`, made whole now where it is
+    kept whole (else each point when a sweep reaches it), and the grid at Nh = 1 that the
+    linear FRFs and the arclength scale read (the grid itself where it is kept whole)."""
+    from workflow.engine.linear import CondensedGrid
 
-    t = time.perf_counter()
-    cond = [condensed(rc, 2 * np.pi * f, nh_max, derivative=False) for f in freqs]
-    return cond, time.perf_counter() - t
+    cond = CondensedGrid(rc, 2 * np.pi * np.asarray(freqs, dtype=float), nh_max)
+    if cond.keep_all:
+        for _ in cond:
+            pass
+        return cond, cond
+    return cond, CondensedGrid(rc, cond.omegas, 1, keep_bytes=0.0)     # read once, in order
 
 
 def _variants(rc, cond, freqs, law, static, todo, opt, comm, log):
@@ -301,7 +307,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
     else:
         freqs = np.linspace(f0, f1, points) if points > 1 else np.array([0.5 * (f0 + f1)])
     nh_max = max([v.nh for v in variants] + ([opt.reference.nh] if opt.reference else []) + [1])
-    cond, t_cond = _condense_grid(rc, freqs, nh_max)
+    cond, first = _condense_grid(rc, freqs, nh_max)
     static = static_state(cond[0].Zr, cond[0].Fr, law, opt.max_passes)
     if opt.eps_path is None:
         opt = replace(opt, eps_path=penalty.path_of(law, np.real(cond[0].Zr[0])))
@@ -309,17 +315,20 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
         tied = f"#{mode_index + 1} at {f_mode:.2f} Hz" if f_mode is not None else "none"
         log.info(f"{model.n_pairs} contact pairs, {model.size} reduced DOFs; first excited tied mode "
                  f"{tied}; band {f0:.2f}–{f1:.2f} Hz, {len(freqs)} points; "
-                 f"condensation to Nh = {nh_max} ({condensation(rc)}): {t_cond:.2f} s; {penalty.describe(law)}; "
+                 f"condensation to Nh = {nh_max} ({condensation(rc)}, "
+                 + (f"{cond.seconds:.2f} s" if cond.keep_all else "each point when swept: the band would "
+                    "not fit in engine.linear.KEEP_BYTES") + f"); {penalty.describe(law)}; "
                  "static state: "
                  f"{int(np.count_nonzero(static.state))}/{model.n_pairs} pairs in contact")
-    tied, sliding = linear_frfs(rc, cond, static)
+    tied, sliding = linear_frfs(rc, first, static)
     with blas_threads(1):   # small dense systems: threads only add spinning CPU time
-        _warm_up(cond[len(cond) // 2], law, static)
+        _warm_up(cond[0], law, static)
         runs = _variants(rc, cond, freqs, law, static, variants, opt, comm, log)
         ref = _reference(rc, cond, freqs, law, static, runs, opt, comm, log) if opt.reference else None
         # nothing after the sweeps reads the grid's condensations (302 MB a frequency at 512
         # pairs): the checks and the peak search condense their own points
-        del cond
+        t_cond = cond.seconds + (first.seconds if first is not cond else 0.0)
+        del cond, first
         if comm is not None and comm.Get_rank() != 0:
             return None
         for r in runs + ([ref] if ref is not None else []):
