@@ -69,13 +69,13 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
     from reduction.condense import relative_coordinates
     from workflow.engine.compare import refine_peak
     from workflow.engine.frf import sweep_variant
-    from workflow.engine.linear import condensed, first_excited_mode
+    from workflow.engine.linear import CondensedGrid, first_excited_mode
     from workflow.engine.study import static_state
 
     rc = relative_coordinates(model) if rc is None else rc
     f_tied, _ = first_excited_mode(rc)
     grid = np.linspace((1 - band) * f_tied, (1 + band) * f_tied, int(points))
-    cond = [condensed(rc, 2 * np.pi * f, variant.nh) for f in grid]
+    cond = CondensedGrid(rc, 2 * np.pi * grid, variant.nh)
     static = static_state(cond[0].Zr, cond[0].Fr, law, solver_kw["max_passes"])
     kw = dict(solver_kw, eps_path=eps_path)
     sw = sweep_variant(rc, cond, law, static, variant, **kw)
