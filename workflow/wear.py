@@ -531,8 +531,7 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
                 break
             N *= 0.5
         else:
-            reason = f"HB solve failed at block {k} after {MAX_BLOCK_HALVINGS} halvings: {res.reason}"
-            hist.vibration_lost = True
+            reason, hist.vibration_lost = f"HB solve failed at block {k}, {MAX_BLOCK_HALVINGS} halvings: {res.reason}", True
             break
         W, x, st = np.maximum(Wn, W), res.x, stn
         cyc += N
@@ -652,8 +651,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
         if why is None and failed == 2:
             (x, st, why), failed = _resolve_vibration(wp, x, st, W, tol, count), 0
         if why:
-            reason, hist.persistent_slip = why, why.endswith(PERSISTENT)
-            hist.vibration_lost = why.startswith(UNSOLVABLE)
+            reason, hist.persistent_slip, hist.vibration_lost = why, why.endswith(PERSISTENT), why.startswith(UNSOLVABLE)
             break
         xn, Wn, stn, ok = _wear_step(wp, x, W, st, h, x_tol, x_corrections, count)
         err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))

@@ -99,9 +99,7 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     """
     from workflow.hb import HBProblem
 
-    n = len(cond)
-    omegas = _omegas(cond)
-    clock0 = getattr(cond, "seconds", 0.0)
+    n, omegas, clock0 = len(cond), _omegas(cond), getattr(cond, "seconds", 0.0)
     out = SweepResult(variant=v, solver=solver, freqs_hz=omegas / (2 * np.pi),
                       amplitude=np.full(n, np.nan), amplitude_max=np.full(n, np.nan),
                       iterations=np.zeros(n, int), seconds=np.zeros(n), converged=np.zeros(n, bool))
@@ -111,8 +109,7 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
         log.info(f"{v.label}: {n_unknowns} unknowns, Newton linear solve {out.linear_solver}"
                  + (", pseudo-time: matrix-free pair/harmonic block-Jacobi" if matrix_free(n_unknowns)
                     and solver == "pseudo-time" else ""))
-    t_all = time.perf_counter()
-    c_all = time.process_time()
+    t_all, c_all = time.perf_counter(), time.process_time()
     xs: list = [None] * n                       # the converged unknowns, per point
     prob = None
     idx = range(n)

@@ -140,24 +140,35 @@ def finer_nh_resolve(rc, omega: float, wp, hist, opt: WearOptions, eps_path) -> 
     iterations (nit = 128 alike, 211) while Nh = 5 converged in 6 and Nh = 7 in 7.
     Returns {nh, nit, converged, iterations, reason}."""
     from workflow.engine.cascade import solve_point
+
+    fine, guess, nh2, nit2, why = _at_finer_nh(rc, omega, wp.hb, hist.x)
+    out = {"nh": nh2, "nit": nit2, "converged": False, "iterations": 0}
+    if fine is None:
+        return {**out, "reason": why}
+    fine.set_wear(np.maximum(np.asarray(hist.W, dtype=float), 0.0))
+    pr = solve_point(fine, [guess], solver="newton-powell", tol=opt.tol, maxiter=opt.max_iterations,
+                     eps_path=eps_path)
+    return {**out, "converged": bool(pr.converged), "iterations": int(pr.iterations), "reason": pr.result.reason}
+
+
+def _at_finer_nh(rc, omega: float, hb, x):
+    """``hb`` at Nh × 1.5 (nit alike, :func:`workflow.engine.epscheck.finer`) on the same law and
+    static state, and x's harmonics as its guess: (problem, guess, Nh, nit, None), or (None,
+    None, Nh, nit, why) for a cyclic model reduced for no more harmonics."""
     from workflow.engine.epscheck import finer
     from workflow.engine.linear import condensed
     from workflow.hb import HBProblem
 
-    hb = wp.hb
     nh2, nit2 = finer(hb.nh, hb.nit)
-    out = {"nh": nh2, "nit": nit2, "converged": False, "iterations": 0}
     try:
         c = condensed(rc, omega, nh2)
-    except BundleError as exc:      # a cyclic model reduced for no more harmonics
-        return {**out, "reason": f"{exc}; reduction.cyclic_harmonics"}
+    except BundleError as exc:
+        return None, None, nh2, nit2, f"{exc}; reduction.cyclic_harmonics"
+    # the static state does not depend on Nh: the unworn point's is carried over
     fine = HBProblem(c.Zr, c.Fr, hb.law, nh2, nit2, hb.method, max_passes=hb.max_passes, static=hb.static)
     U = np.zeros((nh2 + 1, hb.nr), dtype=complex)
-    U[: hb.nh + 1] = hb.harmonics(hist.x)
-    fine.set_wear(np.maximum(np.asarray(hist.W, dtype=float), 0.0))
-    pr = solve_point(fine, [fine.unknowns_from_harmonics(U)], solver="newton-powell", tol=opt.tol,
-                     maxiter=opt.max_iterations, eps_path=eps_path)
-    return {**out, "converged": bool(pr.converged), "iterations": int(pr.iterations), "reason": pr.result.reason}
+    U[: hb.nh + 1] = hb.harmonics(x)
+    return fine, fine.unknowns_from_harmonics(U), nh2, nit2, None
 
 
 def first_tied_frequency(rc) -> float:
@@ -330,25 +341,15 @@ def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path, *, worn=None, 
     — the convergence of the result itself. Measured on the quick sector (16 pairs): the unworn rates move 2.1 %
     from Nh = 5 to 8, the worn steady state 1.3133 → 1.3144 µm (Nh = 7); without
     ``worn``, ``max_rel_change`` is the unworn rates' change."""
-    from workflow.engine.linear import condensed
     from workflow.engine.cascade import solve_point
-    from workflow.engine.epscheck import finer
-    from workflow.hb import HBProblem
     from workflow.wear import WearProblem
 
-    hb = wp.hb
-    nh2, nit2 = finer(hb.nh, hb.nit)
+    fine, guess, nh2, nit2, why = _at_finer_nh(rc, omega, wp.hb, x)
     out = {"nh": nh2, "nit": nit2, "max_rel_change": None}
-    try:
-        c = condensed(rc, omega, nh2)
-    except BundleError as exc:      # a cyclic model reduced for no more harmonics
-        return {**out, "reason": f"{exc}; reduction.cyclic_harmonics"}
-    # the static state does not depend on Nh: the unworn point's is carried over
-    fine = HBProblem(c.Zr, c.Fr, hb.law, nh2, nit2, hb.method, max_passes=hb.max_passes, static=hb.static)
-    U = np.zeros((nh2 + 1, hb.nr), dtype=complex)
-    U[: hb.nh + 1] = hb.harmonics(x)
-    pr = solve_point(fine, [fine.unknowns_from_harmonics(U)], solver="newton-powell", tol=opt.tol,
-                     maxiter=opt.max_iterations, eps_path=eps_path)
+    if fine is None:
+        return {**out, "reason": why}
+    pr = solve_point(fine, [guess], solver="newton-powell", tol=opt.tol, maxiter=opt.max_iterations,
+                     eps_path=eps_path)
     if not pr.converged:
         return {**out, "measure": "unworn wear rates"}
     wfine = WearProblem(fine, wp.area, wp.k_w, wp.share, eps_path=wp.eps_path)
