@@ -7,6 +7,7 @@ band (±10 %).
 """
 from __future__ import annotations
 
+import time
 import warnings
 
 import numpy as np
@@ -79,8 +80,6 @@ class CondensedGrid:
         i = range(len(self))[i]
         c = self._kept.pop(i, None)
         if c is None:
-            import time
-
             t = time.perf_counter()
             c = condensed(self.rc, float(self.omegas[i]), self.nh, derivative=False)
             self._clock[0] += time.perf_counter() - t

@@ -125,7 +125,7 @@ def _lost_hint(h) -> str:
         return "more steps or blocks do not help"
     if f["converged"]:
         return (f"at Nh = {f['nh']} (nit = {f['nit']}) the same wear solves in {f['iterations']} iterations: "
-                f"the vibration was lost to the harmonic truncation — raise hb.harmonics")
+                "the vibration was lost to the harmonic truncation — raise hb.harmonics")
     return (f"nor at Nh = {f['nh']} (nit = {f['nit']}) ({f['reason']}): more steps, blocks or harmonics "
             "do not help")
 
