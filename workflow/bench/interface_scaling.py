@@ -9,7 +9,8 @@ For each pair count the dovetail sector of the ``interface-scaling`` scene (the 
 (:func:`grid`; two flanks), assembled and reduced (the pipeline, cached), and
 each (method, solver) sweeps a fixed band through the first tied resonance
 (±10 %, ``points`` frequencies) in a fresh process (:func:`worker`), so its
-peak memory (``ru_maxrss``) is its own. The row: pairs, unknowns
+peak memory (``ru_maxrss``) is its own; a short sweep runs up to :data:`REPEATS` times
+and its fastest run is kept (:data:`REPEAT_BELOW_S`). The row: pairs, unknowns
 ``(2Nh+1)·3·pairs``, method, solver, Newton's linear solve (automatic,
 :func:`workflow.engine.cascade.linear_solver`), seconds per converged point,
 iterations, peak memory, converged/points, and the seconds per frequency of
@@ -38,6 +39,11 @@ PAIRS = (16, 32, 64, 128, 256, 512)
 FIT_MIN_PAIRS = 64
 #: Issue #16's bound on the growth of seconds per converged point from FIT_MIN_PAIRS up (drawn in the plot)
 GROWTH_BOUND = 1.5
+#: A sweep shorter than this [s] runs up to REPEATS times (fresh processes) and its fastest run is the
+#: row (``runs`` says how many): the 64-pair sweep is under a second, and one run of it moved the fitted
+#: growth by ±0.05 (HBM 0.081 → 0.087 s a point between two runs of the same code, session 25).
+REPEAT_BELOW_S = 10.0
+REPEATS = 3
 
 
 def grid(pairs: int) -> tuple[int, int]:
@@ -159,8 +165,11 @@ def study(reduced_for, pairs, methods, solvers, nh: int, nit: int, points: int, 
         for m in methods:
             for s in solvers:
                 nit_m = 2 * nh + 1 if m == "hdhb" else nit
-                row = _launch(path, m, nh, nit_m, s, points, Path(work) / f"row-{p}-{m}-{s}.json", mu=mu,
-                              maxiter=maxiter)
+                runs = []
+                while not runs or (runs[-1]["seconds"] < REPEAT_BELOW_S and len(runs) < REPEATS):
+                    runs.append(_launch(path, m, nh, nit_m, s, points, Path(work) / f"row-{p}-{m}-{s}.json",
+                                        mu=mu, maxiter=maxiter))
+                row = dict(min(runs, key=lambda r: r["s_per_point"]), runs=len(runs))
                 rows.append(row)
                 log(f"{p} pairs, {m}-{nh} {s} ({row['linear_solver']}): {row['unknowns']} unknowns, "
                     f"{row['s_per_point']:.2f} s/point, {row['converged']}/{row['points']} converged, "
