@@ -9,7 +9,7 @@ import numpy as np
 
 from reduction.reduced import ReducedModel
 from workflow import engine
-from workflow.lumped import pairs_on_block
+from workflow.engine.lumped import pairs_on_block
 
 p = 3
 M, K, block, tip = pairs_on_block(p, k_n=2e6, k_t=3e4, scatter=(0.7, 0.6), m_node=0.01, m_block=0.02, ground=5e3,

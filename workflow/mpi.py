@@ -36,15 +36,10 @@ import sys
 import time
 import traceback
 
-#: Environment variables set by MPI launchers (Open MPI, MPICH/Hydra, PMIx, Slurm's PMI).
-_LAUNCHER_ENV = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "PMI_RANK", "MPI_LOCALNRANKS")
+from workflow.engine.blas import launched
+
 #: Exit status of an aborted MPI job (same as the CLI's for a BladewearError).
 ABORT_STATUS = 2
-
-
-def launched() -> bool:
-    """True when this process was started by an MPI launcher (or ``BLADEWEAR_MPI=1``)."""
-    return os.environ.get("BLADEWEAR_MPI") == "1" or any(k in os.environ for k in _LAUNCHER_ENV)
 
 
 def world():

@@ -7,6 +7,7 @@ raises :class:`~workflow.errors.SceneError` naming the keys.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from workflow.errors import SceneError
@@ -157,7 +158,7 @@ class Sweep:
 @dataclass
 class PseudoTime:
     scheme: str = param("ser", "", "pseudo-time integrator of the pseudo-time HB solver (hb.solver = "
-                                   "\"pseudo-time\", workflow/pseudotime.py); the wear system has one integrator, "
+                                   "\"pseudo-time\", workflow/engine/pseudotime.py); the wear system has one integrator, "
                                    "ser (linearly implicit), and refuses the others",
                         choices=("rk4", "local", "ser", "bdf", "radau", "lsoda", "rosenbrock", "block-jacobi"))
     precond: str = param("jacobian", "", "pseudo-time mass M of M ∂x/∂t* = −R: none (paper eq. 18), jacobi "
@@ -278,11 +279,13 @@ class ContactConvergence:
     nodes_along: list = param([4, 7, 10], "", "flank vertices along x of each contact mesh, coarse to fine "
                                               "(geometry.contact_nodes chooses the layout)", min=2)
     nodes_across: list = param([2, 3, 4], "", "flank vertices across the flank, one entry per contact mesh", min=2)
-    harmonics: int = param(1, "", "Nh of the FRF peak and wear solves (dense Newton cost grows like "
-                                  "((2Nh+1)·3·pairs)³)", min=0)
+    harmonics: int = param(1, "", "Nh of the FRF peak and wear solves; the problem has (2Nh+1)·3·pairs "
+                                  "unknowns, solved by dense LU below 500 of them and by the structured, "
+                                  "matrix-free Newton solve above (docs/solver-guide.md)", min=0)
     wear_harmonics: int = param(0, "", "Nh of the wear marches alone (0: harmonics); the worn steady state "
-                                       "may converge in Nh sooner than the FRF peak — each wear step factors "
-                                       "a dense ((2Nh+1)·3·pairs)² Jacobian", min=0)
+                                       "may converge in Nh sooner than the FRF peak — a wear step solves the "
+                                       "augmented system by dense LU below 500 HB unknowns and matrix-free "
+                                       "above (workflow/engine/wear_structured.py)", min=0)
     time_samples: int = param(32, "", "nit per period (≥ 2Nh+1)", min=1)
     band: float = param(0.1, "", "peak search band: ± this fraction of the first tied frequency", min=0.0,
                         min_exclusive=True, max=0.5)
@@ -333,10 +336,20 @@ class InterfaceScaling:
         if self.time_samples < 2 * self.harmonics + 1:
             raise SceneError(f"interface_scaling.time_samples = {self.time_samples} < 2·interface_scaling."
                              f"harmonics+1 = {2 * self.harmonics + 1}")
-        from workflow.bench.interface_scaling import grid
-
         for p in self.pairs:
-            grid(p)
+            flank_grid(p)
+
+
+def flank_grid(pairs: int) -> tuple[int, int]:
+    """(nodes_along, nodes_across) per flank for ``pairs`` pairs over the two flanks:
+    the most nearly square factorisation with both ≥ 2 (the geometry's minimum),
+    along ≥ across (16 → 4×2, 512 → 16×16)."""
+    m = int(pairs) // 2 if int(pairs) == pairs and pairs % 2 == 0 else 0
+    div = [d for d in range(2, int(math.isqrt(max(m, 0))) + 1) if m % d == 0]
+    if not div:
+        raise SceneError(f"interface_scaling.pairs: {pairs} is not 2·a·b with a, b ≥ 2 "
+                         "(two flanks of nodes_along × nodes_across ≥ 2 × 2)")
+    return m // div[-1], div[-1]
 
 
 @dataclass

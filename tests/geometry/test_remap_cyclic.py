@@ -9,7 +9,7 @@ import types
 import numpy as np
 import pytest
 
-from workflow.engine.compare import PEAK_XTOL
+from workflow.engine.studies.compare import PEAK_XTOL
 
 from workflow.errors import BundleError, GeometryError
 

@@ -149,7 +149,7 @@ def test_zero_wear_reassembly_has_no_frequency_shift(upstream, tmp_path):
     # Zero wear: the worn model is the new one, so is its nonlinear FRF peak.
     assert s["frf_converged"]["new"] == s["frf_converged"]["worn"] > 0
     # refined peaks (bounded search): equal to its tolerance
-    from workflow.engine.compare import PEAK_XTOL
+    from workflow.engine.studies.compare import PEAK_XTOL
 
     assert abs(s["frf_peak_hz"]["worn"] - s["frf_peak_hz"]["new"]) <= 2 * PEAK_XTOL * s["frf_tied_hz"]["new"]
     np.testing.assert_allclose(s["frf_peak_amplitude_m"]["worn"], s["frf_peak_amplitude_m"]["new"], rtol=1e-6)
@@ -187,7 +187,7 @@ def test_worn_static_state_is_the_new_one_with_wear_as_gap(upstream, worn_run):
     the wear counted twice."""
     from reduction.condense import condense, relative_coordinates
     from reduction.reduced import ReducedModel
-    from workflow.contact import ContactLaw
+    from workflow.engine.contact import ContactLaw
     from workflow.engine import contact_law, static_state
     from workflow.engine.linear import first_excited_mode
 

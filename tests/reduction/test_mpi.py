@@ -60,7 +60,7 @@ points = 7
 """
 REL = 1e-8
 # The ε-check, the Nh-check, the reference's own check and the peak refinement run on rank 0 after
-# the shared sweeps (workflow.engine.study.frf), so they are serial code under
+# the shared sweeps (workflow.engine.studies.study.frf), so they are serial code under
 # mpirun and are tested elsewhere; here they would only add ~4 s to each run.
 
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from workflow.contact import ContactLaw
-from workflow.lumped import pairs_on_block
+from workflow.engine.contact import ContactLaw
+from workflow.engine.lumped import pairs_on_block
 
 
 def condense(model: dict, omega: float, nh: int):

@@ -146,7 +146,7 @@ def test_disk_full_inside_stage_write(tmp_path, capsys, fakes, monkeypatch):
 
     before = previous_run(tmp_path, capsys)
     # the real extreme stage on a synthetic reduced model, fed through a fake 'reduction'
-    from workflow import extreme as X
+    from workflow.engine.studies import extreme as X
 
     red = tmp_path / "red"
     red.mkdir()
@@ -182,7 +182,7 @@ def test_disk_full_inside_stage_write(tmp_path, capsys, fakes, monkeypatch):
 
 def test_truncated_reduced_model_is_bundle_error(tmp_path):
     from reduction.reduced import ReducedModel
-    from workflow import extreme as X
+    from workflow.engine.studies import extreme as X
     from workflow.errors import BundleError
 
     X.synthetic_model(2).save(tmp_path / "reduced.npz")

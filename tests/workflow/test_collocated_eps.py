@@ -10,7 +10,7 @@ from reduction.condense import condense, relative_coordinates
 from test_hb_stage import blade_chain
 from workflow import engine
 from workflow.engine import cascade, penalty
-from workflow.hb import HBProblem
+from workflow.engine.hb import HBProblem
 
 BAND = (94.0, 104.0)
 
@@ -79,7 +79,7 @@ def test_a_collocated_point_is_accepted_only_by_its_residual_at_the_laws_eps(swe
     c = condense(relative_coordinates(model), 2 * np.pi * r.freqs_hz[i], 5)
     prob = HBProblem(c.Zr, c.Fr, law, 5, 11, "hbm", static=st.static)
     x = prob.unknowns_from_harmonics(r.Ur[i])
-    from workflow.solvers import SolveResult
+    from workflow.engine.solvers import SolveResult
 
     good = cascade.PointResult(SolveResult(x=x, converged=True, iterations=0, residual_norm=0.0,
                                            reason="converged"), 3, "newton")

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from workflow import fourier
-from workflow.contact import SEPARATION, SLIP, STICK, ContactLaw, dlft, dlft_pass
+from workflow.engine import fourier
+from workflow.engine.contact import SEPARATION, SLIP, STICK, ContactLaw, dlft, dlft_pass
 from workflow.errors import SceneError
 
 
@@ -238,7 +238,7 @@ def _dlu(E, jacobian):
 @pytest.mark.parametrize("jacobian", [False, True])
 def test_loop_pass_matches_numpy_pass(jacobian):
     """The loop kernel (what numba compiles), run as plain Python, against the NumPy pass."""
-    from workflow import contact
+    from workflow.engine import contact
 
     for E, lam_u, mu, ref in _pass_cases():
         a = contact._one_pass_numpy(lam_u, mu, ref, _dlu(E, jacobian))
@@ -251,7 +251,7 @@ def test_loop_pass_matches_numpy_pass(jacobian):
 @pytest.mark.parametrize("jacobian", [False, True])
 def test_numba_dlft_matches_numpy_dlft(jacobian, monkeypatch):
     """Full periodic DLFT (passes, acceleration, Jacobian columns) compiled vs NumPy."""
-    from workflow import contact
+    from workflow.engine import contact
 
     if contact._one_pass_numba is None:
         pytest.skip("numba not importable: the NumPy pass is in use")

@@ -11,7 +11,7 @@ import pytest
 
 from workflow.errors import SceneError
 from geometry.flankmap import common_points, profile_at
-from workflow.engine.meshstudy import observed_order, rel_change, summarise
+from workflow.engine.studies.meshstudy import observed_order, rel_change, summarise
 from workflow.stages import contact_convergence as cc
 
 

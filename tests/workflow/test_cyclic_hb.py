@@ -30,7 +30,7 @@ from reduction.condense import recover, relative_coordinates
 from reduction.cyclic import rotation_x
 from reduction.cyclic_reduce import reduce_cyclic
 from workflow import engine
-from workflow.contact import ContactLaw
+from workflow.engine.contact import ContactLaw
 from workflow.engine.linear import first_excited_mode
 
 N, NH, NIT, AMP, MU = 5, 3, 40, 0.1, 0.3

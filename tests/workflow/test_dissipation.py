@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from workflow.dissipation import energy_per_cycle
+from workflow.engine.dissipation import energy_per_cycle
 
 
 def _pair(a):

@@ -1,4 +1,4 @@
-"""Property tests of the DLFT law (workflow/contact.py) on random states.
+"""Property tests of the DLFT law (workflow/engine/contact.py) on random states.
 
 For random predictor histories λ_u (nit, p, 3), friction μ, penalties and
 gaps, the corrected multipliers must satisfy, to round-off:
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
-from workflow.contact import SEPARATION, STICK, ContactLaw, dlft, dlft_pass
+from workflow.engine.contact import SEPARATION, STICK, ContactLaw, dlft, dlft_pass
 
 SETTINGS = settings(max_examples=60, deadline=None)
 

@@ -11,7 +11,7 @@ import pytest
 
 from reduction.reduced import ReducedModel
 from workflow import engine
-from workflow.engine import penalty
+from workflow.engine import penalty, studies
 from workflow.errors import BundleError, SceneError
 
 
@@ -84,7 +84,7 @@ def test_unbounded_undamped_resonance_is_diagnosed_not_a_traceback():
                        band_hz=(0.8 * f_n, 1.2 * f_n), points=3)
     r = study.runs[0]
     assert not np.isfinite(study.sliding[1]) and not r.converged[1]
-    assert r.reasons[1] == engine.study.UNBOUNDED
+    assert r.reasons[1] == studies.study.UNBOUNDED
     assert any("unbounded" in line for line in study.unconverged())
     assert r.converged[0] and r.converged[2]
 
@@ -94,7 +94,7 @@ def test_wear_checks_without_a_worn_steady_state_compare_the_unworn_rates():
     and Nh-checks then compare the unworn wear rates at ε and 10ε, 1.5×Nh, instead of
     marching again. (Run after the marches, the rate comparison once saw the worn W,
     rates ≈ 0, and reported a change of 1e15.)"""
-    from workflow import extreme as X
+    from workflow.engine.studies import extreme as X
 
     model = X.synthetic_model(2)
     study = engine.worn_steady_state(model, engine.contact_law(model, mu=0.3),
@@ -159,7 +159,7 @@ def test_reference_check_takes_the_nh_and_eps_trials_from_the_checks():
     """The reference's own Nh and ε trials are the Nh-check's and ε-check's re-solves of the
     reference: taken from them, they equal a fresh re-solve (and the nit trial is made)."""
     from reduction.condense import condense, relative_coordinates
-    from workflow.engine import epscheck
+    from workflow.engine.studies import epscheck
 
     model = oscillator(c=0.2)
     law = engine.contact_law(model, mu=1.0)
@@ -181,9 +181,9 @@ def test_a_march_that_loses_the_vibration_is_re_solved_at_a_finer_nh_and_says_wh
     6 iterations): the march stops with ``vibration_lost``, is not solved a second time from
     the x the cascade just failed from, and the study re-solves the same wear at 1.5×Nh
     with the real cascade — a root there, so the advice is hb.harmonics, not the step budget."""
-    from workflow import extreme as X
-    from workflow import wear
-    from workflow.solvers import SolveResult
+    from workflow.engine.studies import extreme as X
+    from workflow.engine import wear
+    from workflow.engine.solvers import SolveResult
 
     model = X.synthetic_model(2)
     law = engine.contact_law(model, mu=0.3)
@@ -224,7 +224,7 @@ def test_a_band_too_big_to_keep_is_condensed_point_by_point_with_the_same_sweeps
     not fit in engine.linear.KEEP_BYTES (512 pairs, Nh = 7: 302 MB a frequency): the sweeps
     and their checks are the same as with the band held whole, at most KEEP_RECENT + 1
     condensations are held, and their time is reported apart from the sweeps'."""
-    from workflow import extreme as X
+    from workflow.engine.studies import extreme as X
     from workflow.engine import linear
     from reduction.condense import relative_coordinates
 

@@ -1,4 +1,4 @@
-"""The extreme-case runner (workflow/extreme.py) on the synthetic reduced model."""
+"""The extreme-case runner (workflow/engine/studies/extreme.py) on the synthetic reduced model."""
 from __future__ import annotations
 
 import json
@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from workflow import extreme as X
+from workflow.engine.studies import extreme as X
 
 
 @pytest.fixture(scope="module")

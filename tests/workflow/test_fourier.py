@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from workflow import fourier
+from workflow.engine import fourier
 
 
 @settings(max_examples=30, deadline=None)

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from hbmodels import condense, jenkins, law_for, recover, root_model
-from workflow.contact import STICK, ContactLaw
+from workflow.engine.contact import STICK, ContactLaw
 from workflow.errors import SceneError
-from workflow.hb import HBProblem
+from workflow.engine.hb import HBProblem
 
 W25 = 2 * np.pi * 25.0
 

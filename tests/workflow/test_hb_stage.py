@@ -22,7 +22,7 @@ from workflow.engine import variants
 from workflow.params import HB, Contact, Excitation, PseudoTime, Sweep
 from workflow.runlog import RunLog
 from workflow.stages import hb as stage
-from workflow.lumped import pairs_on_block
+from workflow.engine.lumped import pairs_on_block
 
 F_TIED = 100.0
 
@@ -295,7 +295,7 @@ def test_newton_powell_cascade_finds_the_same_frf_as_powell(tmp_path):
 def test_share_gives_every_variant_to_one_rank_and_balances_the_cost():
     from types import SimpleNamespace as NS
 
-    from workflow.engine.variants import share, variants
+    from workflow.engine.studies.variants import share, variants
 
     todo = variants(NS(methods=["hbm", "tcm", "hdhb"], harmonics=[1, 3, 7, 17], time_samples=[105, 0]))
     cost = lambda i: (2 * todo[i].nh + 1) ** 2 * (1.0 + todo[i].nit / 400.0)  # noqa: E731
@@ -310,7 +310,7 @@ def test_share_gives_every_variant_to_one_rank_and_balances_the_cost():
 
 
 def test_join_sweeps_puts_chunks_back_in_order():
-    from workflow.engine.frf import SweepResult, Variant, join_sweeps
+    from workflow.engine.studies.frf import SweepResult, Variant, join_sweeps
 
     v = Variant("hbm", 3, 32)
 

@@ -7,12 +7,13 @@ import pytest
 
 from workflow.bench import interface_scaling as bench
 from workflow.errors import SceneError
+from workflow.params import flank_grid
 
 
 @pytest.mark.parametrize("pairs, expected", [(16, (4, 2)), (32, (4, 4)), (64, (8, 4)), (128, (8, 8)),
                                              (256, (16, 8)), (512, (16, 16)), (8, (2, 2)), (24, (4, 3))])
 def test_grid_gives_the_pair_count(pairs, expected):
-    along, across = bench.grid(pairs)
+    along, across = flank_grid(pairs)
     assert (along, across) == expected
     assert 2 * along * across == pairs and along >= across
 
@@ -20,7 +21,7 @@ def test_grid_gives_the_pair_count(pairs, expected):
 @pytest.mark.parametrize("bad", [0, 3, 6, 14, 15, 2.5])
 def test_grid_rejects_odd_counts(bad):
     with pytest.raises(SceneError, match="interface_scaling.pairs"):
-        bench.grid(bad)
+        flank_grid(bad)
 
 
 def _rows(b_time=1.5, b_mem=1.0):

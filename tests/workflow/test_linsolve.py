@@ -1,4 +1,4 @@
-"""The structured Newton linear solve (workflow/linsolve.py) against the dense one.
+"""The structured Newton linear solve (workflow/engine/linsolve.py) against the dense one.
 
 Physics checked: the matrix-free J is the same ∂R/∂x as the dense analytic
 Jacobian (and its transpose the transpose); GMRES steps equal the LU steps;
@@ -13,9 +13,9 @@ import pytest
 
 from tests.workflow.hbmodels import condense, law_for, root_model
 from workflow.engine import cascade
-from workflow.hb import HBProblem
-from workflow.linsolve import StructuredSolve, zb_apply
-from workflow.solvers import DenseLU
+from workflow.engine.hb import HBProblem
+from workflow.engine.linsolve import StructuredSolve, zb_apply
+from workflow.engine.solvers import DenseLU
 
 P = 6
 NH = 5
@@ -52,7 +52,7 @@ def test_operator_is_the_dense_jacobian(method):
 
 
 def test_zb_apply_is_the_real_block_matrix():
-    from workflow import fourier
+    from workflow.engine import fourier
 
     rng = np.random.default_rng(0)
     Zr = rng.standard_normal((4, 5, 5)) + 1j * rng.standard_normal((4, 5, 5))
@@ -89,7 +89,7 @@ def test_gmres_step_equals_lu_step(method, small, clusters, monkeypatch):
     """Both layouts of the preconditioner: explicit inverses and real harmonic blocks (small
     interfaces, the test model) and the LUs with the complex Zr of large ones; blocks of one
     pair (small interfaces) and of clusters of pairs (large ones: here 5 + 1 of the 6 pairs)."""
-    from workflow import linsolve
+    from workflow.engine import linsolve
 
     if not small:
         monkeypatch.setattr(linsolve, "INVERSE_MAX_DOFS", 0)
@@ -120,7 +120,7 @@ def test_gmres_step_equals_lu_step(method, small, clusters, monkeypatch):
 
 
 def test_real_blocks_equal_the_complex_product():
-    from workflow.linsolve import k_apply, k_apply_blocks, real_blocks, zb_apply, zb_apply_blocks
+    from workflow.engine.linsolve import k_apply, k_apply_blocks, real_blocks, zb_apply, zb_apply_blocks
 
     rng = np.random.default_rng(3)
     nh, p, k = 4, 3, 2
@@ -199,7 +199,7 @@ def test_bad_linear_solver_name():
 @pytest.mark.parametrize("method", ["hbm", "hdhb"])
 @pytest.mark.parametrize("omega_hz", [20.0, 29.0])
 def test_block_jacobi_pseudo_time_reaches_the_newton_root(method, omega_hz):
-    from workflow.pseudotime_blocks import integrate_pairs
+    from workflow.engine.pseudotime_blocks import integrate_pairs
 
     prob = _problem(method, omega_hz)
     tol = 1e-9
@@ -275,7 +275,7 @@ def test_lm_steps_share_one_bidiagonalisation_and_equal_lsqr(method, monkeypatch
     a large damping turns it into the scaled steepest-descent direction −JᵀR/ν."""
     import scipy.sparse.linalg
 
-    from workflow import linsolve
+    from workflow.engine import linsolve
 
     prob = _problem(method)
     x = _slipping_state(prob) * 1.05
@@ -303,7 +303,7 @@ def test_lagged_blocks_are_renewed_when_their_extra_gmres_iterations_cost_a_fact
     """The preconditioner's blocks are refactored once the GMRES iterations beyond
     REFRESH_ITERS add up to one factorisation's cost (FACTOR_ITERS, by 3p),
     not at the first slow solve; a fresh factorisation starts the count again."""
-    from workflow import linsolve
+    from workflow.engine import linsolve
 
     prob = _problem("hbm")
     _, op = prob.residual_operator(_slipping_state(prob) * 1.05)
@@ -327,26 +327,26 @@ def test_lagged_blocks_are_renewed_when_their_extra_gmres_iterations_cost_a_fact
 
 
 def test_blas_cores_respects_the_environment_and_the_ranks_on_the_node(monkeypatch):
-    from workflow import solvers
+    from workflow.engine import blas
 
     for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS",
               "OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "PMI_RANK", "BLADEWEAR_MPI"):
         monkeypatch.delenv(k, raising=False)
-    monkeypatch.setattr(solvers.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
-    assert solvers.blas_cores() == 4
+    monkeypatch.setattr(blas.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
+    assert blas.blas_cores() == 4
     monkeypatch.setenv("OMPI_COMM_WORLD_SIZE", "2")
     monkeypatch.setenv("OMPI_COMM_WORLD_LOCAL_SIZE", "2")
-    assert solvers.blas_cores() == 2                   # two ranks share the node's cores
+    assert blas.blas_cores() == 2                   # two ranks share the node's cores
     monkeypatch.delenv("OMPI_COMM_WORLD_LOCAL_SIZE")
-    assert solvers.blas_cores() == 1                   # a launcher that does not say: never oversubscribe
+    assert blas.blas_cores() == 1                   # a launcher that does not say: never oversubscribe
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")
-    assert solvers.blas_cores() == 3                   # a user's (or a benchmark's) setting wins
+    assert blas.blas_cores() == 3                   # a user's (or a benchmark's) setting wins
 
 
 def test_large_structured_solves_run_blas_on_the_cores_and_restore_the_count(monkeypatch):
-    from workflow import linsolve, solvers
+    from workflow.engine import blas
 
-    handles = solvers._openblas_handles()
+    handles = blas._openblas_handles()
     if not handles:
         pytest.skip("no OpenBLAS in this process")
     get = handles[0][1]
@@ -355,12 +355,12 @@ def test_large_structured_solves_run_blas_on_the_cores_and_restore_the_count(mon
     seen = []
     k_solve = StructuredSolve._k_solve
     monkeypatch.setattr(StructuredSolve, "_k_solve", lambda self, b, *a: (seen.append(get()), k_solve(self, b, *a))[1])
-    monkeypatch.setattr(linsolve, "blas_cores", lambda: 2)
-    with solvers.blas_threads(1):
+    monkeypatch.setattr(blas, "blas_cores", lambda: 2)
+    with blas.blas_threads(1):
         lin = StructuredSolve()
         assert lin.factor(op) and lin.solve(R) is not None
         assert seen == [1] and get() == 1             # a small interface: the caller's one thread
-        monkeypatch.setattr(linsolve, "THREADED_MIN_DOFS", op.nr)
+        monkeypatch.setattr(blas, "THREADED_MIN_DOFS", op.nr)
         assert lin.solve(R) is not None
         assert seen[-1] == 2 and get() == 1           # a large one: the cores, then the caller's count again
 
@@ -368,7 +368,7 @@ def test_large_structured_solves_run_blas_on_the_cores_and_restore_the_count(mon
 def test_pair_clusters_partition_the_pairs_into_coupled_neighbours():
     """Every pair in exactly one cluster of at most ``size``; on a chain of pairs coupled only
     to their neighbours (a row of flank nodes) the clusters are runs of neighbours."""
-    from workflow.linsolve import cluster_groups, pair_clusters
+    from workflow.engine.linsolve import cluster_groups, pair_clusters
 
     p = 11
     Z0 = np.zeros((3 * p, 3 * p))
@@ -394,7 +394,7 @@ def test_cluster_blocks_are_the_blocks_of_the_dense_k(method):
     """K_CC = Zb_CC + G̃_C (E_C − Zb_CC) is K restricted to a cluster's unknowns (all harmonics of
     its pairs), for clusters of several pairs and of one (the pair blocks of the block-Jacobi
     pseudo-time)."""
-    from workflow.linsolve import ContactJacobian
+    from workflow.engine.linsolve import ContactJacobian
 
     prob = _problem(method)
     x = _slipping_state(prob) * 1.05
@@ -418,7 +418,7 @@ def test_cluster_blocks_are_the_blocks_of_the_dense_k(method):
 def test_harmonic_blocks_are_the_blocks_of_the_dense_k(method):
     """K_hh = (I − G̃_hh) Zb_hh + G̃_hh E is K restricted to one harmonic's (cos, sin)
     coefficients of every pair; formed in float32 it equals them to float32 round-off."""
-    from workflow.linsolve import ContactJacobian
+    from workflow.engine.linsolve import ContactJacobian
 
     prob = _problem(method)
     x = _slipping_state(prob) * 1.05
@@ -438,8 +438,8 @@ def test_complex_harmonic_blocks_are_k_with_the_complex_linear_part_of_g():
     replaced by its complex-linear part (ĝ = (g_cc + g_ss)/2 + i (g_cs − g_sc)/2): exactly
     the real K_hh of that G̃, in the real form [[Re B, Im B], [−Im B, Re B]]; harmonic 0's block
     is K_00 itself. Slipping pairs have an anti-linear part, so B_h is not K_hh there."""
-    from workflow import fourier
-    from workflow.linsolve import ContactJacobian
+    from workflow.engine import fourier
+    from workflow.engine.linsolve import ContactJacobian
 
     prob = _problem("hbm")
     _, op = prob.residual_operator(_slipping_state(prob) * 1.05)
@@ -466,9 +466,9 @@ def test_complex_harmonic_blocks_are_k_with_the_complex_linear_part_of_g():
 @pytest.mark.parametrize("omega_hz", [25.0, 27.0, 29.0])
 def test_inexact_newton_steps_reach_the_same_root(omega_hz, monkeypatch):
     """Newton with the structured solve takes Eisenstat–Walker linear tolerances
-    (workflow.solvers.forcing): GMRES stops at each step's own tolerance, and the root
+    (workflow.engine.solvers.forcing): GMRES stops at each step's own tolerance, and the root
     equals the one of steps solved to GMRES_RTOL within the residual tolerance."""
-    from workflow import linsolve, solvers
+    from workflow.engine import linsolve, solvers
 
     prob = _problem("hbm", omega_hz)
     tol = 1e-9
@@ -561,7 +561,7 @@ def test_line_search_points_from_two_products_equal_the_residual(method, monkeyp
     """:meth:`HBProblem.residual_along`: R(x + α dx) from A x and A dx (A linear) equals the
     residual evaluated afresh to round-off, makes one product with Zb for all its trial points,
     and the Jacobian at the last trial point makes none."""
-    import workflow.hb as hbmod
+    import workflow.engine.hb as hbmod
 
     prob = _problem(method)
     x = _slipping_state(prob)
@@ -588,8 +588,8 @@ def test_structured_newton_line_search_makes_one_product_a_direction(monkeypatch
     """A structured Newton solve with backtracking makes one product with Zb per direction
     (and one at the start), and reaches the root of a solve whose every trial point is
     evaluated afresh (the same iterates to round-off)."""
-    import workflow.hb as hbmod
-    from workflow import solvers
+    import workflow.engine.hb as hbmod
+    from workflow.engine import solvers
 
     prob = _problem("hbm", 27.0)
     x0 = _slipping_state(prob) * 1.5          # far enough that the line search backtracks

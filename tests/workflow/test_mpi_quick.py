@@ -17,9 +17,9 @@ Two comparisons:
   and worn depth ≤ 7.6e-10 (one unit in the last digit written) in 7 fresh
   2-rank runs and 10 perturbed serial ones; at Nh = 5 the worn depth, solved
   at the tied resonance, spread to 1.2e-8. Bounds: 1e-8, issue 18's target.
-  Before session 19 the wear was solved at a tied frequency from
+  Before 2026-11-27 (5f91ee6) the wear was solved at a tied frequency from
   ``eigh(K_yy, M_yy)``, itself 2e-10 off between BLAS thread counts, and
-  agreed only to ~1e-6; before session 18 the condensation's LU near the tied
+  agreed only to ~1e-6; before 2026-11-27 (b26fc39) the condensation's LU near the tied
   resonance put the FRF at ~1e-7.
 * hb, wear and remap on 2 ranks from the *serial* reduced model (cache copied,
   their entries removed): the same problem, so 1e-8.
@@ -119,7 +119,7 @@ def test_serial_stages_on_two_ranks_same_reduced_model(runs):
 @pytest.mark.slow  # ~12 s more; the serial case (test_unconverged.py) runs in the default suite
 def test_unconverged_exit_3_on_two_ranks(runs):
     """Every rank returns the same status: 3 for a run with unconverged results (μ = 0: the
-    wear has no worn steady state; the FRF converges at every point since session 10)."""
+    wear has no worn steady state; the FRF converges at every point since 2026-11-27, 818974e)."""
     tmp, _ = runs
     cmd = MPIRUN + [BIN, "run", "quick", "--out", tmp / "mu0", "--cache", tmp / "c1", "--quiet",
                     "--set", "contact.mu=0", "--set", 'run.outputs=["wear"]']

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from wearmodels import hb_problem
-from workflow.pseudotime import SCHEMES, integrate, rk4_stability_limit
+from workflow.engine.pseudotime import SCHEMES, integrate, rk4_stability_limit
 
 
 @pytest.fixture(scope="module", params=[("hbm", 16), ("hdhb", 5)])
@@ -110,7 +110,7 @@ def test_a_singular_step_matrix_is_none_without_a_warning():
     which the integrators handle, and no LinAlgWarning reaches the user's terminal."""
     import warnings
 
-    from workflow.pseudotime import _lu_solve
+    from workflow.engine.pseudotime import _lu_solve
 
     A = np.diag([1.0, 2.0, 0.0])
     with warnings.catch_warnings():

@@ -1,4 +1,4 @@
-"""The refined friction-damped peak (engine.compare.refine_peak) against a closed form."""
+"""The refined friction-damped peak (engine.studies.peak.refine_peak) against a closed form."""
 from __future__ import annotations
 
 import numpy as np
@@ -11,7 +11,7 @@ def test_refined_peak_of_a_damped_oscillator_is_the_closed_form_one():
     the bounded search between the grid neighbours finds it."""
     from reduction.condense import relative_coordinates
     from workflow import engine
-    from workflow.engine.compare import refine_peak
+    from workflow.engine.studies.peak import refine_peak
     from workflow.verification import models
 
     m, fn, zeta, force = 1.0, 10.0, 0.02, 1.0
@@ -63,7 +63,7 @@ def _search(monkeypatch, patch: dict):
     ({(object, attribute): value}, through ``monkeypatch``): (Peak, points of the grid)."""
     from reduction.condense import relative_coordinates
     from workflow import engine
-    from workflow.engine.compare import refine_peak
+    from workflow.engine.studies.peak import refine_peak
     from workflow.verification import models
 
     m, fn, zeta, force = OSC
@@ -91,7 +91,7 @@ def test_the_peak_search_shares_one_structured_solve(monkeypatch):
     """Where the structured linear solve applies (forced here on the damped oscillator), the
     search's points share one: each point starts from the last one's lagged blocks instead of
     a factorisation of its own, and the peak is still the closed-form one."""
-    from workflow import linsolve
+    from workflow.engine import linsolve
     from workflow.engine import cascade
 
     made = []

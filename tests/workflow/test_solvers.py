@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from hbmodels import condense, law_for, root_model
-from workflow.hb import HBProblem
-from workflow import solvers
-from workflow.solvers import forcing, newton, powell
+from workflow.engine.hb import HBProblem
+from workflow.engine import solvers
+from workflow.engine.solvers import forcing, newton, powell
 
 
 def _problem():
@@ -108,7 +108,7 @@ def test_lm_search_starts_from_the_damping_last_accepted():
     """Marquardt's update: a second Levenberg–Marquardt search of the same solve starts at a
     tenth of the ν the first accepted, not again at 1e-8·trace(JᵀJ)/n (a solve creeping along
     a kink needs about the same ν at every step)."""
-    from workflow.solvers import _lm_search
+    from workflow.engine.solvers import _lm_search
 
     class Lin:                       # a step that only lowers ‖R‖ once ν ≥ 1e3
         tried = []
@@ -139,7 +139,7 @@ def test_newton_creeping_on_levenberg_marquardt_steps_stops_as_stalled(monkeypat
     there or elsewhere); with the rule switched off the path is the same up to that step (this
     toy then escapes the bad region and converges at step 11: the rule trades such escapes
     for the budget a creep would take on the sector)."""
-    import workflow.solvers as S
+    import workflow.engine.solvers as S
 
     J = np.array([[1.0, 10.0], [0.0, 1.0]])    # R(x) = x: the true Jacobian is I
     x0 = np.array([1.0, 1.0])

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from hbmodels import condense, gap_model, law_for, root_model
-from workflow.hb import HBProblem
-from workflow.sweep import arclength_sweep, continuation, stepped_sweep
+from workflow.engine.hb import HBProblem
+from workflow.engine.sweep import arclength_sweep, continuation, stepped_sweep
 
 
 def _tip_amplitude(model, nh):

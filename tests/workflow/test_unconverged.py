@@ -71,9 +71,9 @@ def test_frictionless_quick_scene_exits_3(tmp_path):
 
 def test_wear_frequency_far_from_the_model_is_refused():
     """wear.frequency_hz = 1e9 used to be accepted without a word (issue 18, item 5)."""
-    from workflow import extreme as X
+    from workflow.engine.studies import extreme as X
     from workflow.errors import SceneError
-    from workflow.engine.wearstudy import build_problem as engine_build
+    from workflow.engine.studies.wearstudy import build_problem as engine_build
     from workflow.scene import load_scene
     from workflow.stages.hb import law_of
     from workflow.stages.wear import options

@@ -327,13 +327,13 @@ def test_stop_regime_point_without_neighbours_converges_by_continuation_in_nh():
 def test_a_point_lost_upwards_is_found_downwards_from_its_upper_neighbour(monkeypatch):
     """The sweep's second pass. Coulomb oscillator, μN/F0 = 0.7, ζ = 0.02, ε = 10⁴k, Nh = 15:
     with Newton allowed to creep on Levenberg–Marquardt steps to the end of its budget (the
-    solver before session 17), the first point (β = 0.5, stops) is lost from the linear guess
+    solver before 2026-11-27, 04e3424), the first point (β = 0.5, stops) is lost from the linear guess
     through the whole cascade, and found from its converged upper neighbour (β = 0.61) by the
-    pass downwards. With the default stall rule (:data:`workflow.solvers.STALL_LM_STEPS`) the
+    pass downwards. With the default stall rule (:data:`workflow.engine.solvers.STALL_LM_STEPS`) the
     cascade finds it on the way up (continuation in Nh). Either root is the oscillator's:
     within the HB truncation of its stop-regime reference (measured 3.5 %)."""
     from workflow import engine
-    import workflow.solvers as solvers
+    import workflow.engine.solvers as solvers
 
     r = 0.7
     model, spec = models.coulomb(M, K, 2 * 0.02, 1.0, 1.0, r)
@@ -375,15 +375,13 @@ def _coulomb_sweep(r, zeta, nh, nit, betas):
 
 
 def test_a_point_lost_both_ways_is_approached_in_frequency_steps(monkeypatch):
-    """The sweep's last pass (:func:`workflow.engine.frf._approach`). Coulomb oscillator,
+    """The sweep's last pass (:func:`workflow.engine.studies.frf._approach`). Coulomb oscillator,
     μN/F0 = 0.7, ζ = 0, Nh = 5, nit = 64: the first point (β = 0.5, the mass sticking twice a
     period) is lost from the linear guess through the whole cascade and from β = 0.61 by the
     pass downwards — the truncated HB curve folds between the two. Four steps of frequency
     from β = 0.61 reach it, and it is the root an independent, finer continuation reaches
     (β = 0.61 → 0.5 by steps of ≈ 0.02, solved point by point)."""
-    import importlib
-
-    sweeps = importlib.import_module("workflow.engine.frf")   # the module, not engine.frf the function
+    from workflow.engine.studies import frf as sweeps
     betas = [0.5, 0.5 + 1.0 / 9.0, 0.5 + 2.0 / 9.0]
     run, spec = _coulomb_sweep(0.7, 0.0, 5, 64, betas)
     assert run.converged.all() and run.how[0].startswith("approached-")

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from wearmodels import hb_problem
-from workflow.contact import ContactLaw
-from workflow.hb import HBProblem
-from workflow.wear import (WearProblem, march_reference, profile_rel_diff, pseudo_time_wear, slip_increments,
+from workflow.engine.contact import ContactLaw
+from workflow.engine.hb import HBProblem
+from workflow.engine.wear import (WearProblem, march_reference, profile_rel_diff, pseudo_time_wear, slip_increments,
                            wear_per_cycle)
 
 
@@ -56,7 +56,7 @@ def test_remaining_wear_extrapolates_power_law_and_exponential_tails():
     """remaining_wear on synthetic paths: exact for a rate ∝ t^−α (α > 1: r·t/(α − 1)),
     within 1.7× above the truth for an exponential tail at t = 10τ, ∞ while the rate decays no faster
     than 1/t, 0 once it is 0."""
-    from workflow.wear import WearHistory, remaining_wear
+    from workflow.engine.wear import WearHistory, remaining_wear
 
     def hist(t, r):
         return WearHistory(method="x", W=np.zeros(1), x=np.zeros(1), steady=False, seconds=0.0, iterations=0,
@@ -202,7 +202,7 @@ def test_one_vector_solves_of_a_step_reuse_its_lu_and_equal_a_fresh_one(monkeypa
     a whole march factors fewer Jacobians for the same worn profile."""
     import scipy.linalg
 
-    import workflow.wear as wear
+    import workflow.engine.wear as wear
 
     hb = hb_problem(20.0, nh=3, nit=32)
     x0 = hb.solve(tol=1e-10).x
@@ -246,7 +246,7 @@ def test_schur_wear_step_equals_the_whole_augmented_solve():
     """The pseudo-time step eliminates Δx through J's LU (a p × p system per step
     length); it must be the solution of the whole (n + p) system at every h, and a
     singular J must fall back to that system."""
-    from workflow.wear import _augmented_step, _newton_parts
+    from workflow.engine.wear import _augmented_step, _newton_parts
 
     hb = hb_problem(20.0, nh=2, nit=32)
     sol = hb.solve(tol=1e-11)
@@ -362,7 +362,7 @@ def test_wear_stage_on_a_reduced_model(tmp_path, monkeypatch):
     w.reference_check = True
     model = _reduced_block_model()
     model.save(tmp_path / "reduced.npz")
-    import workflow.wear as wear_mod
+    import workflow.engine.wear as wear_mod
     marched = []
     pseudo = wear_mod.pseudo_time_wear
 
@@ -409,7 +409,7 @@ def test_wear_stage_on_a_reduced_model(tmp_path, monkeypatch):
 def test_reference_check_recovers_a_first_order_limit():
     from types import SimpleNamespace as NS
 
-    from workflow.engine.wearstudy import reference_check
+    from workflow.engine.studies.wearstudy import reference_check
 
     rng = np.random.default_rng(3)
     Wstar, c = rng.random(6) + 1.0, rng.normal(size=6)
@@ -467,7 +467,7 @@ def test_quick_sector_worn_profile_converges_in_nh_and_eps(tmp_path):
     tolerances) against its own checks: marched again at 1.5×Nh and at ε × 10, the worn
     profile moves by 0.17 % and 0.34 %. A chord trapezoidal shift (the step's J instead of
     the trial state's) let x drift off the HB manifold where the contact state changed
-    within a step and moved them to 0.87 % and 0.55 % (session 12): this bounds both at 0.5 %."""
+    within a step and moved them to 0.87 % and 0.55 % (2026-11-27, 323750f): this bounds both at 0.5 %."""
     import json
     import subprocess
     import sys
@@ -520,7 +520,7 @@ def test_implicit_block_with_no_root_is_shortened_and_the_march_ends_at_the_jump
     step), never accepted unsolved: the implicit march ends steady at W = Wj, past it by at
     most the shortest block's wear (block_tol × W scale / 2⁴). Accepting unsolved blocks left
     paper-wear's coarse reference march at the same W for 870 blocks, never steady."""
-    from workflow.wear import MAX_BLOCK_HALVINGS
+    from workflow.engine.wear import MAX_BLOCK_HALVINGS
 
     Wj, block_tol, scale = 5e-9, 0.01, 1e-8
     wp = _JumpWear(r0=1e-17, Wj=Wj)
@@ -535,11 +535,11 @@ def test_implicit_block_with_no_root_is_shortened_and_the_march_ends_at_the_jump
 
 @pytest.mark.parametrize("method", ["hbm", "tcm", "hdhb"])
 def test_matrix_free_wear_step_equals_the_whole_augmented_solve(method):
-    """:mod:`workflow.wear_structured`: the step from the blocks (J never formed; ∂R/∂W and
+    """:mod:`workflow.engine.wear_structured`: the step from the blocks (J never formed; ∂R/∂W and
     ∂rate/∂x per pair) solves the same (n + p) system as the formed one, and a J-solve with
     the matrix-free J equals the LU's."""
-    from workflow import wear_structured
-    from workflow.wear import _augmented_step, _j_solve
+    from workflow.engine import wear_structured
+    from workflow.engine.wear import _augmented_step, _j_solve
 
     nit = {"hbm": 32, "tcm": 33, "hdhb": 5}[method]
     hb = hb_problem(20.0, nh=2, nit=32)
@@ -575,10 +575,10 @@ def test_matrix_free_wear_step_equals_the_whole_augmented_solve(method):
 
 def test_matrix_free_march_reaches_the_dense_worn_steady_state(monkeypatch):
     """A whole pseudo-time march with J never formed (``structured``: every step, correction and
-    shift a GMRES solve, :mod:`workflow.wear_structured`) ends on the worn steady state of the
+    shift a GMRES solve, :mod:`workflow.engine.wear_structured`) ends on the worn steady state of the
     march with J formed and factored: the same profile to the march's path tolerance, about
     the same steps — and no (n × n) Jacobian is made on the way."""
-    import workflow.hb as hbmod
+    import workflow.engine.hb as hbmod
 
     hb = hb_problem(20.0, nh=3, nit=32)
     x0 = hb.solve(tol=1e-10).x

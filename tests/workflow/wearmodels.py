@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from workflow.contact import ContactLaw
-from workflow.hb import HBProblem
+from workflow.engine.contact import ContactLaw
+from workflow.engine.hb import HBProblem
 from hbmodels import root_model
 
 

@@ -23,7 +23,7 @@ per converged point and memory against pairs, fitted exponents) and
 ``interface_scaling.json`` (power laws ``y = a·pairs^b`` per method × solver
 over pairs ≥ ``fit_min_pairs``). Timings are wall times of one process with one
 BLAS thread, except the structured solve from 256 pairs, which uses every core
-(:data:`workflow.linsolve.THREADED_MIN_DOFS`): meaningful only on a quiet machine.
+(:data:`workflow.engine.linsolve.THREADED_MIN_DOFS`): meaningful only on a quiet machine.
 """
 from __future__ import annotations
 
@@ -41,23 +41,9 @@ FIT_MIN_PAIRS = 64
 GROWTH_BOUND = 1.5
 #: A sweep shorter than this [s] runs up to REPEATS times (fresh processes) and its fastest run is the
 #: row (``runs`` says how many): the 64-pair sweep is under a second, and one run of it moved the fitted
-#: growth by ±0.05 (HBM 0.081 → 0.087 s a point between two runs of the same code, session 25).
+#: growth by ±0.05 (HBM 0.081 → 0.087 s a point between two runs of the same code, 2026-11-28).
 REPEAT_BELOW_S = 10.0
 REPEATS = 3
-
-
-def grid(pairs: int) -> tuple[int, int]:
-    """(nodes_along, nodes_across) per flank for ``pairs`` pairs over the two flanks:
-    the most nearly square factorisation with both ≥ 2 (the geometry's minimum),
-    along ≥ across (16 → 4×2, 512 → 16×16)."""
-    from workflow.errors import SceneError
-
-    m = int(pairs) // 2 if int(pairs) == pairs and pairs % 2 == 0 else 0
-    div = [d for d in range(2, int(math.isqrt(max(m, 0))) + 1) if m % d == 0]
-    if not div:
-        raise SceneError(f"interface_scaling.pairs: {pairs} is not 2·a·b with a, b ≥ 2 "
-                         "(two flanks of nodes_along × nodes_across ≥ 2 × 2)")
-    return m // div[-1], div[-1]
 
 
 def reduced_model(scene, pairs: int, work: Path, cache: Path | None, log=print) -> Path:
@@ -66,9 +52,10 @@ def reduced_model(scene, pairs: int, work: Path, cache: Path | None, log=print) 
     from dataclasses import replace
 
     from workflow.pipeline import run_scene
+    from workflow.params import flank_grid
     from workflow.scene import Scene
 
-    along, across = grid(pairs)
+    along, across = flank_grid(pairs)
     sc = Scene(dict(scene))
     sc["geometry"] = replace(scene["geometry"], nodes_along=along, nodes_across=across)
     sc["run"] = replace(scene["run"], outputs=["reduced"])
@@ -91,7 +78,7 @@ def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: i
 
     from reduction.reduced import ReducedModel
     from workflow.engine import FRFOptions, Variant, cascade, contact_law, frf
-    from workflow.solvers import blas_threads
+    from workflow.engine.blas import blas_threads
 
     model = ReducedModel.load(reduced)
     law = contact_law(model, mu=mu)
@@ -131,7 +118,7 @@ def _launch(reduced: Path, method: str, nh: int, nit: int, solver: str, points: 
     cmd = [sys.executable, "-m", "workflow.bench.interface_scaling", "--worker", str(reduced), method, str(nh),
            str(nit), solver, str(points), str(out_json), linear, repr(float(mu)), str(int(maxiter))]
     # no OPENBLAS_NUM_THREADS: the sweep runs on one thread (workflow.engine.frf) except the
-    # structured solve of a large interface, which uses the cores (workflow.linsolve.THREADED_MIN_DOFS)
+    # structured solve of a large interface, which uses the cores (workflow.engine.linsolve.THREADED_MIN_DOFS)
     env = launch_env({k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")})
     env["PYTHONPATH"] = os.environ.get("PYTHONPATH", "")
     r = subprocess.run(cmd, capture_output=True, text=True, env=env)

@@ -5,8 +5,8 @@
 
 One sweep of :func:`workflow.bench.interface_scaling.worker` (the ``interface-scaling``
 band, Newton through the cascade, the structured linear solve forced, one BLAS thread except
-in the structured solve from :data:`workflow.linsolve.THREADED_MIN_DOFS` contact DOFs up)
-with :class:`workflow.linsolve.StructuredSolve` timed from outside: seconds and count of
+in the structured solve from :data:`workflow.engine.linsolve.THREADED_MIN_DOFS` contact DOFs up)
+with :class:`workflow.engine.linsolve.StructuredSolve` timed from outside: seconds and count of
 the harmonic-block factorisations, seconds and iterations of GMRES, the sequence of
 GMRES iterations per solve (``F`` marks a factorisation). The rest of ``seconds``
 is residuals, DLFT passes, line searches and Levenberg–Marquardt steps. HBM uses
@@ -25,7 +25,7 @@ from pathlib import Path
 def split(reduced: Path, method: str, nh: int = 7, nit: int = 64, points: int = 9) -> dict:
     """The worker's row plus ``factor_s``, ``factorizations``, ``gmres_s``,
     ``gmres_iterations``, ``solves``, ``s_per_iteration`` and ``sequence``."""
-    from workflow import linsolve
+    from workflow.engine import linsolve
     from workflow.bench.interface_scaling import worker
 
     stats = {"factor_s": 0.0, "factorizations": 0, "gmres_s": 0.0, "gmres_iterations": 0, "solves": 0}

@@ -6,7 +6,7 @@ The scene's model (48 pairs for ``paper-wear``) is built through the
 pipeline up to the reduced model (cached like any run), then the unworn HB
 problem at the wear frequency is solved from the same start (static state +
 tied linear response) by Newton and by pseudo-time — SER with the Jacobian
-mass, :func:`workflow.pseudotime.integrate` — both along the default
+mass, :func:`workflow.engine.pseudotime.integrate` — both along the default
 penalty's ε-path (:func:`workflow.engine.cascade.along_eps_path`),
 ``--repeat`` times each, interleaved (alternating which goes first, so
 neither profits from the other's warm caches), with 1 and with 2 BLAS
@@ -26,7 +26,7 @@ def measure(hb, repeat: int, threads: int, eps_path=()) -> dict:
     import numpy as np
 
     from workflow.engine.cascade import along_eps_path, run_solver
-    from workflow.solvers import blas_threads
+    from workflow.engine.blas import blas_threads
 
     pseudo = {"scheme": "ser", "precond": "jacobian", "max_steps": 400}
     run = lambda q, x, s, m: run_solver(q, x, s, 1e-8, m, pseudo)  # noqa: E731
@@ -53,7 +53,7 @@ def main(argv=None) -> int:
     from reduction.reduced import ReducedModel
     from workflow.io import write_json
     from workflow.engine import penalty
-    from workflow.engine.wearstudy import build_problem
+    from workflow.engine.studies.wearstudy import build_problem
     from workflow.scene import load_scene
     from workflow.stages.hb import law_of
     from workflow.stages.wear import options

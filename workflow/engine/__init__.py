@@ -3,7 +3,7 @@
 The front door — what a user of the library calls (``examples/`` shows it
 on a user's bundle; ``docs/architecture.md`` shows where everything lives):
 
-* :func:`contact_law` (model, μ, ε, gap) → :class:`~workflow.contact.ContactLaw`
+* :func:`contact_law` (model, μ, ε, gap) → :class:`~workflow.engine.contact.ContactLaw`
   with the penalties chosen once (:mod:`workflow.engine.penalty`);
 * :func:`frf` (model, law, variants, band, options) → :class:`FRFStudy`:
   swept FRFs (grid or arc-length), seeded reference, error against run
@@ -18,10 +18,10 @@ reads a scene or writes a file.
 """
 from workflow.engine import penalty
 from workflow.engine.cascade import PointResult, solve_point
-from workflow.engine.frf import SweepResult
-from workflow.engine.study import FRFOptions, FRFStudy, contact_law, frf, static_state
-from workflow.engine.variants import Variant, variants
-from workflow.engine.wearstudy import WearOptions, WearStudy, worn_steady_state
+from workflow.engine.studies.frf import SweepResult
+from workflow.engine.studies.study import FRFOptions, FRFStudy, contact_law, frf, static_state
+from workflow.engine.studies.variants import Variant, variants
+from workflow.engine.studies.wearstudy import WearOptions, WearStudy, worn_steady_state
 
 __all__ = ["FRFOptions", "FRFStudy", "PointResult", "SweepResult", "Variant", "contact_law", "frf",
            "WearOptions", "WearStudy", "penalty", "solve_point", "static_state", "variants",

@@ -43,7 +43,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from workflow.engine import penalty
-from workflow.errors import SceneError
+from workflow.engine.errors import SceneError
 
 #: Newton keeps its LU factor (chord steps) while ‖R‖ falls by ≥ 20 % a step,
 #: from this many unknowns up. Measured on the sector (16 pairs, 50 points, after
@@ -82,7 +82,7 @@ PATH_TOL = 1e-3
 POLISH_STEPS = 8
 SOLVERS = ("newton", "powell", "newton-powell", "pseudo-time")
 #: From this many unknowns up, Newton's linear solve is the structured one
-#: (:mod:`workflow.linsolve`: matrix-free J, GMRES, pair- and harmonic-block
+#: (:mod:`workflow.engine.linsolve`: matrix-free J, GMRES, pair- and harmonic-block
 #: LUs) instead of the LU of the formed (n × n) J; see :func:`linear_solver`.
 #: Measured at the automatic penalty on paper-frf's sector (16 pairs, 50 points,
 #: one BLAS thread, one run beside two other jobs), dense / structured sweep:
@@ -90,7 +90,7 @@ SOLVERS = ("newton", "powell", "newton-powell", "pseudo-time")
 #: HDHB-11 (n = 1104) 20.7 / 3.9 s; HBM-13 (n = 1296) 11.4 / 6.6 s; HBM-17 nit=35
 #: (n = 1680) 22.3 / 8.5 s, nit=105 23.6 / 9.4 s, HDHB-17 27.8 / 7.0 s — the same
 #: peaks to 7 digits. (At the earlier 10³× penalty GMRES needed more iterations
-#: and the switch sat at 2000.) Session 15, with the small-interface preconditioner
+#: and the switch sat at 2000.) 2026-11-27 (2a307cc), with the small-interface preconditioner
 #: (explicit harmonic-block inverses, pair inverses renewed only where G̃ changed), the
 #: same model and four runs each, dense / structured sweep: HBM-4 nit=105 (n = 432)
 #: 1.1–1.3 / 1.9 s; HBM-5 nit=105 (n = 528) 3.7–4.0 / 1.3–1.7 s, nit=11 2.4–2.8 / 0.8–1.1 s;
@@ -131,9 +131,9 @@ def matrix_free(n: int) -> bool:
 
 
 def _linsolver(prob):
-    """The problem's :class:`~workflow.linsolve.StructuredSolve`, created on first
+    """The problem's :class:`~workflow.engine.linsolve.StructuredSolve`, created on first
     use and shared by the solves of one frequency (its blocks are lagged)."""
-    from workflow.linsolve import StructuredSolve
+    from workflow.engine.linsolve import StructuredSolve
 
     if getattr(prob, "linsolver", None) is None:
         prob.linsolver = StructuredSolve()
@@ -169,15 +169,15 @@ def newton_steps(prob, maxiter: int) -> int:
 
 def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | None = None,
                linear: str | None = None):
-    """One solver from ``x0``: a :class:`~workflow.solvers.SolveResult`.
+    """One solver from ``x0``: a :class:`~workflow.engine.solvers.SolveResult`.
 
-    ``pseudo``: keyword arguments of :func:`workflow.pseudotime.integrate`
+    ``pseudo``: keyword arguments of :func:`workflow.engine.pseudotime.integrate`
     for ``solver = "pseudo-time"`` (the scene's ``[pseudotime]``); default
     SER with the Jacobian mass — pseudo-transient continuation, a damped
     Newton — while ``precond = "none"`` is eq. 18 as printed. From
     :data:`STRUCTURED_MIN_UNKNOWNS` up, Newton's linear solve is the structured
     one; from :data:`MATRIX_FREE_MIN_UNKNOWNS` up Powell and pseudo-time are the
-    matrix-free pair/harmonic block-Jacobi of :mod:`workflow.pseudotime_blocks`
+    matrix-free pair/harmonic block-Jacobi of :mod:`workflow.engine.pseudotime_blocks`
     (``pseudo`` is then not used). ``linear``: Newton's linear solve, "dense" or
     "structured" (default :func:`linear_solver`)."""
     if solver == "newton" and (linear or linear_solver(prob.n)) == "structured":
@@ -192,7 +192,7 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
         # 64 pairs, Nh = 7 (n = 2880) one call ran for minutes — and the structured
         # size promises no (n × n) array. The matrix-free pseudo-time takes its
         # place as the last resort (the paper's method for large systems).
-        from workflow.pseudotime_blocks import integrate_pairs
+        from workflow.engine.pseudotime_blocks import integrate_pairs
 
         return integrate_pairs(prob.residual, prob.residual_operator, x0, tol=tol, scale=prob.residual_scale(),
                                max_steps=max(maxiter, 200), blocks="pairs+harmonics")
@@ -200,12 +200,12 @@ def run_solver(prob, x0, solver: str, tol: float, maxiter: int, pseudo: dict | N
         return prob.solve(x0, solver="powell", tol=tol, maxiter=maxiter, maxfev=4 * maxiter)
     if solver == "pseudo-time" and matrix_free(prob.n):
         # the dense schemes would form the (n × n) J: the matrix-free block-Jacobi instead
-        from workflow.pseudotime_blocks import integrate_pairs
+        from workflow.engine.pseudotime_blocks import integrate_pairs
 
         return integrate_pairs(prob.residual, prob.residual_operator, x0, tol=tol, scale=prob.residual_scale(),
                                max_steps=max(maxiter, 200), blocks="pairs+harmonics")
     if solver == "pseudo-time":
-        from workflow.pseudotime import integrate
+        from workflow.engine.pseudotime import integrate
 
         kw = {"scheme": "ser", "precond": "jacobian", "max_steps": max(maxiter, 200), **(pseudo or {})}
         if kw["scheme"] == "block-jacobi":
@@ -292,7 +292,7 @@ def _resumable(res, norms: dict) -> bool:
 
 def _satisfied(prob, guesses, tol):
     """(a converged result for a guess with R = 0 already or None, {index: ‖R‖})."""
-    from workflow.solvers import SolveResult
+    from workflow.engine.solvers import SolveResult
 
     norms = {}
     for k, x0 in enumerate(guesses):
@@ -345,7 +345,7 @@ def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Bes
     seed failed, and Nh = 3 itself failed from its Nh = 1 seed, so the point was lost;
     with the cascade at each level, Nh = 3 converges by the forcing homotopy and Nh = 7 by
     pseudo-transient continuation (each seed is then a point the cascade's own attempts reach)."""
-    from workflow.hb import HBProblem
+    from workflow.engine.hb import HBProblem
 
     nh_low = prob.nh // 2
     if nh_low < 1:
@@ -398,7 +398,7 @@ def _at_law(prob, pr: PointResult, tol: float) -> PointResult:
     law's own ε: accepted by its residual there, else polished by Newton from it."""
     if not pr.converged:
         return pr
-    from workflow.solvers import SolveResult
+    from workflow.engine.solvers import SolveResult
 
     norm = float(np.linalg.norm(prob.residual(pr.result.x)))
     if norm <= tol * prob.residual_scale():
@@ -413,7 +413,7 @@ def _at_law(prob, pr: PointResult, tol: float) -> PointResult:
 
 def solve_point(prob, guesses, *, solver: str, tol: float, maxiter: int, smooth=None,
                 eps_path=(), pseudo: dict | None = None) -> PointResult:
-    """Solve one frequency of ``prob`` (:class:`~workflow.hb.HBProblem`) from
+    """Solve one frequency of ``prob`` (:class:`~workflow.engine.hb.HBProblem`) from
     ``guesses`` (unknown vectors; None entries skipped) through the cascade
     of the module docstring. ``tol`` is relative to ‖F‖. ``smooth``
     (optional) is a callable returning ``(x or None, iterations)``.

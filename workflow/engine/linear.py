@@ -13,17 +13,17 @@ import warnings
 import numpy as np
 import scipy.linalg
 
-from workflow.errors import BundleError, SceneError
+from workflow.engine.errors import BundleError, SceneError
 
 
 def condensed(rc, omega: float, nh: int, **kw):
     """:func:`reduction.condense.condense` of ``rc`` at ``omega`` (rad/s), harmonics 0…``nh``,
-    on every core for a large interface (:func:`workflow.linsolve.large_blas`): the engine
+    on every core for a large interface (:func:`workflow.engine.blas.large_blas`): the engine
     runs its sweeps on one BLAS thread (small dense systems), and the condensation inside
     them — the ε-, Nh- and reference checks, the peak search, the frequency steps — took it
     along. 512 pairs, Nh = 7: 3.0 → 1.8–2.0 s a frequency, with dZr/dω 16.2 → 8.7 s."""
     from reduction.condense import condense
-    from workflow.linsolve import large_blas
+    from workflow.engine.blas import large_blas
 
     with large_blas(int(rc.n_rel)):
         return condense(rc, omega, nh, **kw)

@@ -47,13 +47,13 @@ Nh = 3, where the large one is still 0.5 % off at Nh = 7 — and 5–8× slower
 A user's ``contact.eps_n`` / ``eps_t`` (N/m) win over both. Every FRF and
 wear result reports how much it moves with Nh (``nh_check``, the measure of
 convergence) and with ε × :data:`CHECK_FACTOR` (``eps_check``, the model's
-sensitivity; :mod:`workflow.engine.epscheck`).
+sensitivity; :mod:`workflow.engine.studies.epscheck`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from workflow.errors import BundleError, SceneError
+from workflow.engine.errors import BundleError, SceneError
 
 #: the largest automatic penalty, as a multiple of the static stiffness: the
 #: stand-in for ε → ∞ where the unresolved harmonics see inertia (Den Hartog:
@@ -105,7 +105,7 @@ def unresolved_stiffness(rc, omega: float, harmonics: int = HARMONICS) -> np.nda
     sampled on the excitation's nodal diameter. The median ignores the few h that
     sit on a resonance of the structure with the interface free."""
     from reduction.condense import diagonal
-    from workflow.linsolve import large_blas
+    from workflow.engine.blas import large_blas
 
     base = rc.harmonic(1) if hasattr(rc, "by_nd") else rc
     with large_blas(int(base.n_rel)):

@@ -1,6 +1,6 @@
 """FRF tables and figures (paper Table 1, Figs. 4–8): CSV, Markdown and PNG files.
 
-Takes an :class:`workflow.engine.study.FRFStudy` (or its parts) and writes;
+Takes an :class:`workflow.engine.studies.study.FRFStudy` (or its parts) and writes;
 computes nothing but what a table or a picture needs.
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ def _g(x) -> str:
 
 
 def write_outputs(out: Path, study) -> dict:
-    """Every FRF file of an :class:`~workflow.engine.study.FRFStudy`; {name: path relative to out}."""
+    """Every FRF file of an :class:`~workflow.engine.studies.study.FRFStudy`; {name: path relative to out}."""
     runs, ref = study.runs, study.reference
     files = {"frf": _frf_csv(out / "frf.csv", runs, ref), "linear": _linear_csv(out / "linear.csv", study)}
     files.update(_cpu_table(out, runs))
@@ -198,7 +198,7 @@ def _iterations_figure(plt, save, runs):
 
 def _tangential_figure(plt, save, runs, ref):
     """Tangential relative displacement of the most moving pair over a period at resonance (cf. Fig. 8)."""
-    from workflow import fourier
+    from workflow.engine import fourier
 
     base = ref if ref is not None else max(runs, key=lambda r: (r.variant.nh, r.variant.nit))
     if base.converged.any():

@@ -5,12 +5,12 @@ from pathlib import Path
 
 import numpy as np
 
-from workflow.engine.compare import peak
+from workflow.engine.studies.peak import peak
 from workflow.report.png import finish_axes, write_figure
 
 
 def frf_summary(frf: dict) -> dict:
-    """Summary entries of :func:`workflow.engine.compare.frf_new_vs_worn` (Hz, m)."""
+    """Summary entries of :func:`workflow.engine.studies.compare.frf_new_vs_worn` (Hz, m)."""
     pk = frf.get("peak") or {k: peak(frf[k]) for k in ("new", "worn")}  # refined, else the grid's largest
     v = frf["variant"]
     return {

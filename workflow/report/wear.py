@@ -124,7 +124,7 @@ def tip_cycles(study) -> tuple:
     """Tip displacement over one cycle (m) before wear and, per method, at the
     worn steady state — from a :class:`~workflow.engine.WearStudy` (Fig. 10)."""
     from reduction.condense import recover
-    from workflow.wear import tip_cycle
+    from workflow.engine.wear import tip_cycle
 
     rc, hb, w = study.rc, study.hb, study.omega
     if not rc.O.shape[0]:

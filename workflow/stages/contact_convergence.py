@@ -10,7 +10,7 @@ reduces the sector in memory, then computes
   frequency brackets the maximum, a bounded scalar search
   (:func:`scipy.optimize.minimize_scalar`) refines it;
 * the friction energy dissipated per cycle at the peak
-  (:func:`workflow.dissipation.energy_per_cycle`, on the DLFT slip path);
+  (:func:`workflow.engine.dissipation.energy_per_cycle`, on the DLFT slip path);
 * the static preload state: the normal gap at the midside nodes (their
   worst interpenetration) and, for every-node contact, the same with the
   midside pairs switched off (the vertex-only layout on the same model);
@@ -23,7 +23,7 @@ points, W per mesh), ``convergence.png``, ``profiles.png`` and returns
 ``rows``, the relative changes between the two finest meshes
 (``peak_change_last`` …) and the observed orders of convergence.
 
-The computation is :mod:`workflow.engine.meshstudy` (per mesh and over the
+The computation is :mod:`workflow.engine.studies.meshstudy` (per mesh and over the
 meshes), the common flank points :func:`geometry.flankmap.common_points`,
 the figures :mod:`workflow.report.convergence`; every call into the engine
 sits in the four adapters of the first section (scene → engine arguments).
@@ -48,9 +48,9 @@ CSV, PROFILES = "convergence.csv", "profiles.npz"
 # ------------------------------------------------------------------ engine calls
 
 def _law(model, contact, cc, rc):
-    """The scene's DLFT law on ``model`` and its ε-path (:func:`workflow.engine.meshstudy.mesh_law`;
+    """The scene's DLFT law on ``model`` and its ε-path (:func:`workflow.engine.studies.meshstudy.mesh_law`;
     ``cc.penalty_per_area`` > 0 sets ε per unit area, ``cc`` None: the engine's penalty)."""
-    from workflow.engine.meshstudy import mesh_law
+    from workflow.engine.studies.meshstudy import mesh_law
 
     return mesh_law(model, mu=contact.mu, eps_n=contact.eps_n, eps_t=contact.eps_t, gap=contact.gap,
                     factor=contact.penalty_factor, per_area=float(cc.penalty_per_area) if cc is not None else 0.0,
@@ -58,11 +58,11 @@ def _law(model, contact, cc, rc):
 
 
 def _friction_peak(model, contact, hb, cc) -> dict:
-    """:func:`workflow.engine.meshstudy.friction_peak` with HBM at Nh = ``cc.harmonics``,
+    """:func:`workflow.engine.studies.meshstudy.friction_peak` with HBM at Nh = ``cc.harmonics``,
     nit = ``cc.time_samples`` and the scene's solver."""
     from reduction.condense import relative_coordinates
     from workflow.engine import Variant
-    from workflow.engine.meshstudy import friction_peak
+    from workflow.engine.studies.meshstudy import friction_peak
 
     rc = relative_coordinates(model)
     law, path = _law(model, contact, cc, rc)
@@ -72,9 +72,9 @@ def _friction_peak(model, contact, hb, cc) -> dict:
 
 
 def _static_gaps(model, contact, vertex: np.ndarray) -> dict:
-    """:func:`workflow.engine.meshstudy.static_gaps` under the scene's contact law (engine penalty)."""
+    """:func:`workflow.engine.studies.meshstudy.static_gaps` under the scene's contact law (engine penalty)."""
     from reduction.condense import relative_coordinates
-    from workflow.engine.meshstudy import static_gaps
+    from workflow.engine.studies.meshstudy import static_gaps
 
     rc = relative_coordinates(model)
     law, _ = _law(model, contact, None, rc)
@@ -87,12 +87,12 @@ def wear_harmonics(cc) -> int:
 
 
 def _worn_profile(model, scene, cc) -> dict:
-    """:func:`workflow.engine.meshstudy.worn_profile`: the scene's contact, wear
+    """:func:`workflow.engine.studies.meshstudy.worn_profile`: the scene's contact, wear
     and pseudotime sections, pseudo-time only, HBM with the stage's wear Nh
     (``cc.wear_harmonics``, else ``cc.harmonics``) and nit, at the tip force
     ``cc.wear_amplitude`` when it is set."""
     from reduction.condense import relative_coordinates
-    from workflow.engine.meshstudy import worn_profile
+    from workflow.engine.studies.meshstudy import worn_profile
     from workflow.stages.wear import options
 
     sc = {"wear": scene["wear"], "contact": scene["contact"], "pseudotime": scene["pseudotime"],
@@ -189,7 +189,7 @@ def unconverged(rows: list[dict]) -> list[str]:
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
     from geometry.flankmap import common_points, profile_at
-    from workflow.engine.meshstudy import summarise
+    from workflow.engine.studies.meshstudy import summarise
     from workflow.io import write_npz, write_rows
     from workflow.report.convergence import plot
 

@@ -1,4 +1,4 @@
-"""Extreme stage: the stiff/extreme-case matrix of :mod:`workflow.extreme` on the reduced model.
+"""Extreme stage: the stiff/extreme-case matrix of :mod:`workflow.engine.studies.extreme` on the reduced model.
 
 Reads ``<reduced>/reduced.npz`` (a :class:`reduction.reduced.ReducedModel`),
 runs every selected case × method × solver and writes ``extreme.csv``,
@@ -18,8 +18,8 @@ REDUCED_FILE = "reduced.npz"
 
 
 def settings_from_scene(scene):
-    """:class:`workflow.extreme.Settings` from the scene's sections."""
-    from workflow.extreme import GROUPS, Settings
+    """:class:`workflow.engine.studies.extreme.Settings` from the scene's sections."""
+    from workflow.engine.studies.extreme import GROUPS, Settings
 
     c, hb, ex, exc = scene["contact"], scene["hb"], scene["extreme"], scene["excitation"]
     groups = GROUPS if "all" in ex.cases else tuple(g for g in GROUPS if g in ex.cases)
@@ -33,7 +33,7 @@ def settings_from_scene(scene):
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
     from reduction.reduced import ReducedModel
-    from workflow import extreme as X
+    from workflow.engine.studies import extreme as X
     from workflow.errors import BundleError
     from workflow.io import write_text
 

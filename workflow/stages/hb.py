@@ -46,7 +46,7 @@ def options(scene):
 
 
 def pseudo_options(pt) -> dict:
-    """:func:`workflow.pseudotime.integrate` options from ``[pseudotime]``."""
+    """:func:`workflow.engine.pseudotime.integrate` options from ``[pseudotime]``."""
     kw = {"scheme": pt.scheme, "precond": pt.precond, "dt_growth": pt.dt_growth}
     if pt.scheme in ("rk4", "local"):
         kw["cfl"] = pt.cfl

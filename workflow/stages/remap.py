@@ -217,13 +217,13 @@ def _frf(scene, new_red, worn_red, out: Path, log) -> dict:
 
 
 def worn_vs_new_frf(scene, new, worn, points: int | None = None) -> dict:
-    """The scene's new-vs-worn FRF (:func:`workflow.engine.compare.frf_new_vs_worn`):
+    """The scene's new-vs-worn FRF (:func:`workflow.engine.studies.compare.frf_new_vs_worn`):
     HBM with the scene's first Nh and nit, its contact, excitation and solver,
     ``sweep.points`` clipped to :data:`FRF_POINTS`, over ``sweep.f_start_hz``/
     ``f_stop_hz`` (else ±10 % of the new model's first excited tied mode);
     both models on the new model's penalties."""
     from workflow.engine import Variant
-    from workflow.engine.compare import frf_new_vs_worn
+    from workflow.engine.studies.compare import frf_new_vs_worn
     from workflow.stages.hb import law_of, options
 
     hb, sw = scene["hb"], scene["sweep"]

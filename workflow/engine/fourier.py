@@ -56,7 +56,7 @@ def sample_times(nit: int) -> np.ndarray:
 
 def real_to_complex(x: np.ndarray) -> np.ndarray:
     """Real harmonic-major (2Nh+1, …) → complex (Nh+1, …) with ``U_j = u_jc − i u_js``
-    (single precision stays single: the structured solve's preconditioner, :mod:`workflow.linsolve`)."""
+    (single precision stays single: the structured solve's preconditioner, :mod:`workflow.engine.linsolve`)."""
     x = np.asarray(x)
     x = x if x.dtype == np.float32 else x.astype(float, copy=False)
     nc = x.shape[0]

@@ -1,6 +1,6 @@
 """Structured linear solves for the harmonic-balance Newton step (issue #16).
 
-The HB Jacobian (:mod:`workflow.hb`) is ``J = Rlin + G (diag ε − A)``. Brought
+The HB Jacobian (:mod:`workflow.engine.hb`) is ``J = Rlin + G (diag ε − A)``. Brought
 to harmonic coefficients (``J = L_r K L_p⁻¹``: L = I for HBM, the collocation
 matrix on the left for TCM, T⁻¹ ⊗ I on both sides for HDHB) every method
 shares one operator::
@@ -34,7 +34,7 @@ block misses is the coupling of a slipping pair's harmonics to its neighbours'
 through Zb (``G̃_p(h, h') Zb_h'[p, q]``); a cluster of neighbours holds it.
 
 Newton asks for each step only the accuracy it needs (Eisenstat–Walker forcing
-terms, :func:`workflow.solvers.forcing`): 10⁻² while ‖R‖ is far from the
+terms, :func:`workflow.engine.solvers.forcing`): 10⁻² while ‖R‖ is far from the
 tolerance, tighter as it falls. Measured on the interface-scaling sectors (HBM
 Nh = 7, nit = 64, 9 points, `python -m workflow.bench.structured_split`, one run
 each, alone), GMRES iterations and seconds a sweep, every step to 10⁻¹⁰ → forcing
@@ -50,7 +50,7 @@ the current K, so every step is an (inexact) Newton step, never a chord step.
 Memory: the harmonic blocks, (Nh+1)·(3p)² complex numbers, and the cluster blocks, three
 arrays of (p/s)·(3·s·nc)² (50 MB at 512 pairs) — nothing of size n².
 
-The harmonic LUs are complex (session 21): a slipping pair's (cos, sin) block of G̃_hh
+The harmonic LUs are complex (2026-11-28, ba339dd): a slipping pair's (cos, sin) block of G̃_hh
 does not commute with the rotation of (cos, sin), so the exact K_hh is a real (6p)² matrix,
 but its anti-linear part is the slipping pairs' alone, which the cluster blocks hold
 exactly. Measured on the interface-scaling sectors (9 points, alone, against the exact real
@@ -63,7 +63,7 @@ inverses and its own copy of Zr (complex64) and G̃. The solve is memory-bound
 (every GMRES iteration reads Zr three times and the block LUs once), so halving
 the bytes halves most of its time, and the LU factorisations are 2× faster.
 A single-precision map is not linear to 1e-7, which plain GMRES cannot absorb
-(measured with scipy's GMRES in session 8: it reported 1e-10 while the true
+(measured with scipy's GMRES on 2026-11-27: it reported 1e-10 while the true
 linear residual was 2e-5…9e-4); FGMRES keeps each preconditioned direction and
 minimises the true residual, so the Newton step is the double-precision one to
 :data:`GMRES_RTOL`. Measured on the interface-scaling sectors (HBM Nh = 7,
@@ -71,7 +71,7 @@ nit = 64, 9 points, one BLAS thread, alone, the same GMRES iteration counts and
 peaks to 1e-15): 128 pairs 20.7 → 17.0 s (GMRES 16.2 → 12.0 s), 256 pairs
 50.5 → 34.5 s (GMRES 41.2 → 24.5 s, factorisations 4.7 → 2.8 s), 512 pairs
 531 → 289 s (GMRES 367 → 201 s, factorisations 121 → 45 s); results/reference/
-interface-scaling/NOTES.md, "Session 14".
+interface-scaling/NOTES.md, "2026-11-27 (985ee51)".
 
 *Small interfaces* (:data:`INVERSE_MAX_DOFS`) are bound by Python calls, not by bytes:
 there the harmonic blocks are inverted explicitly (one batched product instead of Nh+1
@@ -82,35 +82,18 @@ pair's block stays put).
 """
 from __future__ import annotations
 
-import contextlib
 
 import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
-from workflow import fourier
-from workflow.solvers import blas_cores, blas_threads
+from workflow.engine import fourier
+from workflow.engine.blas import large_blas
 
-__all__ = ["ContactJacobian", "StructuredSolve", "k_apply", "large_blas", "zb_apply"]
+__all__ = ["ContactJacobian", "StructuredSolve", "k_apply", "zb_apply"]
 
 #: The preconditioner's precision by default (:class:`StructuredSolve`): single.
 SINGLE = True
-#: From this many contact DOFs (3p) up, the structured solve's BLAS runs on every core the
-#: process may use (:func:`workflow.solvers.blas_cores`). Measured on the 512-pair sector
-#: (HBM Nh = 7, 9 points, alone, 2 cores): 28.1 s a point against 32.1 s on one thread (GMRES
-#: 201 → 173 s, factorisations 45 → 36 s); at 256 pairs 35.8 → 35.0 s a sweep (12 % with the
-#: double-precision preconditioner of session 13); smaller products only spin.
-THREADED_MIN_DOFS = 768
-
-
-def large_blas(dofs: int):
-    """BLAS threads for dense work on ``dofs`` contact DOFs: every core this process may use
-    (:func:`workflow.solvers.blas_cores`) from :data:`THREADED_MIN_DOFS` up, else the
-    caller's setting (one thread inside :func:`workflow.engine.frf`)."""
-    n = blas_cores() if dofs >= THREADED_MIN_DOFS else 1
-    return blas_threads(n) if n > 1 else contextlib.nullcontext()
-
-
 #: Up to this many contact DOFs (3p) the harmonic blocks are inverted explicitly and applied as
 #: one batched product instead of Nh+1 triangular solves, and Zr is held as real harmonic
 #: blocks (:func:`real_blocks`): at these sizes the solves are Python-call bound, not
@@ -138,7 +121,7 @@ CLUSTER_DOFS = 180
 CLUSTER_MIN_DOFS = 384
 
 #: GMRES tolerance relative to ‖rhs‖ of a tight solve: the default of :meth:`StructuredSolve.solve`
-#: and the floor of the looser tolerances Newton passes it (:func:`workflow.solvers.forcing`;
+#: and the floor of the looser tolerances Newton passes it (:func:`workflow.engine.solvers.forcing`;
 #: the nonlinear residual decides convergence).
 GMRES_RTOL = 1e-10
 #: GMRES iterations per Newton step (one cycle, no restart: restarted GMRES
@@ -490,7 +473,7 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
 class StructuredSolve:
     """The Newton linear solver on a :class:`ContactJacobian`: flexible GMRES with the
     lagged cluster–harmonic–cluster preconditioner (module docstring). Same protocol as
-    :class:`workflow.solvers.DenseLU` (``factor``, ``solve``, ``lm_step``).
+    :class:`workflow.engine.solvers.DenseLU` (``factor``, ``solve``, ``lm_step``).
 
     ``single``: the preconditioner in single precision (:data:`SINGLE`); a solve
     that fresh single-precision blocks cannot bring below :data:`STALE_RESIDUAL`
@@ -530,7 +513,7 @@ class StructuredSolve:
         with self._blas(op):
             return self._factor(op)
 
-    #: :func:`workflow.solvers.newton` may pass a linear tolerance (an inexact Newton step)
+    #: :func:`workflow.engine.solvers.newton` may pass a linear tolerance (an inexact Newton step)
     inexact = True
 
     def solve(self, R, rtol: float | None = None):
@@ -770,7 +753,7 @@ class StructuredSolve:
         has to get the iterate off a kink, and unpreconditioned LSQR on this badly
         scaled J would need thousands (measured: 200 a step were 85 % of a
         resonance point's time on 64 pairs). The bidiagonalisation does not depend
-        on ν, so the growing dampings of one search (:func:`workflow.solvers._lm_search`)
+        on ν, so the growing dampings of one search (:func:`workflow.engine.solvers._lm_search`)
         share it: 2·LM_ITERS products of J for all of them instead of each."""
         R = np.asarray(R, float)
         if self._gk is None or self._gk[0] is not self.op or not np.array_equal(self._gk[1], R):

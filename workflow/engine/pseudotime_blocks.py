@@ -3,7 +3,7 @@
 The paper proposes, for large systems, dual time stepping with an implicit
 block-Jacobi scheme and local pseudo-time steps (after Sicot et al. 2008,
 paper ref. 4). Here the blocks are the contact pairs: in harmonic
-coefficients (:mod:`workflow.linsolve`) the Jacobian is
+coefficients (:mod:`workflow.engine.linsolve`) the Jacobian is
 ``K = Zb + G̃ (E − Zb)`` and each pseudo-time step solves, pair by pair,
 
     (D_p/Δτ + K_pp) δ_p = −R̃_p − Σ_{q≠p} K_pq δ_q        (couplings lagged)
@@ -29,14 +29,14 @@ import time
 
 import numpy as np
 
-from workflow.pseudotime import PseudoTimeResult
+from workflow.engine.pseudotime import PseudoTimeResult
 
 __all__ = ["integrate_pairs"]
 
 
 def _step(op, R, dtau, sweeps, harmonic=None):
     """The block-Jacobi update dx (J's unknowns) for residual R at pseudo-step Δτ, or None.
-    ``harmonic``: a :class:`~workflow.linsolve.StructuredSolve` whose (lagged)
+    ``harmonic``: a :class:`~workflow.engine.linsolve.StructuredSolve` whose (lagged)
     harmonic blocks follow each pair sweep (pair, harmonic, pair)."""
     nc, nr, p = op.nc, op.nr, op.p
     b = -np.asarray(R, float).reshape(nc, nr)
@@ -72,15 +72,15 @@ def integrate_pairs(fun, fun_op, x0, *, tol: float = 1e-8, scale: float = 1.0, m
                     window: int = 50, blocks: str = "pairs") -> PseudoTimeResult:
     """Pseudo-time march to R = 0 by matrix-free pair-block Jacobi (module docstring).
 
-    fun(x) -> R; fun_op(x) -> (R, :class:`~workflow.linsolve.ContactJacobian`)
-    (:meth:`workflow.hb.HBProblem.residual_operator`). Converged when
+    fun(x) -> R; fun_op(x) -> (R, :class:`~workflow.engine.linsolve.ContactJacobian`)
+    (:meth:`workflow.engine.hb.HBProblem.residual_operator`). Converged when
     ``‖R‖₂ ≤ tol·scale``; stops after ``max_steps`` accepted steps, or when
     the best ‖R‖ has not dropped 1 % in ``window`` steps ("stalled").
     ``blocks``: "pairs" (pair blocks only) or "pairs+harmonics" (each pair
     sweep followed by the harmonic blocks of K — factored once, at x0, and
     again only after a refused step — and a second pair sweep).
     """
-    from workflow.linsolve import StructuredSolve
+    from workflow.engine.linsolve import StructuredSolve
 
     if blocks not in ("pairs", "pairs+harmonics"):
         raise ValueError(f"pseudotime.blocks: {blocks!r} is not one of pairs, pairs+harmonics")

@@ -8,7 +8,7 @@ Kernel (eq. 21/22b), vectorised over pairs: per cycle
 ``p_N = −λ_N / A_i ≥ 0`` [Pa] (contracts §6: λ_N < 0 in contact), A_i the
 tributary area [m²], k_w [m²/N = 1/Pa], u_T the tangential slip path [m].
 The slip path is the DLFT corrected displacement ``X_T = λ_x^T / ε_T``
-(eq. 11, :mod:`workflow.contact`): it is *bit-for-bit constant* while a pair
+(eq. 11, :mod:`workflow.engine.contact`): it is *bit-for-bit constant* while a pair
 sticks, so stick contributes exactly nothing and a fully stuck interface has
 a rate of exactly 0. (The band-limited U_r of the HB unknowns wiggles during
 stick and would wear a stuck pair.) During separation p_N = 0.
@@ -33,7 +33,7 @@ Two ways to the worn steady state (where every rate is 0):
   error control on W (:func:`pseudo_time_wear`). J is factored once per
   state and Δx eliminated, so each step length tried costs a p × p solve —
   or, from Newton's structured size up, J is never formed and each step is one
-  GMRES solve with the HB Jacobian's own structure (:mod:`workflow.wear_structured`).
+  GMRES solve with the HB Jacobian's own structure (:mod:`workflow.engine.wear_structured`).
 
 Both stop when the wear still to come, extrapolated from the decay of the
 largest rate (:func:`remaining_wear`), is at most ``steady_tol·max W``.
@@ -51,9 +51,9 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
-from workflow import fourier
-from workflow.errors import SolverError
-from workflow.solvers import newton
+from workflow.engine import fourier
+from workflow.engine.errors import SolverError
+from workflow.engine.solvers import newton
 
 #: times the reference march halves a block whose HB solve fails before it stops
 MAX_BLOCK_HALVINGS = 4
@@ -112,7 +112,7 @@ class WearState:
     #: (J⁻¹R, J⁻¹∂R/∂W, ∂rate/∂x·J⁻¹R, ∂rate/∂x·J⁻¹∂R/∂W, LU of J) once per state, or False if J is
     #: singular (:func:`_newton_parts`)
     newton_parts: tuple | bool | None = None
-    #: the same derivatives without (n × n) or (n × p) arrays (:mod:`workflow.wear_structured`):
+    #: the same derivatives without (n × n) or (n × p) arrays (:mod:`workflow.engine.wear_structured`):
     #: J = ``hb.operator(G)``; ∂rate_i/∂x = g_i · ∂a_i/∂x; ∂R/∂W column i = w_i on pair i's rows
     G: np.ndarray | None = None   # contact blocks (p, 3nc, 3nc) (HBProblem.contact_blocks)
     g: np.ndarray | None = None   # ∂rate_i/∂a_i (p, 3nc) [m/cycle per N]
@@ -124,7 +124,7 @@ class WearState:
 
 
 class WearProblem:
-    """An :class:`workflow.hb.HBProblem` plus Archard wear on its pairs.
+    """An :class:`workflow.engine.hb.HBProblem` plus Archard wear on its pairs.
 
     hb    the HB problem (any method); its contact law's W is driven from here
     area  (p,) tributary areas [m²]; k_w [m²/N]; share: blade fraction of W.
@@ -137,12 +137,12 @@ class WearProblem:
     """
 
     def __init__(self, hb, area, k_w: float, share: float = 0.5, eps_path=(), structured: bool | None = None):
-        from workflow import wear_structured
+        from workflow.engine import wear_structured
 
         self.hb = hb
         #: the linear algebra of the HB solves and pseudo-time steps: matrix-free J and GMRES
         #: (True), or J formed and factored (False; the implicit reference march always forms
-        #: it); None: by size (:func:`workflow.wear_structured.use`)
+        #: it); None: by size (:func:`workflow.engine.wear_structured.use`)
         self.structured = wear_structured.use(hb.n) if structured is None else bool(structured)
         #: :func:`workflow.engine.cascade.along_eps_path` factors for vibration solves
         #: that plain Newton does not finish (large ε shrinks its basin)
@@ -273,9 +273,9 @@ class WearProblem:
 
     def linsolver(self):
         """The structured linear solve of this problem's matrix-free steps (made once: its
-        preconditioner is lagged from step to step, :class:`workflow.linsolve.StructuredSolve`)."""
+        preconditioner is lagged from step to step, :class:`workflow.engine.linsolve.StructuredSolve`)."""
         if getattr(self, "_linsolver", None) is None:
-            from workflow.linsolve import StructuredSolve
+            from workflow.engine.linsolve import StructuredSolve
 
             self._linsolver = StructuredSolve()
         return self._linsolver
@@ -322,7 +322,7 @@ class WearHistory:
                   no worn steady state at this load
     vibration_lost   stopped because no periodic vibration was found at the reached wear
                   (the whole solver cascade failed); ``finer_nh``: the same wear re-solved at
-                  1.5×Nh by :func:`workflow.engine.wearstudy.finer_nh_resolve` (nh, nit,
+                  1.5×Nh by :func:`workflow.engine.studies.wearstudy.finer_nh_resolve` (nh, nit,
                   converged, iterations), which tells a truncation artefact from the physics
     """
 
@@ -792,10 +792,10 @@ def _near_solve(ref: WearState, st: WearState, b):
 
 def _j_solve(wp: WearProblem, ref: WearState, st: WearState, b, dW=None):
     """``J⁻¹ (b + ∂R/∂W dW)`` with J of ``st`` (None: singular or not solved): GMRES on the
-    matrix-free J where the state has no J formed (:func:`workflow.wear_structured.solve`);
+    matrix-free J where the state has no J formed (:func:`workflow.engine.wear_structured.solve`);
     else GMRES preconditioned with ``ref``'s LU (:func:`_near_solve`), else st's own LU."""
     if st.J is None:
-        from workflow import wear_structured
+        from workflow.engine import wear_structured
 
         return wear_structured.solve(wp, st, b if dW is None else b + wear_structured.r_w_times(st, dW))
     rhs = b if dW is None else b + st.R_W @ dW
@@ -819,10 +819,10 @@ def _augmented_step(wp: WearProblem, st: WearState, h: float):
     worn steady state on the contact-convergence meshes at Nh = 5, old and new
     side by side: 42 pairs 46.9 → 49.7 s, 80 pairs 293 → 257 s). A singular J
     (rcond < :data:`MIN_RCOND`) falls back to the whole (n + p) system. A state without J
-    formed (``wp.structured``) takes :func:`workflow.wear_structured.augmented_step` (None if
+    formed (``wp.structured``) takes :func:`workflow.engine.wear_structured.augmented_step` (None if
     its solve fails)."""
-    if st.J is None:                        # matrix-free (:mod:`workflow.wear_structured`)
-        from workflow import wear_structured
+    if st.J is None:                        # matrix-free (:mod:`workflow.engine.wear_structured`)
+        from workflow.engine import wear_structured
 
         return wear_structured.augmented_step(wp, st, h)
     n, p = st.J.shape[0], st.rate.size

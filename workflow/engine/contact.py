@@ -39,7 +39,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from workflow.errors import SceneError
+from workflow.engine.errors import SceneError
 
 __all__ = ["SEPARATION", "STICK", "SLIP", "ContactLaw", "DLFTResult", "dlft_pass", "dlft"]
 
@@ -88,7 +88,7 @@ class ContactLaw:
     harmonics of X above Nh are −λ/ε, so ε is the stiffness lent to the
     unresolved harmonics, and the penalties are chosen once, as the contact
     DOFs' own stiffness at those harmonics, in :mod:`workflow.engine.penalty`. Invalid values raise
-    :class:`~workflow.errors.SceneError` naming ``contact.<field>``.
+    :class:`~workflow.engine.errors.SceneError` naming ``contact.<field>``.
     """
 
     mu: np.ndarray

@@ -2,10 +2,10 @@
 
 A reduced model, a contact law and :class:`WearOptions` in; a
 :class:`WearStudy` out: the unworn HB point (solved by Newton and by
-pseudo-time from the same start), one :class:`~workflow.wear.WearHistory`
+pseudo-time from the same start), one :class:`~workflow.engine.wear.WearHistory`
 per method — the physical-time reference march ("explicit" / "implicit"
-blocks of cycles, :func:`workflow.wear.march_reference`) and "pseudo-time"
-(eq. 22, :func:`workflow.wear.pseudo_time_wear`) — the worn profiles'
+blocks of cycles, :func:`workflow.engine.wear.march_reference`) and "pseudo-time"
+(eq. 22, :func:`workflow.engine.wear.pseudo_time_wear`) — the worn profiles'
 agreement, the reference's own convergence in its block size, and the
 ε-check of the wear rates.
 """
@@ -16,14 +16,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from workflow.engine import penalty
-from workflow.errors import BundleError, SceneError, SolverError
+from workflow.engine.errors import BundleError, SceneError, SolverError
 
 METHODS = ("explicit", "implicit", "pseudo-time")
 #: The wear checks' second marches (Nh × 1.5, ε × 10) run at this fraction of ``WearOptions.rtol``
 #: (and ``CHECK_STEPS`` × its step budget): at the march's own tolerance their end on the
 #: worn-steady-state manifold moved by ~0.1 % of max W with changes that only touch round-off,
 #: the order of the checks' 1e-3 tolerance. Measured on paper-wear (48 pairs, Nh = 3, alone):
-#: the Nh-check read 0.21 %, 0.117 % and 0.098 % at 1e-3 (sessions 23 and 24, J formed and
+#: the Nh-check read 0.21 %, 0.117 % and 0.098 % at 1e-3 (2026-11-28, J formed and
 #: not), 0.0446 % and 0.0447 % at 1e-4 (J not formed / formed); ε × 10 0.14 / 0.136 / 0.075 %
 #: at 1e-3, 0.0855 / 0.0881 % at 1e-4. The march at 1e-4 took 621 steps against 186.
 CHECK_RTOL = 0.1
@@ -103,7 +103,7 @@ class WearStudy:
 
     def warnings(self) -> list[str]:
         """Converged results whose Nh-check exceeds its tolerance or could not be made
-        (the ε-check is reported, not tested: :mod:`workflow.engine.epscheck`)."""
+        (the ε-check is reported, not tested: :mod:`workflow.engine.studies.epscheck`)."""
         nc = self.nh_check or {}
         ch = nc.get("max_rel_change")
         what = nc.get("measure", "unworn wear rates")
@@ -132,7 +132,7 @@ def _lost_hint(h) -> str:
 
 def finer_nh_resolve(rc, omega: float, wp, hist, opt: WearOptions, eps_path) -> dict:
     """The vibration at a march's last wear ``hist.W`` re-solved at Nh × 1.5 (nit alike,
-    :func:`workflow.engine.epscheck.finer`) through the whole cascade, from the march's last
+    :func:`workflow.engine.studies.epscheck.finer`) through the whole cascade, from the march's last
     x: where the march lost the vibration (``hist.vibration_lost``), this tells a root that
     the truncated balance lacks from one that is not there at all. Measured on the
     interface-scaling sector of 256 pairs (Nh = 3, nit = 64, wear at 212.36 Hz): the march
@@ -152,12 +152,12 @@ def finer_nh_resolve(rc, omega: float, wp, hist, opt: WearOptions, eps_path) -> 
 
 
 def _at_finer_nh(rc, omega: float, hb, x):
-    """``hb`` at Nh × 1.5 (nit alike, :func:`workflow.engine.epscheck.finer`) on the same law and
+    """``hb`` at Nh × 1.5 (nit alike, :func:`workflow.engine.studies.epscheck.finer`) on the same law and
     static state, and x's harmonics as its guess: (problem, guess, Nh, nit, None), or (None,
     None, Nh, nit, why) for a cyclic model reduced for no more harmonics."""
-    from workflow.engine.epscheck import finer
+    from workflow.engine.studies.epscheck import finer
     from workflow.engine.linear import condensed
-    from workflow.hb import HBProblem
+    from workflow.engine.hb import HBProblem
 
     nh2, nit2 = finer(hb.nh, hb.nit)
     try:
@@ -188,8 +188,8 @@ def build_problem(model, law, opt: WearOptions, rc=None):
     static state solved once (:func:`workflow.engine.static_state`)."""
     from reduction.condense import relative_coordinates
     from workflow.engine.linear import condensed
-    from workflow.engine.study import static_state
-    from workflow.hb import HBProblem
+    from workflow.engine.studies.study import static_state
+    from workflow.engine.hb import HBProblem
 
     rc = relative_coordinates(model) if rc is None else rc
     w_tied = first_tied_frequency(rc)
@@ -244,7 +244,7 @@ def _unworn_point(hb, omega: float, opt: WearOptions, eps_path):
 
 
 def _march(wp, x, method: str, opt: WearOptions, track: int, block_tol: float):
-    from workflow.wear import march_reference, pseudo_time_wear
+    from workflow.engine.wear import march_reference, pseudo_time_wear
 
     common = dict(cycles_per_block=opt.cycles_per_block, steady_tol=opt.steady_tol, tol=opt.tol, track=track)
     wp.set_wear(np.zeros(wp.p))
@@ -260,7 +260,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     by each of ``opt.methods`` (see the module docstring); ``eps_path`` as in
     :func:`workflow.engine.cascade.along_eps_path` (None: the law's own,
     :func:`workflow.engine.penalty.path_of`)."""
-    from workflow.wear import WearProblem, profile_rel_diff
+    from workflow.engine.wear import WearProblem, profile_rel_diff
 
     opt = opt or WearOptions()
     bad = [m for m in opt.methods if m not in METHODS]
@@ -298,7 +298,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
         coarse = _march(wp, base.x, ref, opt, 3 * i0 + 1, 4 * opt.block_tol)
         study.reference_check = reference_check(histories, ref, coarse, opt.block_tol)
     wp.set_wear(np.zeros(wp.p))     # the unworn point: the marches left the worn W in wp
-    from workflow.engine.epscheck import judged, log_line
+    from workflow.engine.studies.epscheck import judged, log_line
 
     worn = _steady_history(histories)      # the checks march again only where this one ended steady
     if opt.eps_check_factor > 0:
@@ -331,18 +331,18 @@ def _rate_change(rate0, rate1) -> float:
 
 def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path, *, worn=None, track: int = 1) -> dict:
     """The wear at ``omega`` (rad/s) with Nh × 1.5 (nit alike,
-    :func:`workflow.engine.epscheck.finer`), on the same law and static state.
+    :func:`workflow.engine.studies.epscheck.finer`), on the same law and static state.
 
     The unworn point is re-solved from ``x``; ``unworn_rate_change`` is the change of
     the wear-rate profile, ``max|Δrate| / max rate``. With ``worn`` (a
-    :class:`~workflow.wear.WearHistory` of this study) the pseudo-time march then runs
+    :class:`~workflow.engine.wear.WearHistory` of this study) the pseudo-time march then runs
     (at :data:`CHECK_RTOL` × the tolerance) to the worn steady state at the finer Nh and
-    ``max_rel_change`` is the change of the worn profile, :func:`workflow.wear.profile_rel_diff`
+    ``max_rel_change`` is the change of the worn profile, :func:`workflow.engine.wear.profile_rel_diff`
     — the convergence of the result itself. Measured on the quick sector (16 pairs): the unworn rates move 2.1 %
     from Nh = 5 to 8, the worn steady state 1.3133 → 1.3144 µm (Nh = 7); without
     ``worn``, ``max_rel_change`` is the unworn rates' change."""
     from workflow.engine.cascade import solve_point
-    from workflow.wear import WearProblem
+    from workflow.engine.wear import WearProblem
 
     fine, guess, nh2, nit2, why = _at_finer_nh(rc, omega, wp.hb, x)
     out = {"nh": nh2, "nit": nit2, "max_rel_change": None}
@@ -359,9 +359,9 @@ def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path, *, worn=None, 
 def eps_check(wp, x, opt: WearOptions, *, worn=None, track: int = 1) -> dict:
     """The wear with ε × ``opt.eps_check_factor``: the unworn point re-solved from
     ``x`` (``unworn_rate_change``: ``max|Δrate| / max rate``) and, with ``worn`` (a
-    :class:`~workflow.wear.WearHistory` of this study), the pseudo-time march (at
+    :class:`~workflow.engine.wear.WearHistory` of this study), the pseudo-time march (at
     :data:`CHECK_RTOL` × the tolerance) to the worn steady state at that ε (``max_rel_change``:
-    the worn profile's change, :func:`workflow.wear.profile_rel_diff`; without ``worn`` the
+    the worn profile's change, :func:`workflow.engine.wear.profile_rel_diff`; without ``worn`` the
     unworn rates')."""
     from workflow.engine.cascade import solve_point
 
@@ -375,7 +375,7 @@ def eps_check(wp, x, opt: WearOptions, *, worn=None, track: int = 1) -> dict:
     out = {"factor": fac, "max_rel_change": None}
     if not pr.converged:
         return {**out, "measure": "unworn wear rates"}
-    from workflow.wear import WearProblem
+    from workflow.engine.wear import WearProblem
 
     wbig = WearProblem(big, wp.area, wp.k_w, wp.share, eps_path=(1.0 / fac, fac ** -0.5))
     return {**out, **_changes(rate0, wbig, pr.result.x, opt, worn, track, f"at ε × {fac:g}")}
@@ -386,7 +386,7 @@ def _changes(rate0, wp2, x2, opt: WearOptions, worn, track: int, where: str) -> 
     rates' change against ``rate0`` and, with ``worn``, the worn profile's change after a
     pseudo-time march of ``wp2`` from ``x2`` (``max_rel_change``: the worn profile's
     when there is one, else the rates')."""
-    from workflow.wear import profile_rel_diff
+    from workflow.engine.wear import profile_rel_diff
 
     rates = _rate_change(rate0, wp2.evaluate(x2).rate)
     if worn is None:
@@ -408,10 +408,10 @@ def reference_check(histories: dict, ref: str, coarse, block_tol: float) -> dict
     The block marching is first order in the block (explicit or implicit
     Euler on W), so with profiles W_f (``block_tol``) and W_c (4×) the
     Richardson estimate of the converged profile is ``W* = W_f + (W_f − W_c)/3``.
-    Errors are :func:`workflow.wear.profile_rel_diff` against W* (fraction of
+    Errors are :func:`workflow.engine.wear.profile_rel_diff` against W* (fraction of
     max W), next to each method's CPU seconds.
     """
-    from workflow.wear import profile_rel_diff
+    from workflow.engine.wear import profile_rel_diff
 
     Wf, Wc = histories[ref].W, coarse.W
     Wstar = Wf + (Wf - Wc) / 3.0

@@ -1,6 +1,6 @@
 """Energy dissipated by friction over one period of a harmonic-balance solution.
 
-With the sign convention of :mod:`workflow.contact` (the disk pushes the
+With the sign convention of :mod:`workflow.engine.contact` (the disk pushes the
 blade with −λ), the friction force on the blade is −λ_T and the work it
 does over a period is −∮ λ_T · du_T; the energy dissipated per cycle is its
 opposite,
@@ -9,7 +9,7 @@ opposite,
 
 taken along the DLFT slip path X_T (eq. 11), which is constant while a pair
 sticks — so stick dissipates exactly nothing, like the wear kernel of
-:mod:`workflow.wear` (eq. 21), which integrates the same path. The
+:mod:`workflow.engine.wear` (eq. 21), which integrates the same path. The
 integral is the trapezoidal rule over the ``nit`` periodic time samples.
 """
 from __future__ import annotations

@@ -5,17 +5,13 @@ return a :class:`SolveResult` (docs/contracts.md §7).
 
 Convergence test, the same for both: ``‖R‖₂ ≤ tol · scale``, where the
 caller passes ``scale`` (for an HB problem ``‖F‖₂`` of the forcing in the
-residual's own space, :meth:`workflow.hb.HBProblem.residual_scale`), so
+residual's own space, :meth:`workflow.engine.hb.HBProblem.residual_scale`), so
 ``tol`` is a relative residual independent of the units and the size of the
 load. Non-finite residuals or Jacobians never leak: the solver stops, returns
 the last finite iterate and says why in ``reason``.
 """
 from __future__ import annotations
 
-import contextlib
-import ctypes
-import os
-import sys
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -24,10 +20,7 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 
-__all__ = ["DenseLU", "SolveResult", "newton", "powell", "blas_cores", "blas_threads"]
-
-#: Variables MPI launchers set to the number of ranks on this node (Open MPI, MPICH/Hydra).
-_LOCAL_RANKS_ENV = ("OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS")
+__all__ = ["DenseLU", "SolveResult", "newton", "powell"]
 
 
 @dataclass
@@ -58,92 +51,6 @@ class SolveResult:
     function_evaluations: int = 0
 
 
-def _openblas_handles():
-    """(set, get) function pairs of every OpenBLAS loaded in this process (Linux
-    only; NumPy's wheel and Debian's SciPy each bring their own), found again only when a
-    module has been imported since the last call: reading /proc/self/maps took 2.3 ms a call,
-    152 calls (0.35 s, 1.4 %) of a 512-pair sweep's :func:`workflow.linsolve.large_blas`."""
-    key = len(sys.modules)
-    if _HANDLES[0] != key:
-        _HANDLES[:] = [key, _find_openblas()]
-    return _HANDLES[1]
-
-
-#: (len(sys.modules) when found, the handles of :func:`_find_openblas`)
-_HANDLES: list = [None, []]
-
-
-def _find_openblas():
-    out = []
-    try:
-        with open("/proc/self/maps") as fh:
-            paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ln.split()[-1].startswith("/")})
-    except OSError:
-        return out
-    for path in paths:
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for suffix in ("", "64_"):
-            for prefix in ("openblas", "scipy_openblas"):
-                try:
-                    s = getattr(lib, f"{prefix}_set_num_threads{suffix}")
-                    g = getattr(lib, f"{prefix}_get_num_threads{suffix}")
-                except AttributeError:
-                    continue
-                g.restype = ctypes.c_int
-                out.append((s, g))
-    return out
-
-
-@contextlib.contextmanager
-def blas_threads(n: int = 1):
-    """Limit OpenBLAS to ``n`` threads inside the block (restored after).
-
-    The HB Jacobians are small (n ≲ 2500): on a shared 2-core machine,
-    threaded BLAS spins on contended cores and multiplies the process CPU
-    time (measured 2.5× on the HBM Nh = 1 sweep) for little or no wall-time
-    gain. A no-op where no OpenBLAS is found.
-    """
-    handles = _openblas_handles()
-    old = []
-    for s, g in handles:
-        try:
-            old.append((s, int(g())))
-            s(int(n))
-        except Exception:  # pragma: no cover - unexpected ABI
-            pass
-    try:
-        yield
-    finally:
-        for s, k in reversed(old):      # reversed: one library may be listed twice
-            s(k)
-
-
-def blas_cores() -> int:
-    """BLAS threads this process may use for a large product: ``OPENBLAS_NUM_THREADS`` or
-    ``OMP_NUM_THREADS`` if set (a user's, or a benchmark's one-thread protocol), else
-    the cores of its CPU affinity shared among the MPI ranks on this node (1 under an
-    MPI launcher that does not say how many), so that ranks never oversubscribe."""
-    for key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
-        try:
-            return max(1, int(os.environ[key]))
-        except (KeyError, ValueError):
-            continue
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    from workflow.mpi import launched
-
-    if not launched():
-        return max(1, cores)
-    for key in _LOCAL_RANKS_ENV:
-        try:
-            return max(1, cores // max(1, int(os.environ[key])))
-        except (KeyError, ValueError):
-            continue
-    return 1
-
-
 def _finite(a) -> bool:
     return bool(np.all(np.isfinite(a)))
 
@@ -151,7 +58,7 @@ def _finite(a) -> bool:
 class DenseLU:
     """The Newton linear solver on a dense J: LU (least squares if singular).
 
-    Protocol shared with :class:`workflow.linsolve.StructuredSolve`:
+    Protocol shared with :class:`workflow.engine.linsolve.StructuredSolve`:
     ``factor(J) -> bool`` (False: J not finite), ``solve(R) -> dx | None``
     (``J dx = −R`` with the last factored J), ``lm_scale()`` and
     ``lm_step(R, ν)`` (Levenberg–Marquardt, ``(JᵀJ + νI) dx = −JᵀR``)."""
@@ -210,7 +117,7 @@ class DenseLU:
 def _line_search(fun, x, dx, norm, armijo, max_backtracks, count, along=None):
     """Backtracking on ‖R‖₂: (accepted, x_trial, R_trial). ``along(x, dx)``, if given: a callable
     ``α → (x + α dx, R(x + α dx))``, which a residual with a linear part evaluates from two products
-    made once (:meth:`workflow.hb.HBProblem.residual_along`)."""
+    made once (:meth:`workflow.engine.hb.HBProblem.residual_along`)."""
     alpha = 1.0
     xt = Rt = None
     at = None if along is None else along(x, dx)
@@ -338,7 +245,7 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     """Newton–Raphson with backtracking line search on ‖R‖₂.
 
     Each step solves ``J dx = −R`` with ``linear`` (default :class:`DenseLU`;
-    :class:`workflow.linsolve.StructuredSolve` for the matrix-free J of the HB residual, an
+    :class:`workflow.engine.linsolve.StructuredSolve` for the matrix-free J of the HB residual, an
     iterative solve asked only for the accuracy of :func:`forcing`) and halves the step until
     ``‖R(x+α dx)‖ ≤ (1 − armijo·α)‖R(x)‖``, which keeps Newton from cycling across the kinks of
     the friction residual; trial points use ``fun`` (residual only) when given. Where no step

@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from workflow.errors import SolverError
+from workflow.engine.errors import SolverError
 
 #: Gap added to switched-off pairs [m]: far beyond any vibration, so they never close.
 OPEN_GAP = 1.0
@@ -38,7 +38,7 @@ def mesh_law(model, *, mu, eps_n: float, eps_t: float, gap: float, factor: float
     ``per_area`` > 0) and its ε-path (:func:`workflow.engine.penalty.path_of`; none for
     the per-area penalty, a user's value)."""
     from workflow.engine import penalty
-    from workflow.engine.study import contact_law
+    from workflow.engine.studies.study import contact_law
 
     from reduction.condense import relative_coordinates
     from workflow.engine.linear import condensed
@@ -54,7 +54,7 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
                   rc=None) -> dict:
     """Friction-damped peak of ``model``: ``peak_hz``, ``peak_amplitude_m`` (first
     harmonic at the observed DOFs), ``energy_J`` (friction, per cycle, at the
-    peak, :func:`workflow.dissipation.energy_per_cycle` on the DLFT slip path),
+    peak, :func:`workflow.engine.dissipation.energy_per_cycle` on the DLFT slip path),
     ``grid_hz``/``grid_m`` (the coarse sweep; ``grid_converged`` of its points
     converged), ``evaluations``, ``tied_hz``,
     the mean penalties and whether the coarse maximum sat at the band's edge.
@@ -64,13 +64,13 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
     search (:func:`scipy.optimize.minimize_scalar`, ``xtol`` × f_tied) refines
     it; ``variant`` (HBM, Nh, nit) with ``law`` and its ``eps_path`` and the
     engine's static state at every frequency. ``solver_kw``: ``solver``,
-    ``tol``, ``maxiter``, ``max_passes`` of :func:`workflow.engine.frf.sweep_variant`.
+    ``tol``, ``maxiter``, ``max_passes`` of :func:`workflow.engine.studies.frf.sweep_variant`.
     """
     from reduction.condense import relative_coordinates
-    from workflow.engine.compare import refine_peak
-    from workflow.engine.frf import sweep_variant
+    from workflow.engine.studies.peak import refine_peak
+    from workflow.engine.studies.frf import sweep_variant
     from workflow.engine.linear import CondensedGrid, first_excited_mode
-    from workflow.engine.study import static_state
+    from workflow.engine.studies.study import static_state
 
     rc = relative_coordinates(model) if rc is None else rc
     f_tied, _ = first_excited_mode(rc)
@@ -93,9 +93,9 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
 
 def _energy(model, law, variant, c, U, static, max_passes: int) -> float:
     """Friction energy per cycle [J] at the harmonics ``U`` of the condensed point ``c``."""
-    from workflow.dissipation import energy_per_cycle
-    from workflow.hb import HBProblem
-    from workflow.wear import WearProblem
+    from workflow.engine.dissipation import energy_per_cycle
+    from workflow.engine.hb import HBProblem
+    from workflow.engine.wear import WearProblem
 
     prob = HBProblem(c.Zr, c.Fr, law, variant.nh, variant.nit, "hbm", max_passes=max_passes, static=static)
     st = WearProblem(prob, model.area, 0.0).evaluate(prob.unknowns_from_harmonics(U))
@@ -113,7 +113,7 @@ def static_gaps(model, law, vertex: np.ndarray, max_passes: int, rc=None) -> dic
     between the vertices; exact on the planar dovetail flanks)."""
     from reduction.condense import relative_coordinates
     from workflow.engine.linear import condensed
-    from workflow.engine.study import static_state
+    from workflow.engine.studies.study import static_state
 
     rc = relative_coordinates(model) if rc is None else rc
     c = condensed(rc, 0.0, 0)
@@ -142,7 +142,7 @@ def worn_profile(model, law, eps_path, options) -> dict:
     :func:`workflow.engine.worn_steady_state` with ``options``, a
     :class:`~workflow.engine.WearOptions` whose methods include
     ``"pseudo-time"``): ``W`` (p,) [m], ``steady``, ``steps``, ``frequency_hz``."""
-    from workflow.engine.wearstudy import worn_steady_state
+    from workflow.engine.studies.wearstudy import worn_steady_state
 
     study = worn_steady_state(model, law, options, eps_path=eps_path)
     h = study.histories["pseudo-time"]

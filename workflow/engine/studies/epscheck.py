@@ -15,8 +15,8 @@ import numpy as np
 
 from workflow.engine import penalty
 from workflow.engine.cascade import solve_point
-from workflow.engine.frf import observed
-from workflow.errors import BundleError
+from workflow.engine.studies.frf import observed
+from workflow.engine.errors import BundleError
 
 
 def _peak_index(r) -> int | None:
@@ -29,7 +29,7 @@ def resolve(rc, f_hz: float, Ur: np.ndarray, law, static, *, method: str, nh: in
     """Observed amplitude (m) at ``f_hz`` solved from the harmonics ``Ur`` with
     ``law``, ``method``, ``nh``, ``nit``; (amplitude or None, converged)."""
     from workflow.engine.linear import condensed
-    from workflow.hb import HBProblem
+    from workflow.engine.hb import HBProblem
 
     c = condensed(rc, 2 * np.pi * f_hz, nh)
     prob = HBProblem(c.Zr, c.Fr, law, nh, nit, method, max_passes=opt.max_passes, static=static)

@@ -45,12 +45,12 @@ import scipy.linalg
 
 from reduction.condense import condense, relative_coordinates
 from reduction.reduced import ReducedModel
-from workflow.contact import SEPARATION, SLIP, STICK, ContactLaw
+from workflow.engine.contact import SEPARATION, SLIP, STICK, ContactLaw
 from workflow.engine import penalty
 from workflow.engine.linear import tied_modes
-from workflow.errors import BladewearError
-from workflow.hb import HBProblem
-from workflow.lumped import pairs_on_block
+from workflow.engine.errors import BladewearError
+from workflow.engine.hb import HBProblem
+from workflow.engine.lumped import pairs_on_block
 
 __all__ = ["GROUPS", "METHODS", "SOLVERS", "Settings", "Setup", "Case", "CaseResult", "synthetic_model",
            "setup", "build_cases", "run_case", "run_matrix", "verify", "free_limit", "tied_scale",
@@ -515,8 +515,8 @@ def conditioning(prob: HBProblem, x: np.ndarray) -> tuple[float, float]:
 
 def _solve(prob: HBProblem, x0, solver: str, *, tol: float, maxiter: int, pseudo: dict, scaled: bool):
     """Run one solver; returns (SolveResult in the problem's unknowns, cond of the final J as solved)."""
-    from workflow.pseudotime import integrate
-    from workflow.solvers import newton, powell
+    from workflow.engine.pseudotime import integrate
+    from workflow.engine.solvers import newton, powell
 
     scale = prob.residual_scale()
     if scaled:
@@ -658,9 +658,9 @@ def _error(su: Setup, case: Case, prob: HBProblem, U: np.ndarray, reference: dic
 def _run_wear(su: Setup, case: Case, method: str, solver: str, out: CaseResult, t0: float) -> CaseResult:
     """Wear cases: the reference march (newton/powell rows: explicit/implicit) or pseudo-time (eq. 22)."""
     try:
-        from workflow import wear as wmod
+        from workflow.engine import wear as wmod
     except ImportError as exc:
-        out.diagnosis = f"not run: workflow/wear.py not available ({exc})"
+        out.diagnosis = f"not run: workflow/engine/wear.py not available ({exc})"
         out.seconds = time.perf_counter() - t0
         return out
     s = su.settings

@@ -3,7 +3,7 @@
 A reduced model (:class:`reduction.reduced.ReducedModel`), a contact law
 (:func:`contact_law`) and options in; an :class:`FRFStudy` out, with every
 result's convergence status: points converged, the ε-check (how much the
-peak moves when ε grows, :mod:`workflow.engine.epscheck`), the reference's
+peak moves when ε grows, :mod:`workflow.engine.studies.epscheck`), the reference's
 own convergence in ε, nit and Nh, and the unbounded-response diagnosis.
 
 Choices (and why):
@@ -31,12 +31,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from workflow.engine import epscheck, penalty
-from workflow.engine.frf import (SweepResult, arclength_scale, frf_error, join_sweeps, seeds_from, sweep_variant,
+from workflow.engine import penalty
+from workflow.engine.studies import epscheck
+from workflow.engine.studies.frf import (SweepResult, arclength_scale, frf_error, join_sweeps, seeds_from, sweep_variant,
                                  trace_variant)
 from workflow.engine.linear import band as band_of, first_excited_mode, linear_frfs
-from workflow.engine.variants import Variant, cost, share
-from workflow.errors import BundleError, SolverError
+from workflow.engine.studies.variants import Variant, cost, share
+from workflow.engine.errors import BundleError, SolverError
 
 #: reason given to a point that did not converge where the sliding interface is
 #: at an undamped resonance (Den Hartog: no bounded steady state if μN < πF/4).
@@ -54,7 +55,7 @@ def contact_law(model, *, mu, eps_n: float = 0.0, eps_t: float = 0.0, gap: float
     ``rc``: the model's relative coordinates if already computed."""
     from reduction.condense import relative_coordinates
     from workflow.engine.linear import condensed
-    from workflow.contact import ContactLaw
+    from workflow.engine.contact import ContactLaw
 
     rc = relative_coordinates(model) if rc is None else rc
     k_unres = None
@@ -83,7 +84,7 @@ def static_state(Zr, Fr, law, max_passes: int = 20):
     continuation lands on the same state the direct solve would.
     """
     from workflow.engine.cascade import EPS_DECADES
-    from workflow.hb import HBProblem
+    from workflow.engine.hb import HBProblem
 
     def solve(lw, u0=None):
         return HBProblem(Zr[:1], Fr[:1], lw, 0, 1, "hbm", max_passes=max_passes).static_state(u0=u0)
@@ -121,7 +122,7 @@ class FRFOptions:
     measured by their error against it); ``reference_check`` (the reference's own nit/Nh/ε check);
     ``eps_path`` (:func:`workflow.engine.penalty.path`; None: the law's own,
     :func:`workflow.engine.penalty.path_of`);
-    ``pseudo``: :func:`workflow.pseudotime.integrate` options of the
+    ``pseudo``: :func:`workflow.engine.pseudotime.integrate` options of the
     ``pseudo-time`` solver; ``refine_peak``: refine the peak of the most
     converged grid sweep of a band between its grid points, to ``peak_xtol``
     × its frequency (:attr:`FRFStudy.peak`; not done for explicit
@@ -150,7 +151,7 @@ class FRFStudy:
     limits on ``freqs_hz``; ``eps_check`` {"factor", "max_rel_change",
     "frequency_hz", "runs": [...]} (the penalty model's sensitivity);
     ``nh_check`` {"max_rel_change", "frequency_hz", "runs": [...]} (convergence
-    in Nh, :func:`workflow.engine.epscheck.nh_runs`; with a reference its row only,
+    in Nh, :func:`workflow.engine.studies.epscheck.nh_runs`; with a reference its row only,
     and ``"variants"`` says how they are measured); ``reference_convergence`` or None;
     ``peak``: the friction-damped peak of the most converged sweep (the
     reference, else the variant with the most harmonics, then time samples)
@@ -192,7 +193,7 @@ class FRFStudy:
         """Converged results whose convergence checks exceed their tolerance: the
         Nh-check of the peaks and the reference's own check (2×nit, 1.5×Nh). The
         ε-check is the penalty model's sensitivity, reported, not a convergence
-        test (:mod:`workflow.engine.epscheck`)."""
+        test (:mod:`workflow.engine.studies.epscheck`)."""
         out = []
         nc = self.nh_check or {}
         if nc and nc.get("max_rel_change") is None:
@@ -226,7 +227,7 @@ def _condense_grid(rc, freqs, nh_max):
 
 def _variants(rc, cond, freqs, law, static, todo, opt, comm, log):
     """Every variant swept (shared over the ranks); all ranks get all runs."""
-    from workflow.solvers import blas_threads
+    from workflow.engine.blas import blas_threads
 
     size, rank = (1, 0) if comm is None else (comm.Get_size(), comm.Get_rank())
     kw = dict(solver=opt.solver, tol=opt.tol, maxiter=opt.max_iterations, max_passes=opt.max_passes)
@@ -279,16 +280,14 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
     (None on MPI ranks other than 0).
     """
     from reduction.condense import condensation, relative_coordinates
-    from workflow.solvers import blas_threads
+    from workflow.engine.blas import blas_threads
 
     opt = options or FRFOptions()
     t0 = time.perf_counter()
     if comm is not None:
         # PetscInitialize is collective, and a rank's first structured solve (PETSc's FGMRES,
-        # workflow.linsolve) would otherwise import petsc4py on that rank alone
-        from workflow.mpi import init_petsc
-
-        init_petsc()
+        # workflow.engine.linsolve) would otherwise import petsc4py on that rank alone
+        from petsc4py import PETSc  # noqa: F401 - the import initialises PETSc (collective)
     rc = relative_coordinates(model)
     if freqs_hz is not None:
         freqs_hz = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
@@ -349,7 +348,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
 
 def _check(study: FRFStudy, rc, opt, log) -> None:
     """The study's convergence checks, in place: the ε-check of every run, the Nh-check, the
-    reference's own check (:mod:`workflow.engine.epscheck`)."""
+    reference's own check (:mod:`workflow.engine.studies.epscheck`)."""
     law, static, runs, ref = study.law, study.static, study.runs, study.reference
     if opt.eps_check_factor > 0:
         every = runs + ([ref] if ref is not None else [])
@@ -361,7 +360,7 @@ def _check(study: FRFStudy, rc, opt, log) -> None:
         # with a reference, a variant's error against it is its convergence measure (and a
         # stronger one than 1.5×Nh): only the reference is re-solved. On paper-frf the 20
         # variants' re-solves took 60 of the stage's 130 s, the collocated Nh = 26 ones
-        # 11–20 s each where Newton creeps at ‖R‖/‖F‖ ≈ 1e-4 (session 10)
+        # 11–20 s each where Newton creeps at ‖R‖/‖F‖ ≈ 1e-4 (2026-11-27)
         checked = [ref] if ref is not None else runs
         study.nh_check = epscheck.judged(epscheck.nh_runs(rc, law, static, checked, opt))
         if ref is not None:
@@ -379,8 +378,8 @@ def _most_harmonics(runs):
 
 
 def _refined_peak(rc, law, static, sweep, opt, reference: bool) -> dict | None:
-    """:attr:`FRFStudy.peak` of ``sweep`` (:func:`workflow.engine.compare.refine_peak`)."""
-    from workflow.engine.compare import refine_peak
+    """:attr:`FRFStudy.peak` of ``sweep`` (:func:`workflow.engine.studies.peak.refine_peak`)."""
+    from workflow.engine.studies.peak import refine_peak
 
     if sweep is None or not sweep.converged.any():
         return None
@@ -397,7 +396,7 @@ def _warm_up(c, law, static):
     """The first DLFT call loads numba's compiled pass and BLAS its kernels
     (measured: the first variant of a run took 0.45 s where the same sweep
     takes 0.25–0.34 s later), which would skew a CPU table normalised by it."""
-    from workflow.hb import HBProblem
+    from workflow.engine.hb import HBProblem
 
     HBProblem(c.Zr, c.Fr, law, 1, 8, "hbm", static=static).residual_jacobian(np.zeros(9 * law.p))
 

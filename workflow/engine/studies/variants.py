@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from workflow.errors import SceneError
+from workflow.engine.errors import SceneError
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """The pseudo-time wear march's linear algebra without (n × n) arrays (issue #16).
 
-A step of :func:`workflow.wear.pseudo_time_wear` solves the augmented system
+A step of :func:`workflow.engine.wear.pseudo_time_wear` solves the augmented system
 
     [ J          ∂R/∂W        ] [Δx]   [ −R     ]
     [ −h ∂r/∂x   I − h ∂r/∂W  ] [ΔW] = [ h·rate ],
@@ -16,8 +16,8 @@ times ∂a_i/∂W_i), ∂rate_i/∂x = g_i · ∂a_i/∂x with ``∂a/∂x = dia
 and since ``J = Rlin + G (diag ε − A)`` with G block-diagonal over pairs, the
 matrix on the left is ``Rlin + (G + B)(diag ε − A)`` with the rank-one pair
 blocks ``B_i = (h/D_i) w_i g_iᵀ``: the HB Jacobian's own structure
-(:class:`workflow.linsolve.ContactJacobian`), solved by the structured GMRES of
-Newton (:class:`workflow.linsolve.StructuredSolve`) to its tight tolerance. Each
+(:class:`workflow.engine.linsolve.ContactJacobian`), solved by the structured GMRES of
+Newton (:class:`workflow.engine.linsolve.StructuredSolve`) to its tight tolerance. Each
 step length tried is one such solve; the vibration corrections and the
 trapezoidal shift are solves with J itself.
 """

@@ -3,7 +3,7 @@
 The linear part is given per harmonic on the relative contact DOFs
 (docs/contracts.md §5): ``Zr`` complex (Nh+1, 3p, 3p) in N/m and ``Fr``
 complex (Nh+1, 3p) in N, so that ``Zr U_r + λ = Fr`` (eq. 3). The contact
-multiplier λ comes from the DLFT law of :mod:`workflow.contact` (eqs. 11–17),
+multiplier λ comes from the DLFT law of :mod:`workflow.engine.contact` (eqs. 11–17),
 the same law for the three formulations:
 
 * ``hbm`` — unknowns: real harmonic coefficients of U_r (eq. 2),
@@ -45,11 +45,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workflow import fourier
-from workflow.contact import STICK, ContactLaw, DLFTResult, dlft
-from workflow.errors import SceneError
-from workflow.linsolve import ContactJacobian, StructuredSolve, zb_apply
-from workflow.solvers import SolveResult, newton, powell
+from workflow.engine import fourier
+from workflow.engine.contact import STICK, ContactLaw, DLFTResult, dlft
+from workflow.engine.errors import SceneError
+from workflow.engine.linsolve import ContactJacobian, StructuredSolve, zb_apply
+from workflow.engine.solvers import SolveResult, newton, powell
 
 __all__ = ["METHODS", "HBProblem", "StaticState"]
 
@@ -82,7 +82,7 @@ class HBProblem:
     Zr : complex (≥Nh+1, 3p, 3p) condensed dynamic stiffness per harmonic (N/m);
         harmonic 0 real. Harmonics above ``nh`` are ignored.
     Fr : complex (≥Nh+1, 3p) condensed forcing per harmonic (N).
-    contact : :class:`~workflow.contact.ContactLaw` with p pairs.
+    contact : :class:`~workflow.engine.contact.ContactLaw` with p pairs.
     nh : number of harmonics Nh ≥ 0.
     nit : time samples per period for the DLFT (nit ≥ 2Nh+1; = 2Nh+1 for hdhb).
     method : "hbm", "tcm" or "hdhb".
@@ -172,7 +172,7 @@ class HBProblem:
         self._refresh_penalty()
 
     # The linear operators, applied without forming (n × n) matrices: Zb
-    # harmonic by harmonic (workflow.linsolve.zb_apply), HDHB's H = T⁻¹ Zb T
+    # harmonic by harmonic (workflow.engine.linsolve.zb_apply), HDHB's H = T⁻¹ Zb T
     # with FFTs (T: samples → coefficients is an rfft, T⁻¹ an irfft).
     def _to_coef(self, y):
         return fourier.complex_to_real(fourier.to_freq(y, self.nh))
@@ -284,7 +284,7 @@ class HBProblem:
 
     def with_linear(self, Zr, Fr) -> "HBProblem":
         """A new problem at another frequency: same law, method, Nh, nit, anchor
-        (and the same :class:`~workflow.linsolve.StructuredSolve`, if any)."""
+        (and the same :class:`~workflow.engine.linsolve.StructuredSolve`, if any)."""
         new = HBProblem(Zr, Fr, self.law, self.nh, self.nit, self.method, max_passes=self.max_passes,
                         pass_tol=self.pass_tol, stick_anchor=self.stick_anchor, static=self._static)
         new._anchor_set = True
@@ -360,7 +360,7 @@ class HBProblem:
 
     def _dlft(self, a, jacobian, projected: bool = False):
         """The DLFT of the predictor a; ``projected``: its ``dlam`` as HBM's contact rows Q·dλ/da
-        (:meth:`contact_blocks`, :func:`workflow.contact.dlft_pass` ``rows``), not per instant."""
+        (:meth:`contact_blocks`, :func:`workflow.engine.contact.dlft_pass` ``rows``), not per instant."""
         lam_u = (self.basis @ a).reshape(self.nit, self.p, 3)
         rows = self.Q if projected and jacobian and self.method == "hbm" else None
         res = dlft(self.law, lam_u, self.stick_anchor, basis=self.basis, jacobian=jacobian,
@@ -433,7 +433,7 @@ class HBProblem:
         """Rows G (p, k, 3nc) per pair, over the columns (j, c) of that pair's predictor a, times
         ``diag ε − A`` = ∂a/∂y: (p, k, n), block i = G_i · (diag ε − A)[rows of pair i] (N/m
         per unit of G). For HBM/TCM one product per harmonic (A is block-diagonal in
-        harmonics); the wear rate's ∂/∂x takes it with k = 1 (:mod:`workflow.wear`): 0.7 ms a
+        harmonics); the wear rate's ∂/∂x takes it with k = 1 (:mod:`workflow.engine.wear`): 0.7 ms a
         state at 128 pairs (n = 2688, Nh = 3) against 18.7 ms for the (p × n)(n × n) product
         with mostly zero rows it replaced, equal to 2e-16."""
         M, Mblocks = self._penalty_parts()
@@ -485,7 +485,7 @@ class HBProblem:
     def coefficient_blocks(self, G) -> np.ndarray:
         """The per-pair DLFT blocks G (:meth:`contact_blocks`) brought to harmonic
         coefficients, G̃ (p, 3nc, 3nc), so that ``J = L_r K L_p⁻¹`` with
-        ``K = Zb + G̃ (diag ε − Zb)`` (:mod:`workflow.linsolve`): G itself for
+        ``K = Zb + G̃ (diag ε − Zb)`` (:mod:`workflow.engine.linsolve`): G itself for
         HBM, ``Ec⁻¹ G`` for TCM, ``T G T⁻¹`` for HDHB (per pair, on the time
         indices)."""
         if self.method == "hbm":
@@ -501,14 +501,14 @@ class HBProblem:
     def residual_blocks(self, x) -> tuple[np.ndarray, np.ndarray]:
         """(R, G): the residual and its per-pair contact blocks (:meth:`contact_blocks`), with
         ``last_dlft.dlam`` per instant, J not formed: ``J = Rlin + G (diag ε − A)`` is
-        :meth:`operator` of G (the wear march's structured steps, :mod:`workflow.wear`)."""
+        :meth:`operator` of G (the wear march's structured steps, :mod:`workflow.engine.wear`)."""
         R, _, G = self._evaluate(x, True, form=False)
         self.stats["jacobians"] += 1
         return R, G
 
     def operator(self, G):
         """``Rlin + G (diag ε − A)`` for per-pair blocks G (p, 3nc, 3nc) laid out as
-        :meth:`contact_blocks`, matrix-free: :class:`~workflow.linsolve.ContactJacobian`."""
+        :meth:`contact_blocks`, matrix-free: :class:`~workflow.engine.linsolve.ContactJacobian`."""
         left, right = {"hbm": (None, None), "tcm": (self._Ec if self.method == "tcm" else None, None),
                        "hdhb": (getattr(self, "Tinv", None), getattr(self, "T", None))}[self.method]
         return ContactJacobian(self.Zr, self._eps, self.coefficient_blocks(G), left=left, right=right)
@@ -520,9 +520,9 @@ class HBProblem:
         return self._eps * y - self._apply_A(y)
 
     def residual_operator(self, x):
-        """(R, J) with J the matrix-free :class:`~workflow.linsolve.ContactJacobian`
+        """(R, J) with J the matrix-free :class:`~workflow.engine.linsolve.ContactJacobian`
         (the same ∂R/∂x as :meth:`residual_jacobian`, never formed): for
-        :func:`workflow.solvers.newton` with ``linear=StructuredSolve()``."""
+        :func:`workflow.engine.solvers.newton` with ``linear=StructuredSolve()``."""
         x = np.asarray(x, dtype=float)
         if x.shape != (self.n,):
             raise ValueError(f"x must have shape ({self.n},), got {x.shape}")
@@ -617,7 +617,7 @@ class HBProblem:
               linear: str = "dense", **kw) -> SolveResult:
         """Solve R(x) = 0 with ``newton`` or ``powell`` (tol relative to ‖F‖).
         ``linear``: Newton's linear solve, "dense" (LU of the formed J) or
-        "structured" (GMRES on the matrix-free J, :mod:`workflow.linsolve`)."""
+        "structured" (GMRES on the matrix-free J, :mod:`workflow.engine.linsolve`)."""
         x0 = self.x0() if x0 is None else np.asarray(x0, dtype=float)
         scale = self.residual_scale()
         if solver == "newton" and linear == "structured":

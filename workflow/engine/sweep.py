@@ -5,7 +5,7 @@ The linear part comes from ``linear(omega) -> (Zr, Fr, dZr, dFr)`` (omega in
 rad/s; contracts §5: condensed stiffness/forcing per harmonic and their
 ω-derivatives) and the problem from ``make_problem(Zr, Fr) -> HBProblem``.
 The contact law does not depend on ω; ∂R/∂ω comes from dZr, dFr through
-:meth:`workflow.hb.HBProblem.residual_jacobian_omega`.
+:meth:`workflow.engine.hb.HBProblem.residual_jacobian_omega`.
 
 ``observe(problem, x) -> float`` gives the amplitude reported per point (e.g.
 the tip displacement recovered from the contact forces); the sweep sets
@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workflow.errors import SolverError
-from workflow.solvers import SolveResult, newton, powell
+from workflow.engine.errors import SolverError
+from workflow.engine.solvers import SolveResult, newton, powell
 
 __all__ = ["SweepPoint", "secant_guesses", "stepped_sweep", "continuation", "arclength_sweep"]
 

@@ -2,7 +2,7 @@
 
 Generic over a residual ``fun(x) -> R`` and ``fun_jac(x) -> (R, J)`` with
 the analytic ``J = ∂R/∂x`` (any formulation: hbm, tcm, hdhb, or the wear
-system of :mod:`workflow.wear`). Units: x in the unknowns' units (m for HB),
+system of :mod:`workflow.engine.wear`). Units: x in the unknowns' units (m for HB),
 R in the residual's (N), so t* carries x/R (m/N) and ``Δt*·ρ(J)`` is
 dimensionless. A steady state of the ODE is a root of R; it is reached only
 if it is an attracting equilibrium, i.e. the eigenvalues of J there have
@@ -69,7 +69,7 @@ import scipy.integrate
 import scipy.linalg
 import scipy.sparse.linalg
 
-from workflow.solvers import SolveResult
+from workflow.engine.solvers import SolveResult
 
 __all__ = ["SCHEMES", "PseudoTimeResult", "integrate", "dominant_eigenvalues", "rk4_stability_limit",
            "explicit_step_limit"]
@@ -81,7 +81,7 @@ _DENSE_EIG = 600  # below this size the whole spectrum is computed densely
 
 @dataclass
 class PseudoTimeResult(SolveResult):
-    """:class:`~workflow.solvers.SolveResult` plus the pseudo-time record.
+    """:class:`~workflow.engine.solvers.SolveResult` plus the pseudo-time record.
 
     iterations       accepted pseudo-time steps (same as ``steps``)
     steps, rejected  accepted / refused pseudo-time steps
@@ -688,7 +688,7 @@ def integrate(fun, fun_jac, x0, scheme: str = "ser", *, precond="none", tol: flo
         schemes integrate ``ẋ = −M⁻¹R`` with Jacobian ``M⁻¹J``; the
         convergence test and the history use the true ‖R‖.
     tol, scale : convergence test ``‖R‖₂ ≤ tol·scale`` (scale: e.g. ‖F‖ of the
-        HB problem), as for :func:`workflow.solvers.newton`.
+        HB problem), as for :func:`workflow.engine.solvers.newton`.
     max_steps : accepted pseudo-time steps at most.
     cfl : explicit schemes: fraction of the measured stability limit
         (default 0.8); implicit schemes: ``Δt*0 = cfl/ρ(M⁻¹J0)`` (default 1;

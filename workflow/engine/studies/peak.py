@@ -1,54 +1,13 @@
-"""Two reduced models on one frequency grid: the nonlinear FRF of a new and a worn sector.
+"""The friction-damped peak of a swept FRF: the largest grid point, refined between its neighbours.
 
-The remap stage's comparison (contracts §8): both models share the new
-model's DLFT penalties, so the comparison is free of ε; each keeps its own
-``gap`` (the worn bundle's already holds W, so both run at contact-law W = 0).
+The FRF study's headline peak, the contact-mesh study and the new-vs-worn
+comparison of the remap stage all refine their peak here.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
-
-
-def frf_new_vs_worn(new, worn, law, variant, f_range_hz, points: int, options, gap: float = 0.0) -> dict:
-    """Nonlinear FRF of the reduced models ``new`` and ``worn`` through
-    :func:`workflow.engine.frf`, one grid of ``points`` frequencies [Hz]
-    around the new model's first excited tied mode
-    (``f_range_hz`` = (f_start, f_stop) as :func:`workflow.engine.linear.band`
-    reads them: zeros mean ±10 %).
-
-    ``law``: the new model's :class:`~workflow.contact.ContactLaw`; its μ and
-    ε serve both models, whose gaps are each model's own ``gap`` + ``gap`` [m]
-    (the scene's uniform offset).
-    Returns ``{"freqs_hz", "new": SweepResult, "worn": ..., "tied_hz":
-    {"new", "worn"}, "variant"}``; each SweepResult carries its ``static`` state.
-    """
-    from reduction.condense import relative_coordinates
-    from workflow.contact import ContactLaw
-    from workflow.engine.linear import band, first_excited_mode
-    from workflow.engine.study import frf
-
-    f_new, _ = first_excited_mode(relative_coordinates(new))
-    f0, f1 = band(f_range_hz[0], f_range_hz[1], f_new)
-    out = {"freqs_hz": np.linspace(f0, f1, int(points)), "tied_hz": {}, "variant": variant}
-    out["peak"] = {}
-    options = replace(options, refine_peak=True, peak_xtol=PEAK_XTOL)
-    for key, model in (("new", new), ("worn", worn)):
-        lk = ContactLaw(mu=law.mu, eps_n=law.eps_n, eps_t=law.eps_t,
-                        gap=np.asarray(model.gap, dtype=float) + float(gap))
-        study = frf(model, lk, [variant], band_hz=(f0, f1), points=int(points), options=options)
-        out[key] = study.runs[0]
-        out[key].static = study.static
-        out["tied_hz"][key] = study.tied_hz
-        pk = study.peak
-        out["peak"][key] = (None, None) if pk is None else (pk["hz"], pk["amplitude_m"])
-    return out
-
-
-#: Peak frequency tolerance of the new-vs-worn comparison (:attr:`FRFOptions.peak_xtol`), relative
-#: to the peak frequency: worn − new shifts are ~1e-6 of it on the sectors we ran, far below a grid step.
-PEAK_XTOL = 1e-8
 
 
 @dataclass
@@ -74,7 +33,7 @@ def refine_peak(rc, sweep, law, static, variant, xtol_hz: float, **kw) -> Peak |
     """The friction-damped peak of a grid ``sweep`` refined by a bounded scalar search
     (Brent, :func:`scipy.optimize.minimize_scalar`, to ``xtol_hz`` [Hz]) between the
     grid neighbours of its largest converged point; each evaluation is one
-    :func:`workflow.engine.frf.sweep_variant` point seeded by the nearest solved one (or the
+    :func:`workflow.engine.studies.frf.sweep_variant` point seeded by the nearest solved one (or the
     interpolation between the two around it, once they are close).
     ``kw``: sweep_variant's solver options. None if no grid point converged.
 
@@ -85,8 +44,8 @@ def refine_peak(rc, sweep, law, static, variant, xtol_hz: float, **kw) -> Peak |
 
     from workflow.engine.cascade import linear_solver
     from workflow.engine.linear import condensed
-    from workflow.engine.frf import sweep_variant
-    from workflow.linsolve import StructuredSolve
+    from workflow.engine.studies.frf import sweep_variant
+    from workflow.engine.linsolve import StructuredSolve
 
     if not sweep.converged.any():
         return None
@@ -141,7 +100,7 @@ def refine_peak(rc, sweep, law, static, variant, xtol_hz: float, **kw) -> Peak |
 
 def peak(r) -> tuple[float | None, float | None]:
     """(frequency [Hz], amplitude [m]) of the largest converged point of a
-    :class:`~workflow.engine.frf.SweepResult`; (None, None) if none converged."""
+    :class:`~workflow.engine.studies.frf.SweepResult`; (None, None) if none converged."""
     if not r.converged.any():
         return None, None
     a = np.where(r.converged, r.amplitude, -np.inf)

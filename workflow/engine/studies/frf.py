@@ -15,8 +15,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from workflow.engine.cascade import linear_solver, matrix_free, solve_point
-from workflow.engine.variants import Variant
-from workflow.sweep import secant_guesses
+from workflow.engine.studies.variants import Variant
+from workflow.engine.sweep import secant_guesses
 
 #: samples per period for the max-over-period amplitude.
 PERIOD_SAMPLES = 128
@@ -58,7 +58,7 @@ class SweepResult:
 def observed(rc, omega, Ur) -> tuple[float, float]:
     """(first-harmonic amplitude, max over the period) at the observed DOFs (m)."""
     from reduction.condense import recover
-    from workflow import fourier
+    from workflow.engine import fourier
 
     obs = recover(rc, omega, Ur)
     a1 = float(np.linalg.norm(obs[1])) if obs.shape[0] > 1 else 0.0
@@ -74,7 +74,7 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
                   pseudo: dict | None = None, linsolver=None) -> SweepResult:
     """Sweep ``v`` over the precomputed condensations ``cond`` (one per frequency).
 
-    ``static``: the :class:`~workflow.hb.StaticState` (its tangential stick
+    ``static``: the :class:`~workflow.engine.hb.StaticState` (its tangential stick
     anchor is carried into every solve; its state seeds the first guess).
     ``progress`` wraps the frequency loop (e.g. ``log.progress``).
     ``smooth_nit``: variants with fewer samples fall back on a guess from
@@ -88,7 +88,7 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     U_r from another solve at that frequency (e.g. a lower Nh), tried first;
     missing harmonics are zero. ``eps_path``, ``pseudo``: see
     :func:`workflow.engine.cascade.solve_point`. ``linsolver``: a
-    :class:`~workflow.linsolve.StructuredSolve` to start from (one kept across sweeps at
+    :class:`~workflow.engine.linsolve.StructuredSolve` to start from (one kept across sweeps at
     nearby frequencies, e.g. the peak search's points): its lagged blocks precondition the
     first point; by default the first point makes its own.
 
@@ -97,7 +97,7 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     converged upper neighbours ("downwards-…" in ``how``). Measured on the Coulomb grid
     at ε = 10⁴k (300 points, Nh = 1…25): 1 point recovered, which the way up had lost.
     """
-    from workflow.hb import HBProblem
+    from workflow.engine.hb import HBProblem
 
     n, omegas, clock0 = len(cond), _omegas(cond), getattr(cond, "seconds", 0.0)
     out = SweepResult(variant=v, solver=solver, freqs_hz=omegas / (2 * np.pi),
@@ -321,7 +321,7 @@ def trace_variant(rc, f0: float, f1: float, law, static, v: Variant, *, solver: 
                   max_passes: int = 20, max_steps: int = 300, x_scale: float | None = None,
                   log=None, eps_path=()) -> SweepResult:
     """``v`` traced from ``f0`` to ``f1`` (Hz) by pseudo-arclength continuation
-    (:func:`workflow.sweep.arclength_sweep`): the step follows the curve, so a
+    (:func:`workflow.engine.sweep.arclength_sweep`): the step follows the curve, so a
     fold (turning point) is passed instead of jumped; the points are where the
     step control put them. The condensation (with its ω-derivatives, for
     ∂R/∂ω) is recomputed at every ω the corrector visits. ``solver``
@@ -340,8 +340,8 @@ def trace_variant(rc, f0: float, f1: float, law, static, v: Variant, *, solver: 
     10³× the stiffness: the trace stalled at a stick/slip kink at 98.1 Hz of
     94–104; at 1× it crosses the band in 114 steps)."""
     from workflow.engine import penalty
-    from workflow.hb import HBProblem
-    from workflow.sweep import arclength_sweep
+    from workflow.engine.hb import HBProblem
+    from workflow.engine.sweep import arclength_sweep
 
     t0, c0 = time.perf_counter(), time.process_time()
     lw = penalty.scaled(law, eps_path[0]) if eps_path else law
