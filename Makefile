@@ -11,12 +11,16 @@ DEB_PKGS    := python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh \
                python3-scipy python3-venv libopenblas0-pthread
 # numpy<2: Debian's dolfinx/petsc4py are compiled against NumPy 1.x.
 # numba ≥ 0.60 from PyPI (Debian's 0.56 refuses numpy 1.26); installed with "numpy<2" so pip keeps 1.x.
-PIP_PKGS    := "numpy<2" "numba>=0.60" matplotlib pyvista vtk pytest hypothesis
+# pytest-xdist: the suite on every core (2 workers: 7 → 3 min on the 2-core CI machine).
+PIP_PKGS    := "numpy<2" "numba>=0.60" matplotlib pyvista vtk pytest pytest-xdist hypothesis
 STAMP_DEB   := $(VENV)/.deb-ok
 STAMP_PIP   := $(VENV)/.pip-ok
 SCENE       ?= workflow/scenes/quick.toml
 OUT         ?= results/demo
 PYTEST_ARGS ?=
+# Test workers (pytest-xdist), each on one BLAS thread so that workers × threads ≤ cores.
+TEST_JOBS   ?= auto
+PYTEST      := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_JOBS)
 
 export PYVISTA_OFF_SCREEN := true
 export OMP_NUM_THREADS ?= 2
@@ -39,7 +43,7 @@ $(STAMP_DEB):
 	@mkdir -p $(VENV) && touch $@
 
 # The venv sees Debian's dolfinx through --system-site-packages.
-$(STAMP_PIP): $(STAMP_DEB) pyproject.toml
+$(STAMP_PIP): $(STAMP_DEB) pyproject.toml Makefile
 	@[ -x $(PY) ] || $(PY_SYS) -m venv --system-site-packages $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check $(PIP_PKGS)
 	$(PY) -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
@@ -50,13 +54,13 @@ demo: install
 	$(VENV)/bin/bladewear run $(SCENE) --out $(OUT)
 
 test: install
-	$(PY) -m pytest -q $(PYTEST_ARGS)
+	$(PYTEST) $(PYTEST_ARGS)
 
 test-slow: install
-	$(PY) -m pytest -q -m slow $(PYTEST_ARGS)
+	$(PYTEST) -m slow $(PYTEST_ARGS)
 
 test-all: install
-	$(PY) -m pytest -q -m "slow or not slow" $(PYTEST_ARGS)
+	$(PYTEST) -m "slow or not slow" $(PYTEST_ARGS)
 
 # The report opened in headless Chromium (Debian's chromium, installed here only:
 # `make test` stays quick and leaves the browser tests out).

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import logging
 import signal
 import sys
 from pathlib import Path
@@ -219,14 +218,9 @@ def cmd_run(args) -> int:
 
     scene = load_scene(args.scene, args.overrides)
     out = _default_out(args, scene)
-    if args.quiet:
-        # The form compiler (ffcx → setuptools) logs each gcc call at INFO on
-        # the root logger on a cold cache; --quiet means none of that.
-        logging.disable(logging.INFO)
-    try:
-        summary = run_scene(scene, out, cache=args.cache, fresh=args.fresh, quiet=args.quiet)
-    finally:
-        logging.disable(logging.NOTSET)
+    # Libraries' logging (the form compiler's gcc lines) goes to run.log, not here, quiet or
+    # not (workflow.runlog.library_logging, installed by run_scene).
+    summary = run_scene(scene, out, cache=args.cache, fresh=args.fresh, quiet=args.quiet)
     if not summary:
         return EXIT_ERROR
     bad = summary.get("unconverged") or {}

@@ -67,7 +67,7 @@ from workflow import mpi
 from workflow import stages as registry
 from workflow.errors import OutputError, SceneError
 from workflow.io import atomic_dir, manifest, verify_manifest, write_json
-from workflow.runlog import RunLog, heartbeat
+from workflow.runlog import RunLog, heartbeat, library_logging
 from workflow.scene import Scene
 
 #: Entry file holding a stage's summary inside its output folder.
@@ -326,7 +326,10 @@ def run_scene(scene: Scene, out: str | os.PathLike, *, cache: str | os.PathLike 
         log.info(f"MPI: {grp.size} ranks")
     done = False
     try:
-        summary = _run(scene, p, out, cache_root, fresh, log, model, grp)
+        # The libraries' own logging (the form compiler's gcc lines, warnings) goes to the log
+        # file only; warnings are said once on rank 0's terminal (workflow.runlog.library_logging).
+        with library_logging(log, echo=grp.root):
+            summary = _run(scene, p, out, cache_root, fresh, log, model, grp)
         done = True
         return summary
     finally:
@@ -480,7 +483,7 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
         return grp.on_root(_compute_here, scene, module, inputs, entry, key, log)
     name = module.NAME
     cm = atomic_dir(entry) if grp.root else None
-    tmp = grp.on_root(lambda: (log.info(f"{name}: computing (collective, {grp.size} ranks)"), cm.__enter__())[1])
+    tmp = grp.on_root(lambda: (log.note(f"{name}: computing (collective, {grp.size} ranks)"), cm.__enter__())[1])
     t0 = time.monotonic()
     try:
         with heartbeat(log, name) if grp.root else contextlib.nullcontext():
@@ -511,7 +514,7 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
 def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: str, log: RunLog) -> dict:
     """:func:`_compute` in this process alone (serial runs; non-MPI stages on rank 0)."""
     name = module.NAME
-    log.info(f"{name}: computing")
+    log.note(f"{name}: computing")
     t0 = time.monotonic()
     with atomic_dir(entry) as tmp, heartbeat(log, name):
         summary = module.run(scene, dict(inputs), tmp, log.child(name))
@@ -534,7 +537,7 @@ def _run_uncached(scene, p: Plan, name, out, products, status, timings, summarie
     target = out / name
     if target.is_symlink():
         target.unlink()
-    log.info(f"{name}: computing")
+    log.note(f"{name}: computing")
     with atomic_dir(target) as tmp:
         pre = tmp.parent / f".{name}.summary.tmp"
         if getattr(module, "NEEDS_ALL", False):

@@ -83,7 +83,7 @@ def _remap(upstream, tmp, W=None):
         b, wear = read_bundle(bundle_folder(run / "assembly")), tmp / "wear"
         write_wear_csv(wear / "wear.csv", b.contact.position, b.contact.flank,
                        {"pseudo-time": types.SimpleNamespace(W=W(b.contact.position))}, 0.5)
-    log = types.SimpleNamespace(info=lambda msg: None, progress=lambda it, total=None, label="": it)
+    log = types.SimpleNamespace(info=lambda msg: None, note=lambda msg: None, progress=lambda it, total=None, label="": it)
     s = stage.run(scene, {"bundle": run / "assembly", "wear": wear, "reduced": run / "reduction"},
                   tmp / "out", log)
     return s, tmp / "out"

@@ -69,7 +69,7 @@ def worn_run(upstream, tmp_path_factory):
     root, scene, _ = upstream
     out = tmp_path_factory.mktemp("remap_out")
     lines = []
-    log = types.SimpleNamespace(info=lines.append, progress=lambda it, total=None, label="": it)
+    log = types.SimpleNamespace(info=lines.append, note=lines.append, progress=lambda it, total=None, label="": it)
     s = stage.run(scene, {"bundle": root / "assembly", "wear": root / "wear", "reduced": _reduced_new(root, scene)},
                   out, log)
     return s, out, lines
@@ -126,7 +126,7 @@ def test_remap_stage_refuses_excessive_wear(upstream, tmp_path):
     write_wear_csv(tmp_path / "wear" / "wear.csv", b.contact.position, b.contact.flank,
                    {"implicit": types.SimpleNamespace(W=W * 4500)}, 0.5)  # ~4.5 mm of wear
     scene = dict(scene, remap=Remap(reassemble=False))
-    log = types.SimpleNamespace(info=lambda msg: None)
+    log = types.SimpleNamespace(info=lambda msg: None, note=lambda msg: None)
     with pytest.raises(GeometryError, match="max_fraction"):
         stage.run(scene, {"bundle": root / "assembly", "wear": tmp_path / "wear"}, tmp_path / "out", log)
 
@@ -141,7 +141,7 @@ def test_zero_wear_reassembly_has_no_frequency_shift(upstream, tmp_path):
     b = read_bundle(root / "assembly" / "model")
     write_wear_csv(tmp_path / "wear" / "wear.csv", b.contact.position, b.contact.flank,
                    {"implicit": types.SimpleNamespace(W=np.zeros(b.contact.n_pairs))}, 0.5)
-    log = types.SimpleNamespace(info=lambda msg: None)
+    log = types.SimpleNamespace(info=lambda msg: None, note=lambda msg: None)
     s = stage.run(scene, {"bundle": root / "assembly", "wear": tmp_path / "wear",
                           "reduced": _reduced_new(root, scene)}, tmp_path / "out", log)
     assert s["max_node_motion_m"] == 0.0

@@ -26,6 +26,7 @@ def _run(tmp_path, *sets):
 
 
 @pytest.mark.skipif(mpirun_command(2) is None, reason="mpirun/mpiexec not found: the 2-process rows need it")
+@pytest.mark.slow
 def test_scaling_scene_measures_one_and_two_processes(tmp_path):
     r = _run(tmp_path, "scaling.factors=[1.6, 1.3]", "scaling.procs=[1, 2]", "scaling.fit_min_dofs=0")
     assert r.returncode == 0, r.stderr

@@ -171,7 +171,7 @@ def test_linear_layout_closes_the_midside_interpenetration_with_the_vertex_pairs
 
 @pytest.mark.slow
 def test_stage_writes_table_and_figures(scene, tmp_path):
-    log = SimpleNamespace(info=lambda m: None, progress=lambda it, total=None, label="": it)
+    log = SimpleNamespace(info=lambda m: None, note=lambda m: None, progress=lambda it, total=None, label="": it)
     s = cc.run(scene, {}, tmp_path, log)
     json.dumps(s)
     assert [r["pairs"] for r in s["rows"]] == [2 * 5 * 3, 2 * 7 * 3]

@@ -38,7 +38,8 @@ import pytest
 
 from workflow.mpi import mpirun_command, single_thread_env
 
-pytestmark = pytest.mark.mpi
+# The quick scene end to end three times (~80 s on 2 cores): make test-slow.
+pytestmark = [pytest.mark.mpi, pytest.mark.slow]
 
 MPIRUN = mpirun_command(2)
 if MPIRUN is None:

@@ -49,6 +49,7 @@ def test_remap_lines():
     assert remap._unconverged({"frf_points": 9, "frf_converged": {"new": 9, "worn": 9}}) == []
 
 
+@pytest.mark.slow
 def test_frictionless_quick_scene_exits_3(tmp_path):
     env = dict(os.environ, OMP_NUM_THREADS="1", PYVISTA_OFF_SCREEN="true")
     env.pop("BLADEWEAR_CACHE", None)

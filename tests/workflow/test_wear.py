@@ -216,7 +216,9 @@ def test_one_vector_solves_of_a_step_reuse_its_lu_and_equal_a_fresh_one(monkeypa
     exact = np.linalg.solve(near.J, b)
     assert y is not None
     assert np.linalg.norm(near.J @ y - b) <= wear.NEAR_RTOL * np.linalg.norm(b)
-    np.testing.assert_allclose(y, exact, rtol=0, atol=1e-8 * np.abs(exact).max())
+    # ‖J y − b‖ ≤ NEAR_RTOL‖b‖ (above) ⇒ ‖y − J⁻¹b‖ ≤ ‖J⁻¹‖·NEAR_RTOL·‖b‖
+    np.testing.assert_allclose(y, exact, rtol=0,
+                               atol=np.linalg.norm(np.linalg.inv(near.J), 2) * wear.NEAR_RTOL * np.linalg.norm(b))
     monkeypatch.setattr(wear, "NEAR_ITERS", 1)          # one iteration cannot reach 1e-11
     assert wear._near_solve(ref, near, b) is None
     monkeypatch.undo()
@@ -462,6 +464,7 @@ def test_reference_and_pseudo_time_converge_to_the_same_trajectory_end():
     assert profile_rel_diff(W["loose"][0], W["tight"][0]) < 0.2 * d_tight
 
 
+@pytest.mark.slow
 def test_quick_sector_worn_profile_converges_in_nh_and_eps(tmp_path):
     """The quick scene's worn steady state (the real sector, pseudo-time at its default
     tolerances) against its own checks: marched again at 1.5×Nh and at ε × 10, the worn
@@ -539,6 +542,7 @@ def test_matrix_free_wear_step_equals_the_whole_augmented_solve(method):
     ∂rate/∂x per pair) solves the same (n + p) system as the formed one, and a J-solve with
     the matrix-free J equals the LU's."""
     from workflow.engine import wear_structured
+    from workflow.engine.linsolve import GMRES_RTOL
     from workflow.engine.wear import _augmented_step, _j_solve
 
     nit = {"hbm": 32, "tcm": 33, "hdhb": 5}[method]
@@ -566,11 +570,13 @@ def test_matrix_free_wear_step_equals_the_whole_augmented_solve(method):
         A = np.block([[st.J, st.R_W], [-h * st.G_x, np.eye(p) - h * np.diag(st.G_W)]])
         dz = np.linalg.solve(A, np.concatenate([-st.R, h * st.rate]))
         dx, dW = _augmented_step(free, sf, h)
-        np.testing.assert_allclose(dx, dz[:n], rtol=0, atol=1e-7 * np.abs(dz[:n]).max())
-        np.testing.assert_allclose(dW, dz[n:], rtol=0, atol=1e-7 * np.abs(dz[n:]).max())
+        # structured GMRES to GMRES_RTOL in the residual: 1e3·GMRES_RTOL leaves a condition number of
+        # 1e3 for its operator (J's is ≤ 11 here; measured error ≤ 6e-11)
+        np.testing.assert_allclose(dx, dz[:n], rtol=0, atol=1e3 * GMRES_RTOL * np.abs(dz[:n]).max())
+        np.testing.assert_allclose(dW, dz[n:], rtol=0, atol=1e3 * GMRES_RTOL * np.abs(dz[n:]).max())
     y = _j_solve(free, None, sf, sf.R, W)
     np.testing.assert_allclose(y, np.linalg.solve(st.J, st.R + st.R_W @ W), rtol=0,
-                               atol=1e-7 * np.abs(y).max())
+                               atol=1e3 * GMRES_RTOL * np.abs(y).max())
 
 
 def test_matrix_free_march_reaches_the_dense_worn_steady_state(monkeypatch):

@@ -18,8 +18,8 @@ Writes ``wear_conditioning.csv`` (change, value, frequency_hz, max_wear_m,
 worn_volume_m3, rel_change, steady, steps, seconds) to ``--out``; rel_change
 is against the unchanged run. Measured 2026-11-27 (ae0e5f9) on 7 × 5 (70 pairs):
 μ ± 1 % moves the max wear ∓0.8 %, the force + 1 % +1.4 %, the frequency
-± 1e-4 ∓3.3 % (docs/contact-layout.md, "Why the worn steady state does not converge with the contact mesh"). Each march costs
-~50 s on 70 pairs.
+± 1e-4 ∓3.3 % (docs/contact-layout.md, "Why the worn steady state does not
+converge with the contact mesh"). Each march costs ~50 s on 70 pairs.
 """
 from __future__ import annotations
 

@@ -122,7 +122,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     # ``out`` is a temporary (cache) folder: name the files as they appear in the
     # run folder, <run>/remap/..., next to the summary.json the CLI prints.
     for f in summary["figures"]:
-        log.info(f"remap: figure {NAME}/{f}")
+        log.note(f"remap: figure {NAME}/{f}")
     log.info(f"remap: wear map {NAME}/{summary['wear_map']} (ParaView), worn mesh {NAME}/{summary['worn_mesh']}"
              + (f", worn reduced model {NAME}/{summary['reduced']}" if summary.get("reduced") else ""))
     return summary
