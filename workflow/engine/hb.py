@@ -195,15 +195,19 @@ class HBProblem:
         x = np.asarray(x, dtype=float)
         if self._lin_memo is not None and np.array_equal(self._lin_memo[0], x):
             return self._lin_memo[1]
-        y = x.reshape(self.nc, self.nr)
-        Ay = self._apply_A(y)
-        return self._remember(x, (y, Ay, self._rlin(Ay)))
+        Ay = self._apply_A(x.reshape(self.nc, self.nr))
+        return self._remember(x, Ay, self._rlin(Ay))
 
     def _rlin(self, Ay):
         return self._Ec @ Ay if self.method == "tcm" else Ay
 
-    def _remember(self, x, lin):
-        self._lin_memo = (np.array(x, dtype=float), lin)
+    def _remember(self, x, Ay, Ry):
+        """(y, A y, Rlin y) kept for x. y is a view of the memo's own copy of x, never of the
+        caller's array: MINPACK (Powell) overwrites its x buffer in place, and a kept view
+        of it turned the next residual at the same point into garbage."""
+        xc = np.array(x, dtype=float)
+        lin = (xc.reshape(self.nc, self.nr), Ay, Ry)
+        self._lin_memo = (xc, lin)
         return lin
 
     def residual_along(self, x, dx):
@@ -220,7 +224,7 @@ class HBProblem:
 
         def at(alpha: float):
             xt = x + alpha * dx
-            lin = self._remember(xt, (xt.reshape(self.nc, self.nr), Ay + alpha * Ad, Ry + alpha * Rd))
+            lin = self._remember(xt, Ay + alpha * Ad, Ry + alpha * Rd)
             return xt, self._evaluate(xt, False, lin)[0]
         return at
 

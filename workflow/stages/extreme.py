@@ -3,7 +3,9 @@
 Reads ``<reduced>/reduced.npz`` (a :class:`reduction.reduced.ReducedModel`),
 runs every selected case × method × solver and writes ``extreme.csv``,
 ``extreme.md``; the summary entry ``cases`` has one row per solve
-(name, method, solver, converged, iterations, seconds, error, diagnosis).
+(name, method, solver, converged, iterations, seconds, error, tolerance, diagnosis);
+``off_reference`` counts converged solves farther from their reference than their
+tolerance and ``off_without_diagnosis`` those of them without a diagnosis (must be 0).
 """
 from __future__ import annotations
 
@@ -50,8 +52,13 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     failed = [r for r in results if not r.converged]
     log.info(f"extreme: {len(results) - len(failed)} of {len(results)} solves converged")
     rows = [r.row() for r in results]
+    off = sum(X.is_off(r) for r in results)
+    bare = X.off_without_diagnosis(results)
+    log.info(f"extreme: {off} converged solve(s) farther from the reference than the tolerance, "
+             f"{bare} without a diagnosis")
     return {"cases": [{k: row[k] for k in ("name", "method", "solver", "converged", "iterations", "seconds",
-                                             "error", "diagnosis")} for row in rows],
+                                             "error", "tolerance", "diagnosis")} for row in rows],
             "converged": len(results) - len(failed), "total": len(results),
+            "off_reference": off, "off_without_diagnosis": bare,
             "omega_tied_hz": su.omega_tied / (2 * 3.141592653589793),
             "table": "extreme.md", "csv": "extreme.csv"}
