@@ -116,7 +116,9 @@ def test_zero_wear_cyclic_reassembly_has_no_shift_and_the_same_frf(upstream, zer
     frf = stage.worn_vs_new_frf(scene, new, worn)
     a_new, a_worn = (np.where(frf[k].converged, frf[k].amplitude, np.nan) for k in ("new", "worn"))
     assert frf["new"].converged.all() and frf["worn"].converged.all()
-    np.testing.assert_allclose(a_worn, a_new, rtol=1e-7)  # measured 1e-9 (re-numbered worn mesh)
+    # same grid and guesses on models equal up to the DOF numbering's round-off: the Newton paths
+    # coincide and the FRFs differ by that floor (≤ 1e-8, test_mpi_quick), not by hb.tol (measured 1e-9)
+    np.testing.assert_allclose(a_worn, a_new, rtol=1e-7)
     # the refined peaks agree to the bounded search's tolerance
     xtol = PEAK_XTOL * s["frf_tied_hz"]["new"]
     assert abs(s["frf_peak_hz"]["worn"] - s["frf_peak_hz"]["new"]) <= 2 * xtol

@@ -50,6 +50,8 @@ def test_frf_study_reports_the_refined_peak_of_its_most_converged_sweep():
     pk = study.peak
     assert pk["run"] == "HBM-3 nit=32"
     assert abs(pk["hz"] - fn * np.sqrt(1 - 2 * zeta ** 2)) <= 2 * pk["xtol_hz"]
+    # within 2·PEAK_XTOL of the peak |X| is flat to (2·PEAK_XTOL)²/(2ζ²) = 5e-9 (μ = 0: linear, each
+    # point solved to round-off by Newton's one step)
     assert pk["amplitude_m"] == pytest.approx(force / (2 * zeta * k * np.sqrt(1 - zeta ** 2)), rel=1e-8)
     assert pk["amplitude_m"] > 1.3 * pk["grid_amplitude_m"]
 
@@ -84,6 +86,7 @@ def _closed_form(pk):
     m, fn, zeta, force = OSC
     k = m * (2 * np.pi * fn) ** 2
     assert pk.hz == pytest.approx(fn * np.sqrt(1 - 2 * zeta ** 2), rel=1e-6)
+    # xtol = 1e-7 f_n: |X| within (2e-7)²/(2ζ²) = 5e-11 of its peak (linear: round-off per point)
     assert pk.amplitude == pytest.approx(force / (2 * zeta * k * np.sqrt(1 - zeta ** 2)), rel=1e-8)
 
 

@@ -383,11 +383,16 @@ def _coulomb_sweep(r, zeta, nh, nit, betas):
 def test_a_point_lost_both_ways_is_approached_in_frequency_steps(monkeypatch):
     """The sweep's last pass (:func:`workflow.engine.studies.frf._approach`). Coulomb oscillator,
     μN/F0 = 0.7, ζ = 0, Nh = 5, nit = 64: the first point (β = 0.5, the mass sticking twice a
-    period) is lost from the linear guess through the whole cascade and from β = 0.61 by the
+    period) is lost from the linear guess through the cascade (but its smooth guess) and from β = 0.61 by the
     pass downwards — the truncated HB curve folds between the two. Four steps of frequency
     from β = 0.61 reach it, and it is the root an independent, finer continuation reaches
     (β = 0.61 → 0.5 by steps of ≈ 0.02, solved point by point)."""
     from workflow.engine.studies import frf as sweeps
+    # the cascade's smooth guess (nit 128 → 64) reaches β = 0.5 or not by round-off: it does on
+    # OpenBLAS's SkylakeX and Sandybridge kernels, not on Prescott or Haswell. Left out here, the
+    # point is lost on every machine and found by the pass under test
+    solve_point = sweeps.solve_point
+    monkeypatch.setattr(sweeps, "solve_point", lambda *a, **kw: solve_point(*a, **{**kw, "smooth": None}))
     betas = [0.5, 0.5 + 1.0 / 9.0, 0.5 + 2.0 / 9.0]
     run, spec = _coulomb_sweep(0.7, 0.0, 5, 64, betas)
     assert run.converged.all() and run.how[0].startswith("approached-")
