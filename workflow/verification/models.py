@@ -159,3 +159,75 @@ def linear_limit(spec: Spec, omega: float, tied: bool) -> float:
         K[spec.pads.dof, spec.pads.dof] += spec.pads.k
     D = K - omega ** 2 * spec.M + 1j * omega * spec.C
     return float(abs(np.linalg.solve(D, spec.f.astype(complex))[spec.observe]))
+
+
+def light_pad_chain(*, n: int = 10, pads: int = 8, mu: float = 0.3, force: float = 1.0, zeta: float = 0.01,
+                    pad_mass: float = 1e-3, coupling: float = 0.2, contact_ratio: float = 1e3
+                    ) -> tuple[ReducedModel, Spec]:
+    """Issue 47's chain: the cantilever of :func:`pad_chain` whose 8 root masses each hold a
+    *light pad* (mass ``pad_mass``, kg) on a spring k_d = 120…50 N/m; the pad rests on
+    rigid ground and rubs on it (μ), normal load ``N_i = N0_i + coupling·x_{a_i}``
+    (N0 = 2…0.5 N) varying with the motion of the mass that carries it.
+
+    * The reduced model (HB): q = [x (n), pad0 n t1 t2, …]; the contact DOF *is* the pad's
+      tangential DOF (mass ``pad_mass``, t2 likewise, unloaded), the ground rigid — DLFT's
+      ε is then the only contact compliance.
+    * The spec (time integration): the pads are structure DOFs n…n+p−1 (mass ``pad_mass``)
+      carrying grounded Jenkins elements of stiffness ``contact_ratio`` × k_d: the
+      near-rigid contact of the reference.
+
+    Damping: C = (2ζ/ω₁)·K_s, K_s the chain plus the pad springs (the same in both),
+    ω₁ the first mode with the pads stuck. Observed: the tip."""
+    k = 100.0
+    Kc = np.zeros((n, n))
+    for i in range(n):
+        Kc[i, i] += k
+        if i + 1 < n:
+            Kc[np.ix_([i, i + 1], [i, i + 1])] += k * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    kd = np.linspace(120.0, 50.0, pads)
+    N0 = np.linspace(2.0, 0.5, pads)
+    # structure of the time integration: chain + pads (DOFs n + i), pad i on mass i
+    m = n + pads
+    Ks = np.zeros((m, m))
+    Ks[:n, :n] = Kc
+    for i in range(pads):
+        Ks[np.ix_([i, n + i], [i, n + i])] += kd[i] * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    Ms = np.diag(np.concatenate([np.ones(n), np.full(pads, pad_mass)]))
+    Kt = Kc.copy()
+    Kt[np.arange(pads), np.arange(pads)] += kd       # pads stuck on rigid ground
+    w1 = float(np.sqrt(np.min(np.linalg.eigvalsh(Kt))))
+    Cs = 2 * zeta / w1 * Ks
+    f = np.zeros(m)
+    f[n - 1] = force
+    cN = np.zeros((pads, m))
+    cN[np.arange(pads), np.arange(pads)] = coupling
+    P = Pads(dof=n + np.arange(pads), k=contact_ratio * kd, mu=mu, N0=N0, cN=cN)
+    spec = Spec(name="light-pad-chain", M=Ms, C=Cs, K=Ks, f=f, observe=n - 1, mu=float(mu), pads=P)
+    # the reduced model: pad DOFs become the contact pairs' t1 (t2 a copy, unloaded)
+    size = n + 3 * pads
+    Mq, Cq, Kq = np.zeros((size, size)), np.zeros((size, size)), np.zeros((size, size))
+    Mq[:n, :n] = np.eye(n)
+    Kq[:n, :n] = Kc
+    kn = NORMAL_STIFFNESS * max(np.abs(Kc).max(), kd.max())
+    B = np.zeros((3 * pads, size))
+    fs = np.zeros(size)
+    for i in range(pads):
+        dn, dt, d2 = n + 3 * i, n + 3 * i + 1, n + 3 * i + 2
+        kk = kd[i] * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        Kq[np.ix_([i, dt], [i, dt])] += kk
+        Kq[d2, d2] += kd[i]                     # t2: grounded like the pad, never loaded
+        Mq[dt, dt] = Mq[d2, d2] = pad_mass
+        Kq[dn, dn] += kn
+        Kq[dn, i] += coupling
+        Kq[i, dn] += coupling
+        B[3 * i:3 * i + 3, [dn, dt, d2]] = np.eye(3)
+        fs[dn] = -float(N0[i])
+    Cq = 2 * zeta / w1 * np.where(np.abs(Kq) > 0, Kq, 0.0)
+    # damping only on the structure and the pad springs (not the normal stiffness, not the coupling)
+    Cq[:, [n + 3 * i for i in range(pads)]] = 0.0
+    Cq[[n + 3 * i for i in range(pads)], :] = 0.0
+    fh = np.zeros(size)
+    fh[n - 1] = force
+    O = np.zeros((1, size))
+    O[0, n - 1] = 1.0
+    return _model(Mq, Cq, Kq, B, fs, fh, O, pads), spec
