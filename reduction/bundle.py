@@ -222,9 +222,41 @@ def read_bundle(path: str | Path, matrices: bool = True) -> Bundle:
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
         # A truncated or foreign file: name it rather than leak a zipfile error.
         raise BundleError(f"model bundle file {current} cannot be read: {exc}") from exc
+    for k in INDEX_KEYS["contact"]:
+        if getattr(contact, k) is not None:
+            setattr(contact, k, _as_index(getattr(contact, k), f"model bundle {path}/contact.npz '{k}'"))
+    for k in INDEX_KEYS["loads"]:
+        setattr(loads, k, _as_index(getattr(loads, k), f"model bundle {path}/loads.npz '{k}'"))
+    if cyclic is not None:
+        for k in INDEX_KEYS["cyclic"]:
+            setattr(cyclic, k, _as_index(getattr(cyclic, k), f"model bundle {path}/cyclic.npz '{k}'"))
     bundle = Bundle(**mats, contact=contact, loads=loads, meta=meta, coords=coords, path=path, cyclic=cyclic)
     validate(bundle)
     return bundle
+
+
+#: Integer arrays of each file (DOF indices, and the flank label): a file may store them as
+#: floats holding exact integers, which :func:`read_bundle` converts (:func:`_as_index`).
+INDEX_KEYS = {"contact": ("blade_dofs", "disk_dofs", "tie", "flank"), "loads": ("fixed", "observe"),
+              "cyclic": ("low_dofs", "high_dofs")}
+
+
+def _as_index(a, where: str) -> np.ndarray:
+    """``a`` as int64; a float array is accepted if every entry is an exact integer
+    (MATLAB and many tools write indices as doubles), anything else is a BundleError naming ``where``."""
+    a = np.asarray(a)
+    if a.dtype.kind in "iu":
+        return a.astype(np.int64, copy=False)
+    if a.dtype.kind != "f":
+        raise BundleError(f"{where} must hold integers, got {a.dtype} values")
+    if a.size == 0:
+        return a.astype(np.int64)
+    bad = ~np.isfinite(a) | (a != np.round(a)) | (np.abs(a) > 2.0 ** 53)
+    if np.any(bad):
+        i = np.unravel_index(int(np.flatnonzero(bad)[0]), a.shape)
+        raise BundleError(f"{where} must hold integers, but entry {tuple(int(v) for v in i)} is {a[i]!r} "
+                          f"({int(bad.sum())} such entries)")
+    return a.astype(np.int64)
 
 
 def matrix_rows(path: str | Path, name: str, r0: int, r1: int) -> sp.csr_matrix:
@@ -301,10 +333,15 @@ def _check_tie(c: Contact, n: int, fixed, at: str) -> None:
 def validate(b: Bundle) -> None:
     """Raise :class:`BundleError` naming the first inconsistent array.
 
-    Shapes, index ranges, finiteness, symmetry of M, K, C (to
-    :data:`SYMMETRY_TOL`), orthonormal frames, distinct blade and disk DOFs
-    in each pair, and an optional per-pair ``mu`` (finite, ≥ 0). Positive
-    definiteness is :func:`check_definite` (costlier: a factorisation).
+    Shapes, integer index arrays (:data:`INDEX_KEYS`; :func:`read_bundle`
+    converts floats holding exact integers, an in-memory bundle must hold
+    integers), index ranges, finiteness, symmetry of M, K, C (to
+    :data:`SYMMETRY_TOL`), a positive mass diagonal on every free DOF,
+    orthonormal frames, every contact DOF in one pair only (a repeated pair
+    or a DOF shared by two pairs makes the contact map rank deficient),
+    distinct blade and disk DOFs in each pair, ``flank`` 0 or 1, and an
+    optional per-pair ``mu`` (finite, ≥ 0). Positive definiteness is
+    :func:`check_definite` (costlier: a factorisation).
     """
     n = b.M.shape[0]
     at = f"model bundle {b.path}: " if b.path is not None else ""
@@ -316,6 +353,11 @@ def validate(b: Bundle) -> None:
             raise BundleError(f"{at}bundle matrix {name} ({name}.npz) has non-finite entries")
         _check_symmetric(m, f"{at}{name}.npz")
     c = b.contact
+    for file, obj in (("contact", c), ("loads", b.loads), ("cyclic", b.cyclic)):
+        for k in INDEX_KEYS[file] if obj is not None else ():
+            a = getattr(obj, k)
+            if a is not None and np.asarray(a).dtype.kind not in "iu":
+                raise BundleError(f"{at}{file}.npz: '{k}' must hold integers, got {np.asarray(a).dtype} values")
     p = c.blade_dofs.shape[0]
     for k in ("blade_dofs", "disk_dofs", "normal", "t1", "t2"):
         if np.shape(getattr(c, k)) != (p, 3):
@@ -333,6 +375,13 @@ def validate(b: Bundle) -> None:
     if same.size:
         raise BundleError(f"{at}contact.npz: pair {same[0]} has the same DOF in blade_dofs and disk_dofs "
                           f"({same.size} such pairs): a pair joins two different nodes")
+    _check_unique_dofs(c, at)
+    if c.flank is not None:
+        flank = np.asarray(c.flank)
+        if flank.shape != (p,) or not np.all((flank == 0) | (flank == 1)):
+            bad = flank[(flank != 0) & (flank != 1)] if flank.shape == (p,) else flank
+            raise BundleError(f"{at}contact.npz: 'flank' must be ({p},) labels 0 (intrados) or 1 (extrados), got "
+                              f"shape {flank.shape}" + (f", values {np.unique(bad)[:5].tolist()}" if bad.size else ""))
     if c.mu is not None:
         mu = np.asarray(c.mu)
         if mu.shape != (p,) or mu.dtype.kind not in "fiu" or not np.all(np.isfinite(mu)) or np.any(mu < 0):
@@ -350,12 +399,63 @@ def validate(b: Bundle) -> None:
             raise BundleError(f"bundle loads.{k} has shape {np.shape(getattr(L, k))}, expected ({n},)")
     for k in ("fixed", "observe"):
         d = np.asarray(getattr(L, k))
+        if d.ndim != 1:
+            raise BundleError(f"{at}loads.npz: '{k}' must be a 1-D array of DOF indices, got shape {d.shape}")
         if d.size and (d.min() < 0 or d.max() >= n):
             raise BundleError(f"bundle loads.{k} indexes outside 0..{n - 1}")
+    _check_mass_diagonal(b, at)
     if b.coords is not None and b.coords.shape != (n // 3, 3):
         raise BundleError(f"bundle nodes.coords has shape {b.coords.shape}, expected ({n // 3}, 3)")
     if b.cyclic is not None:
         _check_cyclic(b.cyclic, n, at)
+
+
+def _check_unique_dofs(c: Contact, at: str) -> None:
+    """Every DOF in one pair, once: node-to-node contact. A repeated pair (or a DOF in two
+    pairs, or twice in one) gives the relative-displacement map equal rows — rank deficient."""
+    rows = np.concatenate([c.blade_dofs, c.disk_dofs], axis=1)   # (p, 6), −1 = grounded
+    if rows.shape[0] == 0:
+        return
+    _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+    again = np.flatnonzero(first[inverse.ravel()] != np.arange(rows.shape[0]))
+    if again.size:
+        k = int(again[0])
+        raise BundleError(f"{at}contact.npz: pair {k} repeats pair {int(first[inverse.ravel()[k]])} (same "
+                          f"blade_dofs and disk_dofs; {again.size} repeated pair(s)): each pair must be listed once")
+    for side in ("blade_dofs", "disk_dofs"):
+        d = getattr(c, side)
+        bad = np.flatnonzero(np.any((d[:, :, None] == d[:, None, :]) & (d[:, :, None] >= 0)
+                                    & ~np.eye(3, dtype=bool), axis=(1, 2)))
+        if bad.size:
+            raise BundleError(f"{at}contact.npz: pair {int(bad[0])} repeats a DOF within its {side} row "
+                              f"{d[bad[0]].tolist()}: the x, y, z DOFs of a node must be distinct")
+    dofs = rows.ravel()
+    live = dofs >= 0
+    u, idx, counts = np.unique(dofs[live], return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        dof = int(u[counts > 1][0])
+        pairs = sorted({int(i) // 6 for i in np.flatnonzero(dofs == dof)})
+        sides = sorted({("blade_dofs", "disk_dofs")[(int(i) % 6) // 3] for i in np.flatnonzero(dofs == dof)})
+        raise BundleError(f"{at}contact.npz: DOF {dof} is in {' and '.join(sides)} of pairs "
+                          f"{', '.join(map(str, pairs))} ({int(np.sum(counts > 1))} such DOFs): node-to-node contact "
+                          "puts each node in one pair (else the contact map is rank deficient)")
+
+
+def _check_mass_diagonal(b: Bundle, at: str, skeleton_ok: bool = True) -> None:
+    """M.npz: a positive mass on every free DOF (its diagonal; a zero or negative one would
+    surface later as a Lanczos stall or an indefinite K). ``skeleton_ok``: an M without
+    entries is a skeleton (``read_bundle(matrices=False)``) and passes."""
+    if skeleton_ok and b.M.nnz == 0:
+        return
+    d = np.asarray(b.M.diagonal())
+    free = np.ones(d.size, dtype=bool)
+    free[np.asarray(b.loads.fixed, dtype=np.int64)] = False
+    bad = np.flatnonzero(free & ~(d > 0))
+    if bad.size:
+        shown = ", ".join(f"DOF {int(i)}: {d[i]:.3g}" for i in bad[:5])
+        raise BundleError(f"{at}M.npz: the mass matrix has a zero or negative diagonal entry on {bad.size} free "
+                          f"DOF(s) ({shown}{', …' if bad.size > 5 else ''}); every DOF not clamped in loads.npz "
+                          "'fixed' needs a positive mass (a sign error, or a massless DOF?)")
 
 
 def _check_cyclic(cy: Cyclic, n: int, at: str) -> None:
@@ -419,7 +519,9 @@ def check_definite(b: Bundle) -> dict:
     ones: below 1e-12 of the largest); beyond: the inertia of a MUMPS LDLᵀ
     factorisation (negative and null pivots). Returns ``{"tied_dofs",
     "method", "min_ratio"}`` (smallest / largest eigenvalue, dense only).
+    First the mass (:func:`check_mass`), so that a bad M is not blamed on K.
     """
+    check_mass(b)
     T = tied_map(b)
     Kt = sp.csr_matrix(T.T @ b.K @ T)
     m = Kt.shape[0]
@@ -452,6 +554,31 @@ def check_definite(b: Bundle) -> dict:
                           f"({zero} zero eigenvalue(s) of {m}): the structure floats — clamp DOFs in "
                           "loads.npz 'fixed' (or ground a contact side with -1), or check K.npz")
     return info
+
+
+def check_mass(b: Bundle) -> None:
+    """Raise :class:`BundleError` naming ``M.npz`` unless the mass on the free DOFs (not in
+    loads.npz 'fixed') has a positive diagonal and is positive semi-definite: no negative
+    eigenvalue below −1e-12 of the largest (up to :data:`DENSE_CHECK` free DOFs), or no
+    negative pivot of a MUMPS LDLᵀ factorisation (beyond)."""
+    at = f"model bundle {b.path}: " if b.path is not None else ""
+    _check_mass_diagonal(b, at, skeleton_ok=False)
+    free = b.free_dofs
+    Mf = sp.csr_matrix(b.M[free][:, free])
+    if Mf.shape[0] == 0:
+        return
+    if Mf.shape[0] <= DENSE_CHECK:
+        w, v = np.linalg.eigh(Mf.toarray())
+        top = float(np.abs(w).max())
+        neg = int(np.sum(w < -1e-12 * top))
+        where = f" (the most negative, {w[0]:.3g}, is largest on DOF {int(free[np.argmax(np.abs(v[:, 0]))])})"
+    else:
+        neg, _ = _ldlt_inertia(Mf)
+        where = ""
+    if neg:
+        raise BundleError(f"{at}M.npz: the mass matrix on the free DOFs is not positive semi-definite: {neg} "
+                          f"negative eigenvalue(s) or pivot(s) of {Mf.shape[0]}{where} — a sign error, or "
+                          "off-diagonal masses larger than the diagonal?")
 
 
 def _ldlt_inertia(A: sp.csr_matrix) -> tuple[int, int]:

@@ -127,6 +127,11 @@ class HB:
     refine_peak: bool = param(True, "", "refine the headline peak between its grid neighbours (bounded scalar "
                                         "search to 1e-6 of f, ~10–25 extra solves of one variant); false: the "
                                         "grid's largest point is the headline peak")
+    branch_check: bool = param(True, "", "re-solve the headline peak, the Nh-check's points and the sweep's last "
+                                         "point from an independent start (tied; continuation in Nh from Nh = 1 "
+                                         "where that disagrees) and warn if the swept root differs by more than "
+                                         "1e-3: a sweep can follow a spurious root of the truncated balance that "
+                                         "the Nh- and ε-checks, which start from it, cannot see")
 
     def check(self):
         for nh in self.harmonics:
@@ -136,6 +141,11 @@ class HB:
                                      f"2Nh+1 = {2 * nh + 1} samples (use 0)")
                 if nit and nit < 2 * nh + 1:
                     raise SceneError(f"hb.time_samples = {nit} < 2·Nh+1 = {2 * nh + 1} for hb.harmonics = {nh}")
+        nh = self.reference_harmonics
+        if nh and self.reference_time_samples < 2 * nh + 1:
+            # Like hb.time_samples: an error, not silently raised to 2Nh+1.
+            raise SceneError(f"hb.reference_time_samples = {self.reference_time_samples} < 2·Nh+1 = {2 * nh + 1} "
+                             f"for hb.reference_harmonics = {nh}")
 
 
 @dataclass

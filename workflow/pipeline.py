@@ -31,8 +31,11 @@ Unconverged results
 
 Run folder
     ``<out>/<stage>`` are relative symbolic links to the cache entries,
-    updated only after every stage has succeeded, then ``<out>/summary.json``
-    (written atomically, last), ``<out>/scene.json`` (the resolved scene) and
+    ``<out>/report`` (uncached) a folder, ``<out>/summary.json`` and
+    ``<out>/scene.json`` (the resolved scene): all written under temporary
+    names once every stage has succeeded, then renamed in together
+    (:func:`_switch`; a failed rename undoes the others, so the folder is
+    the previous run whole or this one whole, never half of each). Then
     ``<out>/run.log`` (written as ``.run.log.tmp`` while the run goes on). A
     failed or interrupted run leaves the previous run folder byte for byte
     as it was; its log goes to ``<cache>/failed-run.log``. One run at a time
@@ -56,6 +59,7 @@ import hashlib
 import json
 import os
 import shutil
+import tempfile
 import time
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -425,7 +429,7 @@ def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: R
         for name in p.stages:
             module = p.modules[name]
             if getattr(module, "NEEDS_ALL", False) or not getattr(module, "CACHE", True):
-                continue  # runs after the links are in place (the report)
+                continue  # runs after the cached stages, before the switch (the report)
             entry = cache_root / name / p.keys[name]
             t0 = time.monotonic()
             got, damage = (None, None) if fresh else grp.on_root(check_entry, entry)
@@ -443,26 +447,33 @@ def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: R
             folders[name] = entry
             for product in module.PRODUCES:
                 products[product] = entry
-        grp.on_root(_link, out, folders, p)
-        for name in p.stages:
-            if name in status:
-                continue
-            t0 = time.monotonic()
-            summaries[name] = grp.on_root(_run_uncached, scene, p, name, out, products, status, timings, summaries,
-                                          log)
-            status[name] = "computed"
-            timings[name] = round(time.monotonic() - t0, 3)
-    return grp.on_root(_finish, scene, p, out, cache_root, status, timings, summaries, log, t_start)
+        uncached: dict[str, str] = {}  # uncached stage → its folder, under a temporary name in out
+        try:
+            for name in p.stages:
+                if name in status:
+                    continue
+                t0 = time.monotonic()
+                summaries[name], uncached[name] = grp.on_root(_run_uncached, scene, p, name, out, products, status,
+                                                              timings, summaries, log)
+                status[name] = "computed"
+                timings[name] = round(time.monotonic() - t0, 3)
+            return grp.on_root(_finish, scene, p, out, cache_root, status, timings, summaries, log, t_start,
+                               folders, uncached)
+        finally:
+            if grp.root:
+                for tmp in uncached.values():  # left only when the run failed before the switch
+                    shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _finish(scene, p, out, cache_root, status, timings, summaries, log, t_start) -> dict:
+def _finish(scene, p, out, cache_root, status, timings, summaries, log, t_start, folders=None,
+            uncached=None) -> dict:
     summary = _summary(scene, p, cache_root, status, timings, summaries)
     summary["total_seconds"] = round(time.monotonic() - t_start, 3)
     for name, lines in summary["unconverged"].items():
         for line in lines:
             log.warning(f"{name}: not converged: {line}")
-    write_json(out / "scene.json", json.loads(scene.canonical()))
-    write_json(out / "summary.json", summary)
+    _switch(out, folders or {}, p, uncached or {},
+            {"scene.json": json.loads(scene.canonical()), "summary.json": summary})
     n_bad = sum(len(v) for v in summary["unconverged"].values())
     log.info(f"done in {summary['total_seconds']:.1f} s: "
              + ", ".join(f"{n} {s}" for n, s in status.items()) + f"; summary in {out / 'summary.json'}"
@@ -530,67 +541,170 @@ def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, k
     return json.loads((entry / STAGE_FILE).read_text())
 
 
-def _run_uncached(scene, p: Plan, name, out, products, status, timings, summaries, log) -> dict:
-    """An uncached stage (the report): straight into ``out/<name>``, sees all products."""
+def _run_uncached(scene, p: Plan, name, out, products, status, timings, summaries, log) -> tuple[dict, str]:
+    """An uncached stage (the report): into a temporary folder in ``out`` that
+    :func:`_switch` renames to ``out/<name>``; sees all products. Returns
+    ``(summary, temporary folder)``."""
     module = p.modules[name]
     inputs = dict(products) if getattr(module, "NEEDS_ALL", False) else {n: products[n] for n in module.NEEDS}
-    target = out / name
-    if target.is_symlink():
-        target.unlink()
     log.note(f"{name}: computing")
-    with atomic_dir(target) as tmp:
-        pre = tmp.parent / f".{name}.summary.tmp"
+    pre = out / f".{name}.summary.tmp"
+    tmp = None
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", suffix=".tmp", dir=out))
+        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp creates 0700
         if getattr(module, "NEEDS_ALL", False):
             # What the report shows: the run so far (this stage's own entry excluded).
             write_json(pre, _summary(scene, p, None, status, timings, summaries))
             inputs["summary"] = pre
-        try:
-            summary = module.run(scene, inputs, tmp, log.child(name)) or {}
-        finally:
-            with contextlib.suppress(OSError):
-                pre.unlink()
-    return summary
+        summary = module.run(scene, inputs, tmp, log.child(name)) or {}
+    except BaseException as exc:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, OSError):
+            raise OutputError(f"cannot write {out / name}: {exc.strerror or exc}") from exc
+        raise
+    finally:
+        with contextlib.suppress(OSError):
+            pre.unlink()
+    return summary, str(tmp)
 
 
-def _link(out: Path, folders: dict[str, Path], p: Plan) -> None:
-    """Point ``out/<stage>`` at each stage's cache entry (relative links).
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
-    Links of stages this run did not use are removed (only links, never
-    real folders), so ``out`` shows exactly this run.
+
+def _switch(out: Path, folders: dict[str, Path], p: Plan, uncached: dict[str, str], files: dict) -> None:
+    """Switch the run folder from the previous run to this one, whole or not at all.
+
+    First everything that takes space is written under temporary names in
+    ``out``: a relative link per stage (to its cache entry) and ``model`` (to
+    an external bundle), the uncached stages' folders (:func:`_run_uncached`)
+    and ``files`` (``scene.json``, ``summary.json``, as JSON). A failure there
+    (disk full) removes them and leaves the previous run as it was. Then only
+    renames: each entry of the previous run is renamed aside to ``.<name>.old``
+    and the new one renamed in; links of stages this run did not use, an
+    earlier run's uncached folder (the report) and a stale ``model`` link are
+    renamed aside too (only links and our stage folders, never other files).
+    A rename that fails undoes the ones before it, so ``out`` shows the
+    previous run whole, or this one once every rename succeeded (summary.json
+    last); then the ``.old`` entries are deleted. Only a process killed inside
+    the renames (a few system calls) can leave both: the ``.old`` entries
+    remain, and the next run removes them (:func:`clean_stale`).
     """
+    staged: list[tuple[Path, Path | None]] = []  # (entry in out, this run's under a temporary name | None: remove)
     try:
-        for name, target in folders.items():  # OutputError from _replace_link passes through
-            _replace_link(out / name, target)
-        if "bundle" in p.external:
-            _replace_link(out / "model", p.external["bundle"])
-        for child in out.iterdir():
-            if child.name not in folders and child.name != "model" and child.name in registry.MODULES:
-                if child.is_symlink():
-                    child.unlink()
-                elif child.is_dir() and child.name not in p.stages:
-                    # An uncached stage's folder (the report) from an earlier run: it would
-                    # contradict this run's summary.json. Renamed first so removal is all or nothing.
-                    old = child.with_name(f".{child.name}.old")
-                    shutil.rmtree(old, ignore_errors=True)
-                    os.replace(child, old)
-                    shutil.rmtree(old, ignore_errors=True)
-        if "bundle" not in p.external and (out / "model").is_symlink():
-            (out / "model").unlink()
-    except OSError as exc:
-        raise OutputError(f"cannot write output folder {out}: {exc.strerror or exc}") from exc
+        try:
+            for name, target in folders.items():
+                staged.append((out / name, _staged_link(out / name, target)))
+            if "bundle" in p.external:
+                staged.append((out / "model", _staged_link(out / "model", p.external["bundle"])))
+            elif (out / "model").is_symlink():
+                staged.append((out / "model", None))
+            for name, tmp in uncached.items():
+                staged.append((out / name, Path(tmp)))
+            for child in sorted(out.iterdir()):
+                if child.name in folders or child.name in uncached or child.name not in registry.MODULES:
+                    continue
+                # A link of a stage this run did not use, or an uncached stage's folder (the report)
+                # from an earlier run: either would contradict this run's summary.json.
+                if child.is_symlink() or (child.is_dir() and child.name not in p.stages):
+                    staged.append((child, None))
+            for name, data in files.items():
+                staged.append((out / name, _staged_json(out / name, data)))
+        except OSError as exc:
+            raise OutputError(f"cannot write output folder {out}: {exc.strerror or exc}") from exc
+        _rename_all(out, staged)
+    finally:
+        for _, new in staged:
+            if new is not None and os.path.lexists(new):
+                _remove(new)
 
 
-def _replace_link(link: Path, target: Path) -> None:
-    rel = os.path.relpath(target, link.parent)
-    tmp = link.with_name(f".{link.name}.link.tmp")
-    if tmp.is_symlink() or tmp.exists():
-        tmp.unlink()
-    os.symlink(rel, tmp)
+def _staged_link(link: Path, target: Path) -> Path:
+    """A relative link to ``target`` named ``.<link>.link.tmp`` beside ``link``."""
     if link.exists() and not link.is_symlink():
-        tmp.unlink()
-        # Not ours to delete: a real file or folder where a stage link goes.
+        # Not ours to replace: a real file or folder where a stage link goes.
         raise OutputError(f"cannot link {link}: a file or folder of that name is in the way")
-    os.replace(tmp, link)
+    tmp = link.with_name(f".{link.name}.link.tmp")
+    if os.path.lexists(tmp):
+        tmp.unlink()
+    os.symlink(os.path.relpath(target, link.parent), tmp)
+    return tmp
+
+
+def _staged_json(path: Path, data) -> Path:
+    """``data`` as JSON in ``.<name>.new.tmp`` beside ``path`` (written whole, fsynced)."""
+    tmp = path.with_name(f".{path.name}.new.tmp")
+    try:
+        write_json(tmp, data)
+    except OutputError as exc:
+        cause = exc.__cause__
+        raise OutputError(f"cannot write {path}: {getattr(cause, 'strerror', None) or cause or exc}") from exc
+    return tmp
+
+
+def _rename_all(out: Path, staged: list[tuple[Path, Path | None]]) -> None:
+    """The renames of :func:`_switch`; undone in reverse order if one fails."""
+    done: list[tuple[Path, Path | None, Path | None]] = []  # (entry, its previous one aside, new)
+    entry = out
+    try:
+        for entry, new in staged:
+            old = None
+            if os.path.lexists(entry):
+                old = entry.with_name(f".{entry.name}.old")
+                if os.path.lexists(old):
+                    _remove(old)
+                if new is not None and (new.is_symlink() or not new.is_dir()) and _copy_aside(entry, old):
+                    # A file or link: replaced in one rename, the previous one kept for an undo.
+                    try:
+                        os.replace(new, entry)
+                    except OSError:
+                        _remove(old)
+                        raise
+                    done.append((entry, old, new))
+                    continue
+                os.replace(entry, old)
+            done.append((entry, old, new))
+            if new is not None:
+                os.replace(new, entry)
+    except OSError as exc:
+        for back, old, new in reversed(done):
+            with contextlib.suppress(OSError):
+                if new is not None and not os.path.lexists(new) and os.path.lexists(back):
+                    os.replace(back, new)  # this run's entry back to its temporary name (removed by _switch)
+                if old is not None:
+                    os.replace(old, back)
+        raise OutputError(f"cannot write {entry}: {exc.strerror or exc}") from exc
+    for _, old, _ in done:
+        if old is not None:
+            _remove(old)
+
+
+def _copy_aside(entry: Path, old: Path) -> bool:
+    """Keep a file (hard link) or link (same target) as ``old``; False for a folder or if that fails."""
+    try:
+        if entry.is_symlink():
+            os.symlink(os.readlink(entry), old)
+        elif entry.is_file():
+            os.link(entry, old)
+        else:
+            return False
+    except OSError:
+        _remove(old)
+        return False
+    return True
+
+
+def _remove(path: Path) -> None:
+    """Delete a link, file or folder (best effort)."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            path.unlink()
 
 
 def _check_bundle(folder: Path) -> dict:

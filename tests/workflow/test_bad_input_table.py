@@ -98,6 +98,9 @@ FILE_CASES = [
     ("file-value", OK_SCENE + "[contact]\nmu = -0.5\n", ["bad.toml", "contact.mu = -0.5"]),
     ("table-not-list", OK_SCENE + "[hb]\nharmonics = 5\n", ["bad.toml", "hb.harmonics must be a list"]),
     ("missing-bundle", OK_SCENE + "[model]\nbundle = 'no-such-bundle'\n", ["no-such-bundle", "not a folder"]),
+    # issue 47 item 4.6: used to be raised to 2Nh+1 silently while hb.time_samples was an error
+    ("reference-nit-few", OK_SCENE + "[hb]\nreference_harmonics = 5\nreference_time_samples = 8\n",
+     ["bad.toml", "hb.reference_time_samples = 8 < 2·Nh+1 = 11", "hb.reference_harmonics = 5"]),
 ]
 
 
@@ -202,6 +205,21 @@ def _break_bundle(folder: Path, kind: str) -> None:
         contact(gap=None)
     elif kind == "M-truncated":
         (folder / "M.npz").write_bytes((folder / "M.npz").read_bytes()[:60])
+    elif kind == "repeated-pair":       # issue 47 item 4.1: used to crash in condense (B rank deficient)
+        c = b.contact
+        contact(**{k: np.concatenate([getattr(c, k), getattr(c, k)[1:2]])
+                   for k in ("blade_dofs", "disk_dofs", "normal", "t1", "t2", "area", "gap", "flank", "position")})
+    elif kind == "fixed-fraction":      # float indices are converted only when they are exact integers
+        with np.load(folder / "loads.npz") as z:
+            arrays = {k: z[k] for k in z.files}
+        arrays["fixed"] = arrays["fixed"] + 0.5
+        np.savez(folder / "loads.npz", **arrays)
+    elif kind == "flank-2":             # issue 47 item 4.5
+        contact(flank=np.full(b.contact.n_pairs, 2))
+    elif kind == "M-zero-mass":         # issue 47 item 4.4: was a Lanczos stall or blamed on K
+        M = b.M.tolil()
+        M[7, 7] = 0.0
+        save("M", M)
     elif kind == "K-nan":
         K = b.K.tolil()
         K[0, 0] = np.nan
@@ -222,6 +240,10 @@ BUNDLE_CASES = [
     ("no-gap", ["contact.npz", "lacks gap"]),
     ("M-truncated", ["M.npz", "cannot be read"]),
     ("K-nan", ["K.npz", "non-finite"]),
+    ("repeated-pair", ["contact.npz", "pair 6 repeats pair 1"]),
+    ("fixed-fraction", ["loads.npz 'fixed'", "must hold integers"]),
+    ("flank-2", ["contact.npz", "'flank' must be", "[2]"]),
+    ("M-zero-mass", ["M.npz", "DOF 7"]),
 ]
 
 

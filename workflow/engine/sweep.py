@@ -143,6 +143,12 @@ def continuation(fun_jac_omega, x0, omega0: float, omega_end: float, *, ds: floa
     after an easy step, within [ds_min, ds_max]. Stops when ω passes
     ω_end, after ``max_steps``, or when ds falls below ds_min.
 
+    The step that passes ω_end is replaced by the solution at ω_end itself
+    (fixed ω, guessed between the last two points), so that the trace ends
+    where the band does. A trace that did not reach ω_end ends with a record
+    ``converged=False`` at its last point: ``reason`` starts with ``step below
+    ds_min`` or with :data:`MAX_STEPS_REASON` — the band was not covered.
+
     Returns a list of dicts ``{x, omega, iterations, seconds, converged, reason}``,
     the first being the start point (solved at fixed ω0).
     """
@@ -193,8 +199,30 @@ def continuation(fun_jac_omega, x0, omega0: float, omega_end: float, *, ds: floa
         if res.iterations <= 3:
             ds = min(ds * 1.5, ds_max)
         if (w - omega_end) * direction >= 0:
-            break
+            _land(fx, out, float(omega_end), solver, tol, scale, maxiter)
+            return out
+    out.append(dict(x=x, omega=w, iterations=0, seconds=0.0, converged=False,
+                    reason=f"{MAX_STEPS_REASON} ({max_steps})"))
     return out
+
+
+#: reason of the record that ends a continuation which ran out of steps before ω_end
+MAX_STEPS_REASON = "continuation stopped after max_steps"
+
+
+def _land(fx, out: list, omega_end: float, solver, tol, scale, maxiter) -> None:
+    """Replace the last record of ``out`` (past ω_end) by the solution at ω_end, solved at
+    fixed ω from the point between the last two records; kept as it is if that fails."""
+    last, prev = out[-1], out[-2]
+    if last["omega"] == omega_end or last["omega"] == prev["omega"]:
+        return
+    t0 = time.perf_counter()
+    a = (omega_end - prev["omega"]) / (last["omega"] - prev["omega"])
+    guess = prev["x"] + a * (last["x"] - prev["x"])
+    res = _solve(lambda v: fx(v, omega_end)[0], lambda v: fx(v, omega_end)[:2], guess, solver, tol, scale, maxiter)
+    if res.converged:
+        out[-1] = dict(x=res.x, omega=omega_end, iterations=last["iterations"] + res.iterations,
+                       seconds=last["seconds"] + time.perf_counter() - t0, converged=True, reason=res.reason)
 
 
 def _correct(fx, z, t, ds: float, scales, ds_min: float, solver, tol, scale, maxiter) -> tuple[SolveResult, float]:
