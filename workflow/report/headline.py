@@ -161,11 +161,31 @@ def nh_check(item: str, what: str, stage: dict) -> Check:
     return Check(item, "Nh check", "amber", said)
 
 
+def branch_check(hb: dict) -> Check:
+    """The branch check of the hb summary (``branch_check``: the headline peak, the Nh-check's
+    points and the sweep's last point re-solved from an independent start): green when every point
+    agrees with the swept root, amber when one does not — or when one could not be re-solved, since
+    then which branch the sweep followed is unknown (like the Nh check: a warning, exit status 0);
+    the reason is the engine's own warning line."""
+    bc = hb.get("branch_check") or {}
+    if not bc:
+        return Check("peak", "branch check", "none", "no branch check in this run (hb.branch_check = false)")
+    if bc.get("within_tolerance"):
+        n = len(bc.get("points") or [])
+        return Check("peak", "branch check", "green",
+                     f"{n} point{'s' * (n != 1)} re-solved from an independent start: largest difference "
+                     f"{float(bc['max_rel_diff']):.2e} (tolerance {float(bc['tolerance']):g})")
+    said = next((line for line in hb.get("warnings") or [] if line.startswith("branch check")), None)
+    return Check("peak", "branch check", "amber",
+                 said or f"branch check: {bc.get('reason') or 'the swept root differs from an independent start'}")
+
+
 def reference_checks(hb: dict, run: dict) -> list[Check]:
     """Nh check of the peaks, the variant's error against the reference, and
     the reference's own convergence (2×nit, 1.5×Nh)."""
     out = []
     out.append(nh_check("peak", "peak", hb))
+    out.append(branch_check(hb))
     ref = hb.get("reference")
     if not ref:
         out.append(Check("peak", "reference", "none", "no converged reference in this scene "

@@ -8,6 +8,12 @@ influence vanishes as Nh grows. So the *convergence* measure is the Nh-check
 *one* point — the peak, where the friction damping matters most and slip is
 largest — from the converged state (so it costs a few Newton steps) and
 reports the relative change of the observed first-harmonic amplitude.
+
+Both start from the root they check, so neither can see a *spurious* root — a sweep that
+followed another root of the truncated balance (Den Hartog's oscillator, μN/F0 = 0.5, Nh = 15,
+nit = 128: 10–24 % off Den Hartog where HB's own floor is ≤ 2 %, the Nh-check 0.3 %). The
+*branch check* (:func:`branch_runs`) re-solves the headline peak and the Nh-check's points from
+a start that owes nothing to the sweep (:data:`BRANCH_START`) and compares.
 """
 from __future__ import annotations
 
@@ -171,3 +177,180 @@ def reference(rc, law, static, ref, opt, checks=()) -> dict:
     vals = [out[k] for k in disc if out[k] is not None]
     out["max_rel_change"] = max(vals) if len(vals) == len(disc) else None
     return out
+
+
+# ------------------------------------------------------------------------------------------ branch check
+#: The condition number of the Newton matrix the branch check's tolerance allows for: two solves
+#: of the *same* root, each to ‖R‖/‖F‖ ≤ tol, give amplitudes that differ by about κ(J)·tol
+#: (measured 2e-8 at tol = 1e-8 on the quick sector, 1e-14 on the Coulomb oscillator).
+BRANCH_COND = 1.0e5
+#: The branch check's policy, as summary.json states it.
+BRANCH_START = ("tied (static state, pairs in contact stuck), Newton along the ε-path; where that does not "
+                "reach the swept root, continuation in Nh from Nh = 1 (HBM at Nh = 1 from the tied start, "
+                "its root seeding the variant, each level through the whole cascade) decides")
+
+
+#: How a branch-check row's ``start`` reads in a sentence.
+STARTS = {"tied": "tied start", "nh-continuation": "continuation in Nh from Nh = 1", "sliding": "sliding start"}
+
+
+def branch_tolerance(tol: float) -> float:
+    """Largest relative amplitude difference between the swept root and the independent one
+    still counted as the same root: the Nh-check's :data:`~workflow.engine.penalty.CHECK_TOL`
+    (a difference below it is below what the run already accepts as converged), or
+    :data:`BRANCH_COND` × the solver tolerance if that is larger (the most two solves of one
+    root can differ by)."""
+    return max(penalty.CHECK_TOL, BRANCH_COND * float(tol))
+
+
+def _sliding_guess(prob):
+    """Unknowns of the sliding linear response (μ = 0): pairs in contact in the static state
+    keep u_N = 0, tangential DOFs free; separated pairs free. None where it is singular."""
+    st = prob.static
+    U = np.zeros((prob.nh + 1, prob.nr), dtype=complex)
+    U[0] = st.u.reshape(prob.nr)
+    free = np.ones(prob.nr, bool)
+    free[0::3] = st.state == 0
+    with np.errstate(all="ignore"):
+        for j in range(1, prob.nh + 1):
+            try:
+                U[j, free] = np.linalg.solve(prob.Zr[j][np.ix_(free, free)], prob.Fr[j, free])
+            except np.linalg.LinAlgError:
+                return None
+    return prob.unknowns_from_harmonics(U) if np.all(np.isfinite(U)) else None
+
+
+def independent(rc, f_hz: float, law, static, *, method: str, nh: int, nit: int, opt, start: str,
+                newton_only: bool = False) -> dict:
+    """The point at ``f_hz`` (``method``, ``nh``, ``nit``) solved through the cascade
+    (newton-powell, ``opt``'s tolerance, budget and ε-path) from a start that owes nothing to
+    a sweep: ``"tied"`` (:meth:`~workflow.engine.hb.HBProblem.x0`: the static state, pairs in
+    contact stuck), ``"sliding"`` (the sliding linear response, μ = 0) or ``"nh-continuation"``
+    (HBM at Nh = 1 from the tied start, its root seeding Nh, each level through the cascade).
+    ``newton_only``: Newton along the ε-path alone (its share of the budget,
+    :func:`~workflow.engine.cascade.newton_steps`) instead of the whole cascade — a quick look.
+    Returns {"amplitude" (m, None if not converged), "converged", "iterations", "how"
+    (+ "reason")}."""
+    from workflow.engine.cascade import PointResult, along_eps_path, newton_steps
+    from workflow.engine.hb import HBProblem
+    from workflow.engine.linear import condensed
+
+    c = condensed(rc, 2 * np.pi * f_hz, nh)
+    kw = dict(solver="newton-powell", tol=opt.tol, maxiter=opt.max_iterations, eps_path=opt.eps_path or ())
+
+    def problem(n, m, meth):
+        return HBProblem(c.Zr[: n + 1], c.Fr[: n + 1], law, n, m, meth, max_passes=opt.max_passes, static=static)
+
+    levels = [(nh, nit, method)]
+    if start == "nh-continuation" and nh > 1:
+        # Nh = 1 keeps nit (a collocated variant stays collocated: nit = 3)
+        levels = [(1, 3 if nit == 2 * nh + 1 else nit, "hbm")] + levels
+    its, how, U = 0, [], None
+    for n, m, meth in levels:
+        q = problem(n, m, meth)
+        if U is None:
+            g = _sliding_guess(q) if start == "sliding" else q.x0()
+            if g is None:
+                return {"amplitude": None, "converged": False, "iterations": its, "how": "no start",
+                        "reason": "the sliding linear response is singular here"}
+        else:
+            V = np.zeros((n + 1, q.nr), dtype=complex)
+            V[: U.shape[0]] = U
+            g = q.unknowns_from_harmonics(V)
+        if newton_only:
+            res = along_eps_path(q, g, kw["eps_path"], opt.tol, newton_steps(q, opt.max_iterations))
+            pr = PointResult(res, int(res.iterations), "newton")
+        else:
+            pr = solve_point(q, [g], **kw)
+        its += pr.iterations
+        how.append(f"Nh={n}: {pr.how}" if len(levels) > 1 else pr.how)
+        if not pr.converged:
+            return {"amplitude": None, "converged": False, "iterations": its, "how": ", ".join(how),
+                    "reason": pr.result.reason}
+        U = q.harmonics(pr.result.x)
+    return {"amplitude": observed(rc, c.omega, U)[0], "converged": True, "iterations": its, "how": ", ".join(how)}
+
+
+def branch_point(rc, law, static, point: dict, opt, tolerance: float) -> dict:
+    """One point of the branch check: ``point`` {"role", "label", "method", "nh", "nit",
+    "frequency_hz", "swept_m"} solved by Newton from the tied start; if that does not reach the
+    swept amplitude within ``tolerance``, by continuation in Nh from Nh = 1 through the whole
+    cascade, which then decides (the tied start's root, if another, is kept as ``tied_m``). The row: the point's fields plus
+    "independent_m", "rel_diff" (None if no independent start converged, with "reason"),
+    "start", "how", "iterations", "seconds"."""
+    import time
+
+    t0 = time.perf_counter()
+    f, swept = float(point["frequency_hz"]), float(point["swept_m"])
+    kw = dict(method=point["method"], nh=int(point["nh"]), nit=int(point["nit"]), opt=opt)
+    row = {k: point[k] for k in ("role", "label", "frequency_hz")} | {"swept_m": swept}
+    tries, its = [], 0
+    for start in ("tied", "nh-continuation"):
+        try:
+            got = independent(rc, f, law, static, start=start, newton_only=start == "tied", **kw)
+        except BundleError as exc:  # a cyclic model reduced for fewer harmonics than asked
+            got = {"amplitude": None, "converged": False, "iterations": 0, "how": "", "reason": str(exc)}
+        its += int(got["iterations"])
+        tries.append((start, got))
+        rel = _rel(got["amplitude"], swept)
+        if rel is not None and rel <= tolerance:
+            break
+    ok = [(s, g) for s, g in tries if g["converged"]]
+    start, got = ok[-1] if ok else tries[-1]
+    row.update(independent_m=got["amplitude"], rel_diff=_rel(got["amplitude"], swept), start=start,
+               how=got["how"], iterations=its, seconds=round(time.perf_counter() - t0, 4))
+    other = [g["amplitude"] for s, g in ok if s != start]
+    if other:
+        row["tied_m"] = other[0]
+    if not ok:
+        row["reason"] = "; ".join(f"{s}: {g.get('reason', 'not converged')}" for s, g in tries)
+    return row
+
+
+def branch_runs(rc, law, static, points: list, opt) -> dict:
+    """The branch check (:data:`BRANCH_START`): each of ``points`` (:func:`branch_point`)
+    re-solved from an independent start and compared with the swept root.
+
+    Returns {"max_rel_diff", "frequency_hz" (of the largest), "tolerance"
+    (:func:`branch_tolerance`), "solver_tol", "within_tolerance", "start", "points": [...],
+    "seconds"}. ``within_tolerance``: False if any point disagrees; None — with a ``reason`` —
+    if nothing could be checked or a point could not be re-solved; True only if every point
+    was re-solved and agrees."""
+    import time
+
+    t0 = time.perf_counter()
+    tolerance = branch_tolerance(opt.tol)
+    rows = [branch_point(rc, law, static, p, opt, tolerance) for p in points]
+    vals = [(r["rel_diff"], r["frequency_hz"]) for r in rows if r["rel_diff"] is not None]
+    worst = max(vals) if vals else (None, None)
+    out = {"max_rel_diff": worst[0], "frequency_hz": worst[1], "tolerance": tolerance, "solver_tol": float(opt.tol),
+           "start": BRANCH_START, "points": rows}
+    if worst[0] is not None and worst[0] > tolerance:
+        out["within_tolerance"] = False
+    elif not rows:
+        out.update(within_tolerance=None, reason="no converged point to check")
+    elif len(vals) < len(rows):
+        why = next(r["reason"] for r in rows if r["rel_diff"] is None)
+        out.update(within_tolerance=None, reason=f"{len(rows) - len(vals)} of {len(rows)} points could not be "
+                                                 f"re-solved from an independent start ({why})")
+    else:
+        out["within_tolerance"] = True
+    out["seconds"] = round(time.perf_counter() - t0, 4)
+    return out
+
+
+def branch_line(check: dict) -> str | None:
+    """The warning line of a branch check that did not pass (None if it passed or did not
+    run), naming both amplitudes of the worst point."""
+    if not check or check.get("within_tolerance"):
+        return None
+    if check.get("within_tolerance") is None:
+        return (f"branch check: {check.get('reason', 'could not run')}; whether the sweep followed the right "
+                "branch is unknown")
+    r = max((p for p in check["points"] if p["rel_diff"] is not None), key=lambda p: p["rel_diff"])
+    return (f"branch check: {r['label']} at {r['frequency_hz']:.6g} Hz ({r['role']}): swept branch "
+            f"{r['swept_m']:.3e} m, independent start ({STARTS.get(r['start'], r['start'])}) "
+            f"{r['independent_m']:.3e} m — "
+            f"{r['rel_diff']:.2e} apart (tolerance {check['tolerance']:g}): the truncated balance has two roots "
+            "here and the sweep may have followed a spurious one; raise hb.harmonics (and hb.time_samples) and see "
+            "which answer the results approach, or check the point in the time domain")

@@ -89,14 +89,35 @@ def static_state(Zr, Fr, law, max_passes: int = 20):
     def solve(lw, u0=None):
         return HBProblem(Zr[:1], Fr[:1], lw, 0, 1, "hbm", max_passes=max_passes).static_state(u0=u0)
 
-    st = solve(law)
-    if not st.result.converged:
-        u = None
-        for d in range(EPS_DECADES, -1, -1):
-            st = solve(penalty.scaled(law, 10.0 ** -d) if d else law, u)
-            if not st.result.converged:
-                break
-            u = st.u
+    def attempt(u0=None):
+        st = solve(law, u0)
+        if not st.result.converged:
+            u = u0
+            for d in range(EPS_DECADES, -1, -1):
+                st = solve(penalty.scaled(law, 10.0 ** -d) if d else law, u)
+                if not st.result.converged:
+                    break
+                u = st.u
+        return st
+
+    st = attempt()
+    f0 = float(np.linalg.norm(Fr[0]))
+    if st.result.converged and not np.any(st.state != 0) and f0 > 0:
+        # Every pair open under a load is no equilibrium of a blade held only by its flanks: the
+        # open structure floats, Zr[0] is singular up to round-off there, and Newton's "solution"
+        # throws the blade through the disk (measured: contact.gap = 20 µm on the quick sector,
+        # u_N ≈ +0.2 m, Zr[0]'s smallest eigenvalue −890 N/m of 8.5e8). Start again with every
+        # gap just closed (g = 0), where the contact stiffness holds it.
+        closed = attempt(-law.offset())
+        if closed.result.converged and np.any(closed.state != 0):
+            return closed
+        raise SolverError(
+            f"static contact state: every pair separated under a static load of ‖F_0‖ = {f0:.3g} N — no bounded "
+            f"equilibrium: the blade touches the disk only at the flanks, so with every pair open nothing carries "
+            f"that load (largest |u_r| of the open 'solution' {float(np.abs(st.u).max()):.3g} m), and no state with "
+            "the gaps closed converged either. The preload must press the blade into its slot: check its direction "
+            "(set rotation.speed_rpm (centrifugal) or excitation.static_force) and the initial gaps (up to "
+            f"{float(np.max(law.gap)):.3g} m: contact.gap plus the bundle's gap)")
     if not st.result.converged or not np.any(st.state != 0):
         raise SolverError(
             f"static contact state: {'no equilibrium' if not st.result.converged else 'every pair separated'} "
@@ -126,7 +147,9 @@ class FRFOptions:
     ``pseudo-time`` solver; ``refine_peak``: refine the peak of the most
     converged grid sweep of a band between its grid points, to ``peak_xtol``
     × its frequency (:attr:`FRFStudy.peak`; not done for explicit
-    ``freqs_hz``)."""
+    ``freqs_hz``); ``branch_check``: re-solve the headline peak, the Nh-check's points and the
+    headline sweep's last point from an independent start (:func:`_branch_points`,
+    :func:`workflow.engine.studies.epscheck.branch_runs`)."""
 
     solver: str = "newton-powell"
     tol: float = 1e-8
@@ -142,6 +165,7 @@ class FRFOptions:
     refine_peak: bool = True
     peak_xtol: float = PEAK_XTOL
     nh_check: bool = True
+    branch_check: bool = True
 
 
 @dataclass
@@ -156,7 +180,9 @@ class FRFStudy:
     ``peak``: the friction-damped peak of the most converged sweep (the
     reference, else the variant with the most harmonics, then time samples)
     refined between its grid points — {"hz", "amplitude_m", "run",
-    "evaluations", "xtol_hz", "grid_hz", "grid_amplitude_m"} — or None."""
+    "evaluations", "xtol_hz", "grid_hz", "grid_amplitude_m"} — or None; ``branch_check``: that peak,
+    the Nh-check's points and the headline sweep's last point re-solved from an independent start
+    (:func:`workflow.engine.studies.epscheck.branch_runs`)."""
 
     freqs_hz: np.ndarray
     band_hz: tuple
@@ -175,6 +201,7 @@ class FRFStudy:
     reference_convergence: dict | None = None
     seconds: float = 0.0
     peak: dict | None = None
+    branch_check: dict = field(default_factory=dict)
 
     def unconverged(self) -> list[str]:
         """One line per sweep with points whose solver gave up: where, and why."""
@@ -204,6 +231,9 @@ class FRFStudy:
             worst = max((r for r in nc["runs"] if r["rel_change"] is not None), key=lambda r: r["rel_change"])
             out.append(f"Nh-check: the peak of {worst['label']} moves by {nc['max_rel_change']:.2e} "
                        f"(> {penalty.CHECK_TOL:g}) at Nh = {worst['nh']}, nit = {worst['nit']}; raise hb.harmonics")
+        line = epscheck.branch_line(self.branch_check)
+        if line:
+            out.append(line)
         rc = self.reference_convergence or {}
         if rc.get("max_rel_change") is not None and rc["max_rel_change"] > penalty.CHECK_TOL:
             out.append(f"reference {rc.get('variant')}: its peak moves by {rc['max_rel_change']:.2e} under "
@@ -342,6 +372,10 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
         if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:
             study.peak = _refined_peak(rc, law, static, ref if ref is not None else _most_harmonics(runs), opt,
                                        reference=ref is not None)
+        if opt.branch_check:
+            study.branch_check = epscheck.branch_runs(rc, law, static, _branch_points(study, opt), opt)
+            if log is not None:
+                log.info(_branch_log(study.branch_check))
     study.seconds = time.perf_counter() - t0
     return study
 
@@ -370,6 +404,50 @@ def _check(study: FRFStudy, rc, opt, log) -> None:
     if ref is not None and opt.reference_check and opt.sweep == "grid":
         study.reference_convergence = epscheck.reference(rc, law, static, ref, opt,
                                                          checks=[c for c in (study.eps_check, study.nh_check) if c])
+
+
+def _branch_points(study: FRFStudy, opt) -> list[dict]:
+    """The points the branch check re-solves, once each: the headline peak (refined, else the
+    headline sweep's grid peak), each point the Nh-check re-solved (each run's grid peak, or the
+    reference's), and the headline sweep's last converged point — the branch the upward sweep
+    ends on: a sweep that stepped onto a spurious root stays on it (Den Hartog's oscillator,
+    Nh = 25, nit = 512, μN/F0 = 0.2: from β = 1.06 to the band's end, 1 % off the independent
+    root, while the peak at β = 0.94 agrees)."""
+    ref = study.reference
+    head = ref if ref is not None else _most_harmonics(study.runs)
+    checked = ([ref] if ref is not None else study.runs) if opt.nh_check else []
+    pts = []
+
+    def add(role, sweep, f_hz, amp):
+        v = sweep.variant
+        if amp is None or not np.isfinite(amp) or any(p["label"] == v.label and p["frequency_hz"] == f_hz for p in pts):
+            return
+        pts.append({"role": role, "label": v.label, "method": v.method, "nh": v.nh, "nit": v.nit,
+                    "frequency_hz": float(f_hz), "swept_m": float(amp)})
+
+    pk = study.peak
+    if pk is not None and head is not None:
+        add("headline peak (refined)", head, pk["hz"], pk["amplitude_m"])
+    for r in ([head] if head is not None and pk is None else []) + checked:
+        i = epscheck._peak_index(r)
+        if i is not None:
+            role = "grid peak (Nh-check)" if any(r is c for c in checked) else "headline grid peak"
+            add(role, r, r.freqs_hz[i], r.amplitude[i])
+    ok = np.flatnonzero(head.converged) if head is not None else []
+    if len(ok) > 1:
+        add("last point of the sweep", head, head.freqs_hz[ok[-1]], head.amplitude[ok[-1]])
+    return pts
+
+
+def _branch_log(check: dict) -> str:
+    """The log line of the branch check."""
+    line = epscheck.branch_line(check)
+    if line is not None:
+        return line
+    n = len(check["points"])
+    return (f"branch check (independent start, {n} point{'s' * (n != 1)}, {check['seconds']:.2f} s): "
+            f"{check['max_rel_diff']:.2e} largest difference from the swept roots, within the tolerance "
+            f"{check['tolerance']:g}")
 
 
 def _most_harmonics(runs):
