@@ -132,6 +132,10 @@ class HB:
                                          "where that disagrees) and warn if the swept root differs by more than "
                                          "1e-3: a sweep can follow a spurious root of the truncated balance that "
                                          "the Nh- and ε-checks, which start from it, cannot see")
+    time_check: bool = param(True, "", "integrate the headline peak in physical time from its HB state (rigid "
+                                       "Coulomb contact, the reduced model) and fail the run (exit 3) if it is "
+                                       "not a periodic orbit within the check's tolerance: a spurious HB root is "
+                                       "not (~12 % of the FRF study's time)")
 
     def check(self):
         for nh in self.harmonics:

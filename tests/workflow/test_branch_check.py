@@ -53,7 +53,7 @@ def test_branch_check_flags_the_spurious_branch_of_den_hartogs_oscillator():
     assert pt["swept_m"] == pytest.approx(study.runs[0].amplitude[-1]) and abs(pt["swept_m"] / exact_m - 1) > 0.15
     assert abs(pt["independent_m"] / exact_m - 1) < 0.03
     # a warning naming both amplitudes and the advice
-    (line,) = [w for w in study.warnings() if w.startswith("branch check")]
+    (line,) = [w for w in study.unconverged() if w.startswith("branch check")]
     assert f"{pt['swept_m']:.3e} m" in line and f"{pt['independent_m']:.3e} m" in line
     assert "hb.harmonics" in line and "time domain" in line
 
@@ -67,7 +67,7 @@ def test_branch_check_passes_where_the_sweep_is_on_the_independent_root(ratio, n
     (pt,) = bc["points"]
     assert pt["start"] in ("tied", "nh-continuation") and "tied_m" not in pt
     assert abs(pt["swept_m"] / den_hartog(ratio, 0.8333) - 1) < 0.025
-    assert not [w for w in study.warnings() if w.startswith("branch check")]
+    assert not [w for w in study.warnings() + study.unconverged() if w.startswith("branch check")]
 
 
 def test_the_tied_start_confirms_a_damped_jenkins_sweep():
@@ -106,8 +106,8 @@ def test_a_branch_check_that_cannot_run_is_never_true(monkeypatch):
     assert bc["within_tolerance"] is None and bc["max_rel_diff"] is None
     assert "could not be re-solved" in bc["reason"] and "stalled" in bc["reason"]
     assert bc["points"][0]["rel_diff"] is None and bc["points"][0]["start"] == "nh-continuation"
-    (line,) = [w for w in study.warnings() if w.startswith("branch check")]
-    assert "unknown" in line
+    (line,) = [w for w in study.warnings() if w.startswith("branch check")]        # could not run: a warning
+    assert "unknown" in line and not [u for u in study.unconverged() if u.startswith("branch check")]
     # no point to check at all: None as well
     empty = epscheck.branch_runs(None, None, None, [], engine.FRFOptions())
     assert empty["within_tolerance"] is None and empty["reason"]
@@ -120,14 +120,14 @@ def test_headline_colours_of_the_branch_check():
     assert c.status == "green" and "2 points" in c.reason and "3.00e-09" in c.reason
     line = "branch check: HBM-15 nit=128 at 0.132629 Hz (grid peak): swept branch 2.207e+00 m, …"
     bad = {"branch_check": {"within_tolerance": False, "max_rel_diff": 0.16, "tolerance": 1e-3, "points": []},
-           "warnings": ["Nh-check: …", line]}
+           "unconverged": ["Nh-check: …", line]}
     c = hl.branch_check(bad)
-    assert c.status == "amber" and c.reason == line
+    assert c.status == "red" and c.reason == line
     unknown = {"branch_check": {"within_tolerance": None, "reason": "1 of 1 points could not be re-solved"}}
     assert hl.branch_check(unknown).status == "amber"
 
 
-def test_hb_stage_reports_the_spurious_branch_amber(tmp_path: Path, monkeypatch):
+def test_hb_stage_reports_the_spurious_branch_red(tmp_path: Path, monkeypatch):
     """Through the stage (scene key, summary.json's hb.branch_check, the headline) on the spurious
     case; the figures, which this test does not read, are not drawn."""
     from workflow.report import frf as frf_report
@@ -149,10 +149,11 @@ def test_hb_stage_reports_the_spurious_branch_amber(tmp_path: Path, monkeypatch)
     summary = stage.run(scene, {"reduced": src}, out, RunLog(file=out / "stage.log", quiet=True))
     bc = summary["branch_check"]
     assert bc["within_tolerance"] is False and bc["points"][0]["role"] == "headline grid peak"
-    assert any(w.startswith("branch check: ") for w in summary["warnings"]) and not summary["unconverged"]
+    # a spurious root is not a result: unconverged (exit 3), red
+    assert any(w.startswith("branch check: ") for w in summary["unconverged"])
     _, checks = hl.hb_headline(summary, out, None)
     (c,) = [c for c in checks if c.name == "branch check"]
-    assert c.status == "amber" and "swept branch" in c.reason and hl.worst(checks) == "amber"
+    assert c.status == "red" and "swept branch" in c.reason and hl.worst(checks) == "red"
     assert "branch check: " in (out / "stage.log").read_text()
     # hb.branch_check = false reaches the engine's options
     scene["hb"] = HB(**lean, branch_check=False)

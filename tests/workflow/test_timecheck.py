@@ -187,3 +187,29 @@ def test_a_check_that_cannot_run_says_why():
     Ur, _ = hb_state(model, law, 1.25, 3, 32)
     tc = time_check(model, law, 1.25, Ur, options=TimeCheckOptions(budget_seconds=1e-9))
     assert tc.within_tolerance is None and "budget" in tc.reason and tc.periods >= 1
+
+
+def test_the_frf_study_checks_its_peak_in_time_and_a_failure_is_not_a_result(monkeypatch):
+    """engine.frf runs the check on its refined headline peak by default (FRFStudy.time_check);
+    a peak that is not a periodic orbit is listed by unconverged() (exit 3), never a warning."""
+    from workflow.engine import timecheck
+
+    model = jenkins_oscillator()
+    law = engine.contact_law(model, mu=0.5)
+    study = engine.frf(model, law, [engine.Variant("hbm", 5, 64)], band_hz=(0.18, 0.24), points=7)
+    tc = study.time_check
+    assert tc["within_tolerance"] is True and tc["frequency_hz"] == pytest.approx(study.peak["hz"])
+    assert not [u for u in study.unconverged() + study.warnings() if u.startswith("time check")]
+
+    real = timecheck.time_check
+
+    def shifted(model, law, omega, Ur, **kw):         # the same peak state, 20 % too large
+        return real(model, law, omega, 1.2 * np.asarray(Ur), **kw)
+
+    monkeypatch.setattr(timecheck, "time_check", shifted)
+    study = engine.frf(model, law, [engine.Variant("hbm", 5, 64)], band_hz=(0.18, 0.24), points=7)
+    assert study.time_check["within_tolerance"] is False
+    (line,) = [u for u in study.unconverged() if u.startswith("time check")]
+    assert "not a periodic orbit" in line
+    assert engine.frf(model, law, [engine.Variant("hbm", 5, 64)], band_hz=(0.18, 0.24), points=7,
+                      options=engine.FRFOptions(time_check=False)).time_check == {}

@@ -164,20 +164,35 @@ def nh_check(item: str, what: str, stage: dict) -> Check:
 def branch_check(hb: dict) -> Check:
     """The branch check of the hb summary (``branch_check``: the headline peak, the Nh-check's
     points and the sweep's last point re-solved from an independent start): green when every point
-    agrees with the swept root, amber when one does not — or when one could not be re-solved, since
-    then which branch the sweep followed is unknown (like the Nh check: a warning, exit status 0);
-    the reason is the engine's own warning line."""
-    bc = hb.get("branch_check") or {}
-    if not bc:
-        return Check("peak", "branch check", "none", "no branch check in this run (hb.branch_check = false)")
-    if bc.get("within_tolerance"):
-        n = len(bc.get("points") or [])
-        return Check("peak", "branch check", "green",
-                     f"{n} point{'s' * (n != 1)} re-solved from an independent start: largest difference "
-                     f"{float(bc['max_rel_diff']):.2e} (tolerance {float(bc['tolerance']):g})")
-    said = next((line for line in hb.get("warnings") or [] if line.startswith("branch check")), None)
-    return Check("peak", "branch check", "amber",
-                 said or f"branch check: {bc.get('reason') or 'the swept root differs from an independent start'}")
+    agrees with the swept root; red when one does not (the answer may be a spurious root: the run
+    lists it as unconverged and exits 3); amber when one could not be re-solved, since then which
+    branch the sweep followed is unknown. The reason is the engine's own line."""
+    return _check_of(hb, "branch_check", "branch check", "hb.branch_check", lambda c: (
+        f"{len(c.get('points') or [])} point{'s' * (len(c.get('points') or []) != 1)} re-solved from an "
+        f"independent start: largest difference {float(c['max_rel_diff']):.2e} (tolerance "
+        f"{float(c['tolerance']):g})"))
+
+
+def time_check(hb: dict) -> Check:
+    """The time-domain check of the hb summary (``time_check``: the headline peak integrated in
+    physical time from its HB state): green when it is a periodic orbit to the check's tolerance,
+    red when not (unconverged, exit 3), amber when it could not run."""
+    return _check_of(hb, "time_check", "time check", "hb.time_check", lambda c: (
+        f"the peak integrated in time from its HB state: first harmonic {float(c['max_rel_diff']):.2e} from the "
+        f"HB, periodicity defect {float(c.get('periodicity_defect') or 0.0):.1e} (tolerance "
+        f"{float(c['tolerance']):.2e})"))
+
+
+def _check_of(hb: dict, key: str, name: str, scene_key: str, passed) -> Check:
+    c = hb.get(key) or {}
+    if not c:
+        return Check("peak", name, "none", f"no {name} in this run ({scene_key} = false)")
+    if c.get("within_tolerance"):
+        return Check("peak", name, "green", passed(c))
+    failed = c.get("within_tolerance") is False
+    lines = (hb.get("unconverged") if failed else hb.get("warnings")) or []
+    said = next((line for line in lines if line.startswith(name)), None)
+    return Check("peak", name, "red" if failed else "amber", said or f"{name}: {c.get('reason') or 'failed'}")
 
 
 def reference_checks(hb: dict, run: dict) -> list[Check]:
@@ -186,6 +201,7 @@ def reference_checks(hb: dict, run: dict) -> list[Check]:
     out = []
     out.append(nh_check("peak", "peak", hb))
     out.append(branch_check(hb))
+    out.append(time_check(hb))
     ref = hb.get("reference")
     if not ref:
         out.append(Check("peak", "reference", "none", "no converged reference in this scene "

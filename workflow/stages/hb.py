@@ -42,7 +42,8 @@ def options(scene):
     return FRFOptions(solver=hb.solver, tol=hb.tol, max_iterations=hb.max_iterations, max_passes=ct.max_passes,
                       sweep=sw.method, max_steps=sw.max_steps, reference=ref, eps_check_factor=ct.eps_check,
                       reference_check=hb.reference_check, refine_peak=hb.refine_peak, nh_check=hb.nh_check,
-                      branch_check=hb.branch_check, pseudo=pseudo_options(pt)), variants(hb)
+                      branch_check=hb.branch_check, time_check=hb.time_check,
+                      pseudo=pseudo_options(pt)), variants(hb)
 
 
 def pseudo_options(pt) -> dict:
@@ -150,6 +151,7 @@ def summarise(study, scene) -> dict:
         "eps_check": study.eps_check,
         "nh_check": study.nh_check,
         "branch_check": study.branch_check,
+        "time_check": {k: v for k, v in study.time_check.items() if k != "log_line"},
         "mu": [float(m) for m in study.law.mu] if np.ptp(study.law.mu) > 0 else float(study.law.mu[0]),
         "excitation_amplitude_N": None if "excitation" in getattr(scene, "unused", ()) else
         float(scene["excitation"].amplitude),

@@ -149,7 +149,9 @@ class FRFOptions:
     × its frequency (:attr:`FRFStudy.peak`; not done for explicit
     ``freqs_hz``); ``branch_check``: re-solve the headline peak, the Nh-check's points and the
     headline sweep's last point from an independent start (:func:`_branch_points`,
-    :func:`workflow.engine.studies.epscheck.branch_runs`)."""
+    :func:`workflow.engine.studies.epscheck.branch_runs`); ``time_check``: the headline peak
+    integrated in physical time from its HB state (:func:`workflow.engine.timecheck.time_check`:
+    is it a periodic orbit of the time-domain model?)."""
 
     solver: str = "newton-powell"
     tol: float = 1e-8
@@ -166,6 +168,7 @@ class FRFOptions:
     peak_xtol: float = PEAK_XTOL
     nh_check: bool = True
     branch_check: bool = True
+    time_check: bool = True
 
 
 @dataclass
@@ -182,7 +185,8 @@ class FRFStudy:
     refined between its grid points — {"hz", "amplitude_m", "run",
     "evaluations", "xtol_hz", "grid_hz", "grid_amplitude_m"} — or None; ``branch_check``: that peak,
     the Nh-check's points and the headline sweep's last point re-solved from an independent start
-    (:func:`workflow.engine.studies.epscheck.branch_runs`)."""
+    (:func:`workflow.engine.studies.epscheck.branch_runs`); ``time_check``: that peak integrated in
+    physical time from its HB state (:meth:`workflow.engine.timecheck.TimeCheck.as_dict`)."""
 
     freqs_hz: np.ndarray
     band_hz: tuple
@@ -202,10 +206,14 @@ class FRFStudy:
     seconds: float = 0.0
     peak: dict | None = None
     branch_check: dict = field(default_factory=dict)
+    time_check: dict = field(default_factory=dict)
 
     def unconverged(self) -> list[str]:
-        """One line per sweep with points whose solver gave up: where, and why."""
-        out = []
+        """One line per sweep with points whose solver gave up: where, and why; and one per
+        check that saw a converged answer that is not the model's (another branch from an
+        independent start, not a periodic orbit in time): those are not results either."""
+        out = [line(c) for c, line in ((self.branch_check, epscheck.branch_line), (self.time_check, _time_line))
+               if c and c.get("within_tolerance") is False]
         for r in self.runs + ([self.reference] if self.reference is not None else []):
             bad = np.flatnonzero(~np.asarray(r.converged, bool))
             if bad.size:
@@ -231,9 +239,10 @@ class FRFStudy:
             worst = max((r for r in nc["runs"] if r["rel_change"] is not None), key=lambda r: r["rel_change"])
             out.append(f"Nh-check: the peak of {worst['label']} moves by {nc['max_rel_change']:.2e} "
                        f"(> {penalty.CHECK_TOL:g}) at Nh = {worst['nh']}, nit = {worst['nit']}; raise hb.harmonics")
-        line = epscheck.branch_line(self.branch_check)
-        if line:
-            out.append(line)
+        # a check that failed is in unconverged(); one that could not run is a warning
+        for c, line in ((self.branch_check, epscheck.branch_line), (self.time_check, _time_line)):
+            if c and c.get("within_tolerance") is None:
+                out.append(line(c))
         rc = self.reference_convergence or {}
         if rc.get("max_rel_change") is not None and rc["max_rel_change"] > penalty.CHECK_TOL:
             out.append(f"reference {rc.get('variant')}: its peak moves by {rc['max_rel_change']:.2e} under "
@@ -369,13 +378,18 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
                          reference=ref, tied=tied, sliding=sliding, static=static, law=law,
                          condense_seconds=t_cond, condensation=condensation(rc))
         _check(study, rc, opt, log)
+        head = ref if ref is not None else _most_harmonics(runs)
+        Ur_peak = None
         if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:
-            study.peak = _refined_peak(rc, law, static, ref if ref is not None else _most_harmonics(runs), opt,
-                                       reference=ref is not None)
+            study.peak, Ur_peak = _refined_peak(rc, law, static, head, opt, reference=ref is not None)
         if opt.branch_check:
             study.branch_check = epscheck.branch_runs(rc, law, static, _branch_points(study, opt), opt)
             if log is not None:
                 log.info(_branch_log(study.branch_check))
+        if opt.time_check:
+            study.time_check = _time_check(model, rc, law, study, head, Ur_peak)
+            if log is not None and study.time_check:
+                log.info(_time_line(study.time_check) or study.time_check["log_line"])
     study.seconds = time.perf_counter() - t0
     return study
 
@@ -460,14 +474,45 @@ def _refined_peak(rc, law, static, sweep, opt, reference: bool) -> dict | None:
     from workflow.engine.studies.peak import refine_peak
 
     if sweep is None or not sweep.converged.any():
-        return None
+        return None, None
     i = int(np.argmax(np.where(sweep.converged, sweep.amplitude, -np.inf)))
     xtol = opt.peak_xtol * float(sweep.freqs_hz[i])
     solver = dict(solver="newton-powell") if reference else dict(solver=opt.solver, pseudo=opt.pseudo)
     pk = refine_peak(rc, sweep, law, static, sweep.variant, xtol, tol=opt.tol, maxiter=opt.max_iterations,
                      max_passes=opt.max_passes, eps_path=opt.eps_path, **solver)
-    return {"hz": pk.hz, "amplitude_m": pk.amplitude, "run": sweep.variant.label, "evaluations": pk.evaluations,
-            "xtol_hz": xtol, "grid_hz": float(sweep.freqs_hz[i]), "grid_amplitude_m": float(sweep.amplitude[i])}
+    return ({"hz": pk.hz, "amplitude_m": pk.amplitude, "run": sweep.variant.label, "evaluations": pk.evaluations,
+             "xtol_hz": xtol, "grid_hz": float(sweep.freqs_hz[i]), "grid_amplitude_m": float(sweep.amplitude[i])},
+            pk.Ur)
+
+
+def _time_check(model, rc, law, study: FRFStudy, head, Ur_peak) -> dict:
+    """:attr:`FRFStudy.time_check`: the headline peak (refined, else the headline sweep's grid
+    peak) integrated in physical time from its HB state, charged with that sweep's Nh-check change."""
+    from workflow.engine.timecheck import time_check
+
+    if study.peak is not None and Ur_peak is not None:
+        hz, Ur = study.peak["hz"], Ur_peak
+    else:
+        i = epscheck._peak_index(head) if head is not None else None
+        if i is None:
+            return {"within_tolerance": None, "reason": "no converged point to check"}
+        hz, Ur = float(head.freqs_hz[i]), head.Ur[i]
+    label = head.variant.label
+    change = next((r.get("rel_change") for r in (study.nh_check or {}).get("runs", []) if r.get("label") == label),
+                  None)
+    tc = time_check(model, law, 2.0 * np.pi * hz, Ur, nh_change=change, rc=rc)
+    return {**tc.as_dict(), "run": label, "log_line": tc.log_line()}
+
+
+def _time_line(check: dict) -> str | None:
+    """The warning of a time-domain check that failed or could not run; None when it passed."""
+    if not check or check.get("within_tolerance"):
+        return None
+    if check.get("within_tolerance") is None:
+        return f"time check: could not run ({check.get('reason')})"
+    return (f"time check: the HB peak of {check.get('run')} at {check['frequency_hz']:.2f} Hz is not a periodic "
+            f"orbit of the time-domain model: first harmonic {check['max_rel_diff']:.2e} from the HB "
+            f"(> {check['tolerance']:.2e}) — {check.get('verdict', '')}; raise hb.harmonics, check the branch")
 
 
 def _warm_up(c, law, static):
