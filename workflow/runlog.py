@@ -98,6 +98,11 @@ class RunLog:
             w = None  # a cost model that does not fit the items: fall back on counting them
         label = label or "progress"
         t0 = time.monotonic()
+        if total == 1:
+            # one item says nothing a bar could add (its own result line follows): run.log only
+            yield from iterable
+            self._file(f"{label}: done, 1 item in {time.monotonic() - t0:.1f} s")
+            return
         last_draw, last_decile, n, done = 0.0, 0, 0, 0.0
         tty = self.tty
         for n, item in enumerate(iterable, 1):
