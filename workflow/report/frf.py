@@ -35,7 +35,8 @@ def write_outputs(out: Path, study) -> dict:
     files.update(_cpu_table(out, runs))
     if ref is not None:
         files["error_vs_time"] = _error_csv(out / "error_vs_time.csv", runs, study.reference_convergence)
-    files.update(_figures(out, runs, ref, study.freqs_hz, study.tied, study.sliding))
+    files.update(_figures(out, runs, ref, study.freqs_hz, study.tied, study.sliding,
+                          uncertainty=(study.reference_convergence or {}).get("max_rel_change")))
     return files
 
 
@@ -128,8 +129,9 @@ def _layout(fig) -> None:
     fig.subplots_adjust(left=0.13, right=0.97, bottom=0.105, top=0.93)
 
 
-def _figures(out: Path, runs, ref, freqs, tied, slide) -> dict:
-    """The FRF figures (PNG); {name: file}."""
+def _figures(out: Path, runs, ref, freqs, tied, slide, uncertainty=None) -> dict:
+    """The FRF figures (PNG); {name: file}. ``uncertainty``: the reference's own change under
+    its nit/Nh check (drawn on the error figure)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -157,7 +159,8 @@ def _figures(out: Path, runs, ref, freqs, tied, slide) -> dict:
     _iterations_figure(plt, save, runs)
     _tangential_figure(plt, save, runs, ref)
     if ref is not None:
-        _error_figure(plt, save, runs, ref)
+        fig, _ = error_figure(runs, ref.variant.label, uncertainty)
+        save(fig, "error_vs_time.png")
     return files
 
 
@@ -236,21 +239,64 @@ def _tangential_figure(plt, save, runs, ref):
         save(fig, "tangential.png")
 
 
-def _error_figure(plt, save, runs, ref):
-    """FRF error against run time (each variant against the reference)."""
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    marker = {"hbm": "o", "tcm": "s", "hdhb": "^"}
-    for r in runs:
-        if r.error is None:
-            continue
-        ax.loglog(max(r.total_seconds, 1e-4), max(r.error, 1e-12), marker.get(r.variant.method, "o"),
-                  label=r.variant.label)
-        ax.annotate(f"{r.variant.method.upper()}-{r.variant.nh}/{r.variant.nit_label}",
-                    (max(r.total_seconds, 1e-4), max(r.error, 1e-12)), fontsize=6, xytext=(3, 3),
-                    textcoords="offset points")
+#: colour and marker of each HB formulation on the error figure
+_COLOR = {"hbm": "C0", "tcm": "C1", "hdhb": "C2"}
+_MARKER = {"hbm": "o", "tcm": "s", "hdhb": "^"}
+#: the saving dpi (:func:`_figures`): the error figure is drawn at it, so that its labels are placed
+#: in the pixels they will have
+DPI = 110
+
+
+def error_figure(runs, ref_label: str, uncertainty: float | None = None):
+    """FRF error against run time, each variant against the reference: (figure, label Texts).
+
+    Log–log; colour and marker say the formulation, a filled marker a fixed nit and an open
+    one nit = 2Nh+1; each point labelled ``METHOD-Nh/nit`` by :func:`workflow.report.labels.place_labels`
+    (no two labels overlap, none leaves the axes; far ones get a leader line). ``uncertainty``:
+    the reference's own change under its nit/Nh check, a dashed line — errors below it are
+    not resolved."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    from workflow.report.labels import place_labels
+
+    fig, ax = plt.subplots(figsize=(7, 4.5), dpi=DPI)
+    pts = [(max(r.total_seconds, 1e-4), max(r.error, 1e-12), r) for r in runs
+           if r.error is not None and math.isfinite(r.error) and math.isfinite(r.total_seconds)]
+    for t, e, r in pts:
+        m, c = r.variant.method, _COLOR.get(r.variant.method, "C3")
+        ax.plot([t], [e], _MARKER.get(m, "o"), ms=6, color=c, mfc="white" if r.variant.collocated else c,
+                mew=1.3, zorder=3)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    handles = [Line2D([], [], ls="", marker=_MARKER[m], color=_COLOR[m], label=m.upper())
+               for m in _MARKER if any(r.variant.method == m for *_, r in pts)]
+    handles += [Line2D([], [], ls="", marker="o", color="0.3", label="fixed nit"),
+                Line2D([], [], ls="", marker="o", color="0.3", mfc="white", label="nit = 2Nh+1")]
+    ys = [e for _, e, _ in pts]
+    if uncertainty:
+        ax.axhline(uncertainty, color="0.4", ls="--", lw=1, zorder=1)
+        handles.append(Line2D([], [], color="0.4", ls="--", lw=1,
+                              label=f"reference's own uncertainty {uncertainty:.1e}"))
+        ys.append(uncertainty)
+    if pts:   # limits fixed before the labels are placed: room around the points for them
+        xs = [t for t, _, _ in pts]
+        ax.set_xlim(min(xs) / 1.7, max(xs) * 1.7)
+        ax.set_ylim(min(ys) / 3.0, max(ys) * 3.0)
     ax.set_xlabel("wall time of the sweep (s)")
     ax.set_ylabel("max |A − A_ref| / max A_ref")
-    ax.set_title(f"FRF error against run time (reference {ref.variant.label})")
+    ax.set_title(f"FRF error against run time (reference {ref_label})")
     ax.grid(True, which="both", alpha=0.3)
     _layout(fig)
-    save(fig, "error_vs_time.png")
+    leg = ax.legend(handles=handles, fontsize=7, loc="best", framealpha=0.9)
+    renderer = fig.canvas.get_renderer()
+    box = leg.get_window_extent(renderer)
+    # held where "best" put it: the leader lines drawn next would otherwise move it at saving
+    leg.set_loc(tuple(ax.transAxes.inverted().transform((box.x0, box.y0))))
+    texts = place_labels(ax, [(t, e) for t, e, _ in pts],
+                         [f"{r.variant.method.upper()}-{r.variant.nh}/{r.variant.nit}" for *_, r in pts],
+                         fontsize=6.5, marker_px=9.0, avoid=[(box.x0, box.y0, box.x1, box.y1)])
+    return fig, texts

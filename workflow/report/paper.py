@@ -38,8 +38,9 @@ CAPTIONS = {
                    "a method that needs many more there is the harder one to converge.", "Fig. 7"),
     "tangential": ("Tangential relative displacement of one contact pair over one period at resonance: flat parts "
                    "are stick, sloped parts slip; the methods should overlay.", "Fig. 8"),
-    "error_vs_time": ("FRF error against the converged reference versus CPU time: the lower-left point is the "
-                      "best buy.", ""),
+    "error_vs_time": ("FRF error against the converged reference versus the wall time of each variant's sweep "
+                      "(filled markers: fixed nit, open: nit = 2Nh+1): the lower-left point is the best buy; below "
+                      "the dashed line, the reference's own uncertainty, an error is not resolved.", ""),
     "wear_profile": ("Wear depth W per contact pair at the worn steady state, per method: the profiles should "
                      "coincide; the tallest bars are where the flank wears first.", "Fig. 9"),
     "tip_cycle": ("Tip displacement over one period before wear and at each method's worn steady state: the "
@@ -110,7 +111,7 @@ def cpu_ratio_52(wear: dict) -> dict | None:
 
     The reference is the implicit DLFT march when the scene ran it (the paper's
     "implicit method with DLFT", 100 %), else the explicit one: the wear
-    engine's rule (workflow/engine/wearstudy.py). Times [s] are the wear
+    engine's rule (workflow/engine/studies/wearstudy.py). Times [s] are the wear
     study's wall-clock seconds per method; the paper's are CPU shares."""
     r = (wear or {}).get("cpu_ratio_pseudo_over_reference")
     if r is None:
