@@ -44,6 +44,7 @@ def test_scaling_scene_measures_one_and_two_processes(tmp_path):
     assert summary["largest_dofs"] == dofs[-1] and summary["rows"] == 4
 
 
+@pytest.mark.slow
 def test_memory_guard_stops_before_a_mesh_that_would_not_fit(tmp_path):
     r = _run(tmp_path, "scaling.factors=[1.6, 1.3, 1.0]", "scaling.procs=[1]", "scaling.max_gb=0.3")
     assert r.returncode == 0, r.stderr

@@ -587,6 +587,9 @@ def time_check(model, law, omega: float, Ur, *, nh_change: float | None = None,
     if getattr(model, "is_cyclic", False):
         return done("cyclic model: the tuned disk's harmonics live on different nodal diameters, which one "
                     "sector cannot integrate in time")
+    if np.iscomplexobj(model.f_harmonic) and np.any(np.imag(model.f_harmonic) != 0):
+        return done("a complex harmonic load (a travelling wave on a whole disk): the integrator takes a "
+                    "real load F cos ωt")
     if not (np.isfinite(omega) and omega > 0):
         return done(f"frequency {omega!r} rad/s is not positive")
     Ur = np.asarray(Ur, dtype=complex)
