@@ -634,6 +634,11 @@ def time_check(model, law, omega: float, Ur, *, nh_change: float | None = None,
     if stopped:
         out.verdict = f"stopped: first harmonic {out.max_rel_diff:.2e} from the HB so far"
         return done(stopped)
+    return done(_judge(out, tol))
+
+
+def _judge(out: TimeCheck, tol: float) -> str | None:
+    """Set ``out``'s verdict against ``tol``; the reason when it cannot judge (not settled), else None."""
     diff, tr = out.max_rel_diff, out.transient
     if out.settled:
         out.within_tolerance = bool(diff <= tol)
@@ -641,15 +646,15 @@ def time_check(model, law, omega: float, Ur, *, nh_change: float | None = None,
                        if out.within_tolerance else
                        f"the time-domain periodic orbit differs from the HB state by {diff:.2e} in the first "
                        f"harmonic: a spurious HB solution, or one not converged in Nh")
-        return done()
+        return None
     if diff - tr > tol:
         out.within_tolerance = False
         out.verdict = (f"the time-domain motion leaves the HB state: {diff:.2e} in the first harmonic, more than "
                        f"the tolerance even allowing for the transient still left ({tr:.2e})")
-        return done()
+        return None
     out.verdict = f"not settled: remaining transient {tr:.2e}, first harmonic {diff:.2e} from the HB"
-    return done(f"the motion did not settle in {out.periods} periods (remaining transient {tr:.2e} > "
-                f"{SETTLE:g} × tolerance); raise max_periods")
+    return (f"the motion did not settle in {out.periods} periods (remaining transient {tr:.2e} > "
+            f"{SETTLE:g} × tolerance); raise max_periods")
 
 
 class _Start:

@@ -378,18 +378,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
                          reference=ref, tied=tied, sliding=sliding, static=static, law=law,
                          condense_seconds=t_cond, condensation=condensation(rc))
         _check(study, rc, opt, log)
-        head = ref if ref is not None else _most_harmonics(runs)
-        Ur_peak = None
-        if opt.refine_peak and opt.sweep == "grid" and freqs_hz is None and len(freqs) > 1:
-            study.peak, Ur_peak = _refined_peak(rc, law, static, head, opt, reference=ref is not None)
-        if opt.branch_check:
-            study.branch_check = epscheck.branch_runs(rc, law, static, _branch_points(study, opt), opt)
-            if log is not None:
-                log.info(_branch_log(study.branch_check))
-        if opt.time_check:
-            study.time_check = _time_check(model, rc, law, study, head, Ur_peak)
-            if log is not None and study.time_check:
-                log.info(_time_line(study.time_check) or study.time_check["log_line"])
+        _headline(study, model, rc, opt, refine=freqs_hz is None and len(freqs) > 1, log=log)
     study.seconds = time.perf_counter() - t0
     return study
 
@@ -418,6 +407,24 @@ def _check(study: FRFStudy, rc, opt, log) -> None:
     if ref is not None and opt.reference_check and opt.sweep == "grid":
         study.reference_convergence = epscheck.reference(rc, law, static, ref, opt,
                                                          checks=[c for c in (study.eps_check, study.nh_check) if c])
+
+
+def _headline(study: FRFStudy, model, rc, opt, refine: bool, log) -> None:
+    """The headline peak and the checks that can see a wrong one, in place: the peak refined
+    between its grid points, the branch check (independent starts), the time check."""
+    law, static, ref = study.law, study.static, study.reference
+    head = ref if ref is not None else _most_harmonics(study.runs)
+    Ur_peak = None
+    if opt.refine_peak and opt.sweep == "grid" and refine:
+        study.peak, Ur_peak = _refined_peak(rc, law, static, head, opt, reference=ref is not None)
+    if opt.branch_check:
+        study.branch_check = epscheck.branch_runs(rc, law, static, _branch_points(study, opt), opt)
+        if log is not None:
+            log.info(_branch_log(study.branch_check))
+    if opt.time_check:
+        study.time_check = _time_check(model, rc, law, study, head, Ur_peak)
+        if log is not None and study.time_check:
+            log.info(_time_line(study.time_check) or study.time_check.get("log_line", ""))
 
 
 def _branch_points(study: FRFStudy, opt) -> list[dict]:
