@@ -357,9 +357,7 @@ def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Bes
     best.total += pr.iterations
     if not pr.converged:
         return False
-    U = np.zeros((prob.nh + 1, prob.nr), dtype=complex)
-    U[: nh_low + 1] = low.harmonics(pr.result.x)
-    x = prob.unknowns_from_harmonics(U)
+    x = prob.unknowns_from_harmonics(low.harmonics(pr.result.x))
     if best.keep(run(prob, x, solver, maxiter)) or eps_continuation(prob, run, solver, tol, maxiter, best, x=x):
         return True
     seeded = _cascade(prob, [x], run.solver, tol, run.maxiter, None, run.eps_path, run.pseudo, with_nh=False)

@@ -345,8 +345,13 @@ class HBProblem:
         return (self.Tinv @ coef if self.method == "hdhb" else coef).ravel()
 
     def unknowns_from_harmonics(self, U) -> np.ndarray:
-        """Unknown vector from complex harmonics (≥Nh+1, 3p) of U_r."""
-        return self.unknowns_from_coefficients(fourier.complex_to_real(np.asarray(U)[: self.nh + 1]))
+        """Unknown vector from complex harmonics (any number ≥ 1, 3p) of U_r: those above Nh
+        dropped, the missing ones zero (a root at another Nh seeds this one)."""
+        U = np.asarray(U)
+        full = np.zeros((self.nh + 1, self.nr), dtype=complex)
+        m = min(len(U), self.nh + 1)
+        full[:m] = U[:m]
+        return self.unknowns_from_coefficients(fourier.complex_to_real(full))
 
     def harmonics(self, x) -> np.ndarray:
         """Complex harmonics (Nh+1, 3p) of U_r (m), ``U_j = u_jc − i u_js``."""

@@ -39,11 +39,8 @@ def resolve(rc, f_hz: float, Ur: np.ndarray, law, static, *, method: str, nh: in
 
     c = condensed(rc, 2 * np.pi * f_hz, nh)
     prob = HBProblem(c.Zr, c.Fr, law, nh, nit, method, max_passes=opt.max_passes, static=static)
-    U = np.zeros((nh + 1, prob.nr), dtype=complex)
-    m = min(nh + 1, Ur.shape[0])
-    U[:m] = Ur[:m]
     # from the converged state at the smaller ε: half a decade, then the full step
-    pr = solve_point(prob, [prob.unknowns_from_harmonics(U)], solver="newton-powell", tol=opt.tol,
+    pr = solve_point(prob, [prob.unknowns_from_harmonics(Ur)], solver="newton-powell", tol=opt.tol,
                      maxiter=opt.max_iterations, eps_path=eps_path)
     if not pr.converged:
         return None, False
@@ -254,9 +251,7 @@ def independent(rc, f_hz: float, law, static, *, method: str, nh: int, nit: int,
                 return {"amplitude": None, "converged": False, "iterations": its, "how": "no start",
                         "reason": "the sliding linear response is singular here"}
         else:
-            V = np.zeros((n + 1, q.nr), dtype=complex)
-            V[: U.shape[0]] = U
-            g = q.unknowns_from_harmonics(V)
+            g = q.unknowns_from_harmonics(U)
         if newton_only:
             res = along_eps_path(q, g, kw["eps_path"], opt.tol, newton_steps(q, opt.max_iterations))
             pr = PointResult(res, int(res.iterations), "newton")

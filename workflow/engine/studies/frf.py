@@ -160,10 +160,7 @@ def _guesses(prob, seed, below: list, omega: float) -> list:
     and the nearest of them — or, with no neighbour, the static state plus the tied linear response."""
     guesses = []
     if seed is not None:
-        U = np.zeros((prob.nh + 1, prob.nr), dtype=complex)
-        m = min(len(seed), prob.nh + 1)
-        U[:m] = seed[:m]
-        guesses.append(prob.unknowns_from_harmonics(U))
+        guesses.append(prob.unknowns_from_harmonics(seed))
     return guesses + (secant_guesses(below, omega) or [prob.x0()])
 
 

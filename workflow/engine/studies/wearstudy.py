@@ -166,9 +166,7 @@ def _at_finer_nh(rc, omega: float, hb, x):
         return None, None, nh2, nit2, f"{exc}; reduction.cyclic_harmonics"
     # the static state does not depend on Nh: the unworn point's is carried over
     fine = HBProblem(c.Zr, c.Fr, hb.law, nh2, nit2, hb.method, max_passes=hb.max_passes, static=hb.static)
-    U = np.zeros((nh2 + 1, hb.nr), dtype=complex)
-    U[: hb.nh + 1] = hb.harmonics(x)
-    return fine, fine.unknowns_from_harmonics(U), nh2, nit2, None
+    return fine, fine.unknowns_from_harmonics(hb.harmonics(x)), nh2, nit2, None
 
 
 def first_tied_frequency(rc) -> float:
