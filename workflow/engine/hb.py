@@ -605,17 +605,21 @@ class HBProblem:
         self._static = st
         return st
 
-    def x0(self) -> np.ndarray:
+    def x0(self, sliding: bool = False) -> np.ndarray:
         """Initial guess: the static state for harmonic 0 (solving it and setting
         the anchor if no anchor was given) and, for j ≥ 1, the linear response
         with every pair in contact at the static state tied (U_j = 0 there)
-        and separated pairs free (``Z_j,ff U_f = F_j,f``)."""
+        and separated pairs free (``Z_j,ff U_f = F_j,f``). ``sliding``: pairs in
+        contact keep only u_N = 0, their tangential DOFs free (μ = 0)."""
         if self._static is None:
             self.static_state(apply=not self._anchor_set)
         st = self._static
         U = np.zeros((self.nh + 1, self.nr), dtype=complex)
         U[0] = st.u.reshape(self.nr)
         free = np.repeat(st.state == 0, 3)
+        if sliding:
+            free = np.ones(self.nr, bool)
+            free[0::3] = st.state == 0
         if free.any():
             for j in range(1, self.nh + 1):
                 U[j, free] = np.linalg.solve(self.Zr[j][np.ix_(free, free)], self.Fr[j, free])

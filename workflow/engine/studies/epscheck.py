@@ -201,20 +201,14 @@ def branch_tolerance(tol: float) -> float:
 
 
 def _sliding_guess(prob):
-    """Unknowns of the sliding linear response (μ = 0): pairs in contact in the static state
-    keep u_N = 0, tangential DOFs free; separated pairs free. None where it is singular."""
-    st = prob.static
-    U = np.zeros((prob.nh + 1, prob.nr), dtype=complex)
-    U[0] = st.u.reshape(prob.nr)
-    free = np.ones(prob.nr, bool)
-    free[0::3] = st.state == 0
+    """Unknowns of the sliding linear response (μ = 0, :meth:`HBProblem.x0`); None where it
+    is singular."""
     with np.errstate(all="ignore"):
-        for j in range(1, prob.nh + 1):
-            try:
-                U[j, free] = np.linalg.solve(prob.Zr[j][np.ix_(free, free)], prob.Fr[j, free])
-            except np.linalg.LinAlgError:
-                return None
-    return prob.unknowns_from_harmonics(U) if np.all(np.isfinite(U)) else None
+        try:
+            x = prob.x0(sliding=True)
+        except np.linalg.LinAlgError:
+            return None
+    return x if np.all(np.isfinite(x)) else None
 
 
 def independent(rc, f_hz: float, law, static, *, method: str, nh: int, nit: int, opt, start: str,
