@@ -108,7 +108,7 @@ class HB:
     methods: list = param(["hbm"], "", "formulations: hbm (AFT), tcm (collocation), hdhb (time samples)",
                           item_choices=("hbm", "tcm", "hdhb"))
     harmonics: list = param([3], "", "numbers of harmonics Nh (≥ 1: harmonic 1 is the response)", min=1)
-    time_samples: list = param([0], "", "nit per period; 0 means 2Nh+1 (HDHB always uses 2Nh+1)", min=0)
+    time_samples: list = param([0], "", "nit per period; 0: the smallest power of 2 ≥ 4(2Nh+1), at least 64 (HDHB always uses 2Nh+1)", min=0)
     solver: str = param("newton", "", "nonlinear solver, first of the cascade (workflow/engine/cascade.py); "
                                       "newton-powell: ≤30 Newton steps along the ε-path, hybrid Powell from the "
                                       "best iterate, then pseudo-transient continuation from the best guess",

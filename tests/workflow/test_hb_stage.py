@@ -111,7 +111,7 @@ def collocated(tmp_path_factory):
     """Mild slip: the three formulations with nit = 2Nh+1, and HBM with nit = 32."""
     tmp = tmp_path_factory.mktemp("hbcolloc")
     summary, out = run_stage(tmp, blade_chain(force=0.1, preload=np.array([2.0, 8.0, 30.0])),
-                             methods=["hbm", "tcm", "hdhb"], harmonics=[2], time_samples=[0, 32],
+                             methods=["hbm", "tcm", "hdhb"], harmonics=[2], time_samples=[5, 32],
                              sweep=dict(f_start_hz=99.0, f_stop_hz=105.0, points=7), **LEAN)
     return summary, out
 
@@ -148,6 +148,13 @@ def test_checks_of_a_default_stage_run(study):
     assert pk["run"] == "HBM-9 nit=64" and pk["grid_hz"] == pytest.approx(f[i])
     assert f[i - 1] <= pk["hz"] <= f[i + 1] and pk["amplitude_m"] >= a[i]     # Brent between the neighbours
     assert pk["evaluations"] > len(f) and pk["xtol_hz"] == pytest.approx(1e-6 * f[i])
+    # the Nh-check's pair read as a limit (Richardson in 1/Nh, order 1): the reported value is
+    # Nh2/(Nh2 − Nh) = 14/5 times the change from its limit A∞, and the refined peak carries it
+    row = nc["runs"][0]
+    assert abs(row["estimated_error"]) == pytest.approx(14 / 5 * row["rel_change"] * row["amplitude_m"]
+                                                        / row["nh_limit_m"], rel=1e-9)
+    assert pk["amplitude_nh_limit_m"] == pytest.approx(pk["amplitude_m"] * row["nh_limit_m"] / row["amplitude_m"],
+                                                       rel=1e-12)
 
 
 def test_lean_stage_run_keeps_the_grid_peak(tmp_path):
@@ -161,10 +168,12 @@ def test_lean_stage_run_keeps_the_grid_peak(tmp_path):
 
 
 def test_variants_resolve_nit_and_skip_hdhb_off_grid():
+    """0 is the default nit: a power of 2 ≥ 4(2Nh+1), ≥ 64, for HBM; 2Nh+1 for HDHB, which skips the rest."""
     v = variants(HB(methods=["hbm", "hdhb"], harmonics=[1, 3], time_samples=[105, 0, 7]))
     assert [(x.method, x.nh, x.nit) for x in v] == [
-        ("hbm", 1, 105), ("hbm", 1, 3), ("hbm", 1, 7), ("hbm", 3, 105), ("hbm", 3, 7), ("hdhb", 1, 3),
-        ("hdhb", 3, 7)]
+        ("hbm", 1, 105), ("hbm", 1, 64), ("hbm", 1, 7), ("hbm", 3, 105), ("hbm", 3, 64), ("hbm", 3, 7),
+        ("hdhb", 1, 3), ("hdhb", 3, 7)]
+    assert [x.nit for x in variants(HB(methods=["hbm", "hdhb"], harmonics=[15], time_samples=[0]))] == [128, 31]
     with pytest.raises(SceneError, match="time_samples"):
         variants(HB(methods=["hbm"], harmonics=[3], time_samples=[5]))
 
@@ -247,7 +256,7 @@ def test_collocated_forms_give_the_same_frf(collocated):
 
 def test_tiny_excitation_is_the_tied_linear_frf(tmp_path):
     model = blade_chain(force=1e-5)
-    summary, out = run_stage(tmp_path, model, methods=["hbm", "hdhb"], harmonics=[2], time_samples=[32, 0],
+    summary, out = run_stage(tmp_path, model, methods=["hbm", "hdhb"], harmonics=[2], time_samples=[32, 5],
                              sweep=dict(points=9), **LEAN)
     rows = read_frf(out)
     with open(out / "linear.csv") as fh:

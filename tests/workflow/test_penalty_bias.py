@@ -102,3 +102,32 @@ def test_nh_limit_from_the_nh_check_pair_beats_the_default():
     est = nh_limit([3, finer(3, 28)[0]], vals)["limit"]
     assert abs(vals[0] - LIGHT_PAD_095) > 5e-3 * LIGHT_PAD_095
     assert abs(est - LIGHT_PAD_095) < 0.2 * abs(vals[0] - LIGHT_PAD_095)
+
+
+def test_default_nit_is_a_power_of_two_with_four_samples_a_coefficient():
+    from workflow.engine.fourier import default_nit
+
+    for nh in range(0, 40):
+        n = default_nit(nh)
+        assert n >= max(64, 4 * (2 * nh + 1)) and n & (n - 1) == 0 and n // 2 < max(64, 4 * (2 * nh + 1))
+
+
+def test_nh_check_limit_recovers_a_one_over_nh_law():
+    """A(Nh) = A∞ (1 + c/Nh) exactly: the Nh-check's two solves give A∞ and the error c/Nh of the
+    reported value, whatever the sign of c; rows that did not converge carry none."""
+    from workflow.engine.studies.epscheck import limit_scale, with_nh_limit
+
+    for c in (0.3, -0.05):
+        a = lambda nh: 2.0e-3 * (1 + c / nh)  # noqa: E731
+        check = {"runs": [{"label": "HBM-7 nit=64", "base_nh": 7, "nh": 11, "frequency_hz": 210.0,
+                           "amplitude_m": a(7), "checked_m": a(11), "converged": True,
+                           "rel_change": abs(a(11) - a(7)) / a(7)},
+                          {"label": "HBM-3 nit=64", "base_nh": 3, "nh": 5, "frequency_hz": 210.0,
+                           "amplitude_m": a(3), "checked_m": None, "converged": False, "rel_change": None}]}
+        out = with_nh_limit(check)
+        row = out["runs"][0]
+        assert row["nh_limit_m"] == pytest.approx(2.0e-3, rel=1e-12)
+        assert row["estimated_error"] == pytest.approx(c / 7, rel=1e-9) == out["estimated_error"]
+        assert "nh_limit_m" not in out["runs"][1] and out["order"] == 1.0
+        assert limit_scale(out, "HBM-7 nit=64") == pytest.approx(1 / (1 + c / 7), rel=1e-12)
+        assert limit_scale(out, "HBM-3 nit=64") is None

@@ -151,9 +151,12 @@ def nh_check(item: str, what: str, stage: dict) -> Check:
         return Check(item, "Nh check", "none", "no Nh check in this run (hb.nh_check = false)")
     ch = nc.get("max_rel_change")
     nh = nc.get("nh") or max((r.get("nh", 0) for r in nc.get("runs", [])), default=0)
+    est = nc.get("estimated_error")
+    limit = "" if est is None else (f"; Nh → ∞ estimate {100 * abs(float(est)):.2g} % "
+                                    f"{'below' if float(est) > 0 else 'above'} (Richardson in 1/Nh)")
     if ch is not None and float(ch) <= EPS_TOL:
         return Check(item, "Nh check", "green",
-                     f"{what}: change {float(ch):.2e} at Nh = {nh} (tolerance {EPS_TOL:g})")
+                     f"{what}: change {float(ch):.2e} at Nh = {nh} (tolerance {EPS_TOL:g}){limit}")
     said = next((line for line in stage.get("warnings") or [] if "Nh-check" in line), None)
     if said is None:
         said = (f"{what}: could not be re-solved with more harmonics" if ch is None else
@@ -250,7 +253,8 @@ def hb_headline(hb: dict, folder: Path | None, damping: dict | None) -> tuple[di
     run = headline_run(hb)
     vals = dict(peak_hz=None, peak_amplitude_m=None, peak_source=None, tied_peak_hz=None,
                 tied_peak_amplitude_m=None, sliding_peak_hz=None, sliding_peak_amplitude_m=None,
-                amplitude_ratio=None, equivalent_damping_ratio=None, tied_damping_ratio=None)
+                amplitude_ratio=None, equivalent_damping_ratio=None, tied_damping_ratio=None,
+                peak_amplitude_nh_limit_m=None)
     if run is None or folder is None:
         return vals, [Check("peak", "convergence", "none", "no FRF in this run")]
     label = f"{run.get('method', '?').upper()}-{run.get('harmonics')} nit={run.get('time_samples')}"
@@ -262,6 +266,7 @@ def hb_headline(hb: dict, folder: Path | None, damping: dict | None) -> tuple[di
     if pk and pk.get("hz") is not None:   # the engine refined the grid peak between grid points
         vals["peak_hz"], vals["peak_amplitude_m"] = float(pk["hz"]), float(pk["amplitude_m"])
         vals["peak_source"] += f", refined between grid points (±{pk['xtol_hz']:.1g} Hz)"
+        vals["peak_amplitude_nh_limit_m"] = pk.get("amplitude_nh_limit_m")
         checks.append(Check("peak", "peak search", "green",
                             f"grid peak {pk['grid_hz']:.6g} Hz / {pk['grid_amplitude_m']:.4g} m refined to "
                             f"{pk['hz']:.6g} Hz / {pk['amplitude_m']:.4g} m ({pk['evaluations']} frequencies solved)"))

@@ -63,6 +63,9 @@ def cards(h: dict) -> list[dict]:
         peak_sub = (f"tip, 1st harmonic; tied linear peak {tied} at {e(fmt.hz(h.get('tied_peak_hz')))}, sliding "
                     f"(μ = 0) {e(fmt.si(h.get('sliding_peak_amplitude_m'), 'm'))} at "
                     f"{e(fmt.hz(h.get('sliding_peak_hz')))}; from {e(str(h.get('peak_source') or '—'))}")
+        if h.get("peak_amplitude_nh_limit_m") is not None:
+            peak_sub += (f"; Nh → ∞ estimate {e(fmt.si(h['peak_amplitude_nh_limit_m'], 'm'))} "
+                         "(Richardson in 1/Nh from the Nh check)")
         damping_sub = (f"equivalent damping ratio ζ<sub>eq</sub> = {z_span} (structural ζ = {e(fmt.percent(z_t))}; "
                        "ζ<sub>eq</sub> = ζ · tied peak / friction peak)")
     return [

@@ -13,6 +13,12 @@ def _cell(s) -> str:
     return str(s).replace("|", "\\|").replace("\n", " ")
 
 
+def _limit(h: dict) -> str:
+    """The peak's Nh → ∞ estimate (the Nh-check's Richardson in 1/Nh), when the run has one."""
+    lim = h.get("peak_amplitude_nh_limit_m")
+    return "" if lim is None else f"; Nh → ∞ estimate {fmt.si(lim, 'm')}"
+
+
 def headline_md(h: dict) -> list[str]:
     st = h.get("status", "none")
     pos = h.get("max_wear_position_m")
@@ -21,7 +27,8 @@ def headline_md(h: dict) -> list[str]:
     rows = [
         ("friction-damped peak", f"{fmt.hz(h.get('peak_hz'))}, {fmt.si(h.get('peak_amplitude_m'), 'm')}",
          "no FRF in this run (the scene's outputs have no “frf”)" if no_frf else
-         f"tied peak {fmt.si(h.get('tied_peak_amplitude_m'), 'm')}, sliding {fmt.si(h.get('sliding_peak_amplitude_m'), 'm')}"),
+         f"tied peak {fmt.si(h.get('tied_peak_amplitude_m'), 'm')}, sliding {fmt.si(h.get('sliding_peak_amplitude_m'), 'm')}"
+         + _limit(h)),
         ("damping achieved", "amplitude ratio " + ("—" if h.get("amplitude_ratio") is None
                                                    else f"{h['amplitude_ratio']:.3g}"),
          "not computed: it needs the FRF" if no_frf else

@@ -28,6 +28,7 @@ PRODUCES = ("wear",)
 def options(scene):
     """:class:`workflow.engine.WearOptions` of a scene."""
     from workflow.engine import WearOptions
+    from workflow.engine.studies.variants import resolved_nit
     from workflow.errors import SceneError
 
     w, pt, hb, ct = scene["wear"], scene["pseudotime"], scene["hb"], scene["contact"]
@@ -37,7 +38,7 @@ def options(scene):
                          "the other schemes serve hb.solver = 'pseudo-time'")
     nh = int(hb.harmonics[0])
     return WearOptions(methods=tuple(w.methods), method=hb.methods[0], nh=nh,
-                       nit=int(hb.time_samples[0]) or 2 * nh + 1, tol=hb.tol, max_iterations=hb.max_iterations,
+                       nit=resolved_nit(hb.methods[0], nh, int(hb.time_samples[0])), tol=hb.tol, max_iterations=hb.max_iterations,
                        max_passes=ct.max_passes, frequency_hz=w.frequency_hz, k_w=w.k_w, blade_share=w.blade_share,
                        cycles_per_block=w.cycles_per_block, max_blocks=w.max_blocks, block_tol=w.block_tol,
                        steady_tol=w.steady_tol, reference_check=w.reference_check, max_steps=pt.max_steps,

@@ -66,15 +66,18 @@ def compare(model, spec: Spec, freqs_hz, nhs, *, nit: int | None = None, eps: fl
     """Rows (case, Nh, nit, eps, frequency_hz, amplitude, exact, error, converged, source, stops)
     of the project's HB against the references, one per Nh × frequency.
 
-    ``nit`` None: 4·(2Nh+1) rounded up to a power of 2, at least 64 — enough
-    samples that the DLFT's time grid is not the error being measured.
+    ``nit`` None: the engine's default (:func:`workflow.engine.fourier.default_nit`: 4·(2Nh+1)
+    rounded up to a power of 2, at least 64) — enough samples that the DLFT's time grid is
+    not the error being measured.
     ``refs``: precomputed :class:`Reference` per frequency (else computed).
     """
+    from workflow.engine.fourier import default_nit
+
     freqs = np.atleast_1d(np.asarray(freqs_hz, float))
     refs = refs or [reference(spec, 2 * np.pi * f) for f in freqs]
     rows = []
     for nh in nhs:
-        n_t = nit or max(64, int(2 ** np.ceil(np.log2(4 * (2 * nh + 1)))))
+        n_t = nit or default_nit(nh)
         amp, ok, e = hb_first_harmonic(model, freqs, mu=spec.mu, nh=nh, nit=n_t, eps=eps, **kw)
         for f, a, c, r in zip(freqs, amp, ok, refs):
             err = abs(a - r.amplitude) / r.amplitude if r.amplitude > 0 else abs(a)

@@ -417,6 +417,9 @@ def _headline(study: FRFStudy, model, rc, opt, refine: bool, log) -> None:
     Ur_peak = None
     if opt.refine_peak and opt.sweep == "grid" and refine:
         study.peak, Ur_peak = _refined_peak(rc, law, static, head, opt, reference=ref is not None)
+    if study.peak is not None:
+        scale = epscheck.limit_scale(study.nh_check, head.variant.label)
+        study.peak["amplitude_nh_limit_m"] = None if scale is None else study.peak["amplitude_m"] * scale
     if opt.branch_check:
         study.branch_check = epscheck.branch_runs(rc, law, static, _branch_points(study, opt), opt)
         if log is not None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from workflow.engine.errors import SceneError
+from workflow.engine.fourier import default_nit
 
 
 @dataclass(frozen=True)
@@ -28,10 +29,17 @@ class Variant:
         return f"{self.method.upper()}-{self.nh} nit={self.nit}"
 
 
-def variants(hb) -> list[Variant]:
-    """method ∈ hb.methods × Nh ∈ hb.harmonics × nit ∈ hb.time_samples (0 → 2Nh+1).
+def resolved_nit(method: str, nh: int, nit: int) -> int:
+    """A scene's nit for ``method`` at ``nh``: ``nit`` itself, or for 0 the default
+    (:func:`workflow.engine.fourier.default_nit`; HDHB, whose unknowns are the samples, 2Nh+1)."""
+    return int(nit) or (2 * int(nh) + 1 if method == "hdhb" else default_nit(int(nh)))
 
-    HDHB runs only with nit = 2Nh+1 (other nit values are skipped for it);
+
+def variants(hb) -> list[Variant]:
+    """method ∈ hb.methods × Nh ∈ hb.harmonics × nit ∈ hb.time_samples (0 →
+    :func:`workflow.engine.fourier.default_nit`; HDHB: 2Nh+1).
+
+    HDHB runs only with nit = 2Nh+1 (other nit values are skipped for it, 0 gives it 2Nh+1);
     duplicates (e.g. nit = 0 and nit = 2Nh+1 both listed) are dropped. Order:
     as listed in the scene (method-major).
     """
@@ -39,7 +47,7 @@ def variants(hb) -> list[Variant]:
     for method in hb.methods:
         for nh in hb.harmonics:
             for nit in hb.time_samples:
-                n = 2 * int(nh) + 1 if int(nit) == 0 else int(nit)
+                n = resolved_nit(method, int(nh), int(nit))
                 if n < 2 * int(nh) + 1:
                     raise SceneError(f"hb.time_samples = {nit} < 2·Nh+1 = {2 * int(nh) + 1} for hb.harmonics = {nh}")
                 if method == "hdhb" and n != 2 * int(nh) + 1:
