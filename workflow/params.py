@@ -216,8 +216,18 @@ class Wear:
     reference_check: bool = param(False, "", "also march the reference with 4 × block_tol: its own convergence "
                                              "and, by Richardson extrapolation (first order in the block), the "
                                              "error of every method against its CPU time")
-    frequency_hz: float = param(0.0, "Hz", "excitation frequency of the wear study (0: first tied resonance)",
-                                min=0.0)
+    frequency_hz: float = param(0.0, "Hz", "excitation frequency of the wear study with operating_point = "
+                                            "\"frequency\" (0: first tied resonance)", min=0.0)
+    operating_point: str = param("frequency", "", "where the wear study vibrates: \"frequency\" (frequency_hz, the "
+                                                  "paper's §5.2 setting) or \"detuning\" (detuning × the model's own "
+                                                  "friction-damped resonance, found by an FRF search; docs/wear.md)",
+                                 choices=("frequency", "detuning"))
+    detuning: float = param(1.0, "", "f / f_r with operating_point = \"detuning\" (1: at the friction-damped peak)",
+                            min=0.5, max=2.0)
+    measure_length_m: float = param(2e-3, "m", "ℓ of the filtered worn profile among the wear measures (volume, "
+                                               "scar, RMS depth); the wear law itself stays node-wise", min=0.0)
+    resonance_shift: bool = param(True, "", "find the friction-damped resonance of the worn and the new model "
+                                            "(worn − new shift in summary.json; two FRF searches)")
 
 
 @dataclass
@@ -280,6 +290,13 @@ class Verification:
                               min=0)
     penalty_factor: float = param(0.0, "", "ε_N = ε_T = this × the case's stiffness (k, or the stiffest pad); "
                                            "0: the project's default penalty", min=0.0)
+    wear_cases: list = param(["jenkins", "punch"], "", "wear references (workflow/verification/wear_exact.py): "
+                                                      "jenkins (one Jenkins element whose wear relieves its load, "
+                                                      "closed form), punch (a rigid punch on three contacts with "
+                                                      "an edge gap, closed form), oscillator (a dynamic Jenkins "
+                                                      "oscillator by event-driven integration with cycle jumps, "
+                                                      "≈ 2 min)",
+                             item_choices=("jenkins", "punch", "oscillator"))
 
     def check(self):
         for nh in self.harmonics:

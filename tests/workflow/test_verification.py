@@ -269,7 +269,7 @@ def test_verification_scene_writes_table_figure_and_summary(tmp_path):
 
     scene = resolve({"run": {"outputs": ["verification"]},
                      "verification": {"cases": ["coulomb", "2dof-damper"], "harmonics": [1, 3],
-                                      "penalty_factor": 100.0}})
+                                      "penalty_factor": 100.0, "wear_cases": ["jenkins"]}})
     run_scene(scene, tmp_path / "run", cache=tmp_path / "cache", quiet=True)
     s = json.loads((tmp_path / "run" / "summary.json").read_text())["verification"]
     assert len(s["rows"]) == (2 + 3) * 2
@@ -282,6 +282,12 @@ def test_verification_scene_writes_table_figure_and_summary(tmp_path):
     assert (folder / "verification.csv").read_text().startswith("case,Nh,nit,eps,amplitude,exact,error,converged")
     assert (folder / "verification.png").stat().st_size > 1000
     assert (folder / "galerkin.csv").exists()
+    # the wear reference: the engine's rate and implicit worn state against the closed form, to the
+    # implicit block's own equation tolerance (wear.W_EQ_TOL = 1e-6 of max W)
+    wear = {r["quantity"]: r for r in s["wear_rows"]}
+    assert {r["case"] for r in s["wear_rows"]} == {"jenkins"} and (folder / "wear_references.csv").exists()
+    assert wear["wear rate at W = 0 [m/cycle]"]["error"] < 1e-6
+    assert next(r for q, r in wear.items() if q.startswith("final W [m] (implicit"))["error"] < 1e-6
 
 
 def test_verification_bad_case_and_nit_are_scene_errors():

@@ -384,6 +384,16 @@ def test_wear_stage_on_a_reduced_model(tmp_path, monkeypatch):
     for v in s["methods"].values():
         assert v["steady"] and v["max_wear_m"] > 0 and v["seconds"] > 0 and v["iterations"] > 0
     assert s["profile_max_rel_diff"] <= 0.02
+    # the measures of the worn state (pseudo-time's): volume = Σ W A of the profile in wear.csv,
+    # and the worn steady state dissipates (almost) nothing — wear stops where slip stops
+    assert s["operating_point"] == {"kind": "frequency", "frequency_hz": 20.0} and s["law_length_m"] == 0.0
+    W_pt = np.array([float(r["W_pseudo-time_m"]) for r in csv.DictReader(open(out / "wear.csv"))])
+    assert s["worn_volume_m3"]["intrados"] == pytest.approx(float(np.sum(W_pt * model.area)), rel=1e-6)
+    assert s["measures"]["length_m"] == scene["wear"].measure_length_m
+    e = s["energy_per_cycle_J"]
+    assert e["new"] > 0 and 0 <= e["worn"] < 1e-3 * e["new"]
+    # this block has its friction-damped peak at the edge of the ±10 % band: the shift says why it is missing
+    assert s["resonance_shift"]["hz"] is None and "edge of the band" in s["resonance_shift"]["reason"]
     rows = list(csv.DictReader(open(out / "wear.csv")))
     assert len(rows) == 3 and float(rows[0]["W_pseudo-time_m"]) > 0
     assert float(rows[0]["W_blade_pseudo-time_m"]) == pytest.approx(0.5 * float(rows[0]["W_pseudo-time_m"]))

@@ -326,9 +326,15 @@ def wear_headline(wear: dict, folder: Path | None, method: str | None) -> tuple[
     """Deepest wear [m] (blade + disk, the ``W`` of eq. 20) and where, with the
     wear study's checks: steady state reached, unconverged solves, ε check,
     and the agreement of the pseudo-time and reference profiles."""
-    vals = dict(max_wear_m=None, max_wear_where=None, max_wear_position_m=None, wear_method=None)
+    vals = dict(max_wear_m=None, max_wear_where=None, max_wear_position_m=None, wear_method=None,
+                worn_volume_m3=None, wear_frequency_hz=None, wear_operating_point=None)
     if not wear:
         return vals, [Check("wear", "steady state", "none", "no wear study in this run")]
+    vals["worn_volume_m3"] = (wear.get("measures") or {}).get("worn_volume_m3")
+    op = wear.get("operating_point") or {}
+    vals["wear_frequency_hz"] = op.get("frequency_hz", wear.get("frequency_hz"))
+    vals["wear_operating_point"] = (f"{op['detuning']:g} × the friction-damped resonance" if op.get("kind") == "detuning"
+                                    else "fixed frequency" if op else None)
     rows = read_rows(Path(folder) / "wear.csv") if folder is not None else []
     cols = [c for c in (rows[0] if rows else {}) if c.startswith("W_") and c.endswith("_m")
             and not c.startswith(("W_blade_", "W_disk_"))]

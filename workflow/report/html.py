@@ -78,7 +78,9 @@ def cards(h: dict) -> list[dict]:
              sub=damping_sub),
         dict(title="Deepest wear", items=("wear",),
              value=_val("max_wear_m", h.get("max_wear_m"), fmt.si(h.get("max_wear_m"), "m")),
-             sub=e(f"{where} ({h.get('wear_method') or '—'}; blade + disk)") if h.get("max_wear_m") is not None
+             sub=e(f"{where} ({h.get('wear_method') or '—'}; blade + disk)"
+                   + (f"; worn volume {h['worn_volume_m3'] * 1e9:.4g} mm³" if h.get("worn_volume_m3") is not None
+                      else "")) if h.get("max_wear_m") is not None
              else "no wear study in this run"),
         dict(title="Worn blade's frequency shift", items=("worn",),
              value=_val("worn_frequency_shift_hz", h.get("worn_frequency_shift_hz"),

@@ -19,6 +19,17 @@ def _limit(h: dict) -> str:
     return "" if lim is None else f"; Nh → ∞ estimate {fmt.si(lim, 'm')}"
 
 
+def _worn(h: dict) -> str:
+    """Worn volume and operating point beside the deepest wear (the node-wise maximum is the
+    mesh-sensitive number; the volume converges with the contact mesh)."""
+    out = ""
+    if h.get("worn_volume_m3") is not None:
+        out += f"; worn volume {h['worn_volume_m3'] * 1e9:.4g} mm³"
+    if h.get("wear_frequency_hz") is not None:
+        out += f"; at {fmt.hz(h['wear_frequency_hz'])} ({h.get('wear_operating_point') or 'fixed frequency'})"
+    return out
+
+
 def headline_md(h: dict) -> list[str]:
     st = h.get("status", "none")
     pos = h.get("max_wear_position_m")
@@ -33,7 +44,7 @@ def headline_md(h: dict) -> list[str]:
                                                    else f"{h['amplitude_ratio']:.3g}"),
          "not computed: it needs the FRF" if no_frf else
          f"ζ_eq = {fmt.percent(h.get('equivalent_damping_ratio'))} (structural {fmt.percent(h.get('tied_damping_ratio'))})"),
-        ("deepest wear", fmt.si(h.get("max_wear_m"), "m"), where),
+        ("deepest wear", fmt.si(h.get("max_wear_m"), "m"), where + _worn(h)),
         ("worn frequency shift", fmt.signed_hz(h.get("worn_frequency_shift_hz")),
          h.get("worn_frequency_shift_source") or "not computed"),
         ("run time", fmt.seconds(h.get("run_seconds")), ""),

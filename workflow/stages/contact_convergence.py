@@ -157,6 +157,7 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
            "max_wear_m": float(worn["W"].max()) if worn else None,
            # Σ W_i A_i: the worn volume, an integral of the profile (the maximum is a nodal value)
            "wear_volume_m3": float(np.dot(worn["W"], model.area)) if worn else None,
+           **_wear_measures(worn),
            "wear_steady": worn["steady"] if worn else None, "wear_hz": worn["frequency_hz"] if worn else None,
            "wear_force_N": (cc.wear_amplitude or scene["excitation"].amplitude) if worn else None,
            "area_sum_rel_err": abs(float(model.area.sum()) - info["flank_area_m2"]) / info["flank_area_m2"],
@@ -170,6 +171,24 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
              + f"; midside gap min {static['midside_gap_min_m']}; {row['seconds']:.1f} s "
                f"(model {t_build:.1f}, peak {t_peak:.1f}, wear {t_wear:.1f})")
     return row, {"model": model, "W": worn["W"] if worn else None, "flank_area_m2": info["flank_area_m2"]}
+
+
+def _wear_measures(worn: dict | None) -> dict:
+    """The table's wear measures of one mesh (:mod:`workflow.engine.wear_measures`): the ℓ-filtered
+    profile's RMS and maximum over both flanks, the scar width, the energy per cycle before and
+    after wear, the worn − new friction-damped resonance shift."""
+    keys = ("profile_l2_m", "filtered_max_wear_m", "scar_width_m", "wear_length_m", "energy_new_J", "energy_worn_J",
+            "resonance_shift_hz", "resonance_shift_amplitude_rel", "wear_operating_point")
+    if not worn or not worn.get("measures"):
+        return dict.fromkeys(keys)
+    fl = worn["measures"]["flanks"].values()
+    rs = worn.get("resonance_shift") or {}
+    op = worn.get("operating_point") or {}
+    return dict(zip(keys, (float(np.sqrt(sum(f["profile_l2_m"] ** 2 for f in fl))),
+                           max(f["filtered_max_m"] for f in fl), max(f["scar_width_m"] for f in fl),
+                           worn["measures"]["length_m"], worn["energy_per_cycle_J"].get("new"),
+                           worn["energy_per_cycle_J"].get("worn"), rs.get("hz"), rs.get("amplitude_rel"),
+                           op.get("kind") if op.get("kind") != "detuning" else f"detuning {op['detuning']:g}")))
 
 
 def unconverged(rows: list[dict]) -> list[str]:
@@ -217,8 +236,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     figures = plot(out, rows, points, pflank, profiles)
     log.info("contact convergence, two finest meshes: "
              + ", ".join(f"{k} {v:.3%}" for k, v in summary.items() if k.endswith("change_last") and v is not None))
-    return {"rows": [{k: r[k] for k in ("pairs", "peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m", "seconds")}
-                     for r in rows],
+    return {"rows": [{**{k: r[k] for k in ("pairs", "peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m",
+                                         "profile_l2_m", "resonance_shift_hz", "seconds")},
+                      "worn_volume_m3": r["wear_volume_m3"]} for r in rows],
             "unconverged": unconverged(rows),
             "table": rows, "layout": scene["geometry"].contact_nodes, "harmonics": int(cc.harmonics),
             "wear_harmonics": wear_harmonics(cc),

@@ -5,8 +5,10 @@ for every Nh of ``verification.harmonics`` and writes ``verification.csv``
 (case, Nh, nit, eps, amplitude, exact, error, converged, frequency, source of
 the reference, stops), ``galerkin.csv`` (HB's own truncation floor on the
 non-stop Coulomb points: Galerkin HB with the exact sign law) and
-``verification.png`` (error against Nh). Needs no other product: the cases are
-built in :mod:`workflow.verification.models`.
+``verification.png`` (error against Nh), and ``wear_references.csv`` — the engine's wear
+against the closed forms and the cycle-jump integration of ``verification.wear_cases``
+(:mod:`workflow.verification.wear_runner`; summary ``wear_rows``). Needs no other product:
+the cases are built in :mod:`workflow.verification.models` and ``wear_exact``.
 """
 from __future__ import annotations
 
@@ -40,9 +42,25 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
         files["galerkin"] = "galerkin.csv"
     error_figure(rows, floor, out / "verification.png")
     files["figure"] = "verification.png"
+    wear_rows = wear_references(cfg.wear_cases)
+    if wear_rows:
+        write_rows(out / "wear_references.csv", wear_rows)
+        files["wear"] = "wear_references.csv"
+        worst = max(wear_rows, key=lambda r: r["error"])
+        log.info(f"wear references: {len(wear_rows)} rows, largest error {worst['error']:.2e} "
+                 f"({worst['case']}: {worst['quantity']})")
     s = suite.summary(rows, floor)
     log.info(f"verification: {s['converged']}/{s['total']} HB points converged; largest non-stop error at "
              f"Nh = {s['largest_harmonics']}: {s['max_error_nonstop']}; Galerkin floor {s['galerkin_floor']}")
     clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v  # noqa: E731
-    return {"rows": [{k: clean(v) for k, v in r.items()} for r in rows], **s, "files": files,
+    return {"rows": [{k: clean(v) for k, v in r.items()} for r in rows], **s, "files": files, "wear_rows": wear_rows,
             "seconds": round(time.perf_counter() - t0, 3)}
+
+
+def wear_references(cases) -> list[dict]:
+    """Rows (case, quantity, value, exact, error) of the wear references named in ``cases``."""
+    from workflow.verification import wear_runner
+
+    make = {"jenkins": wear_runner.jenkins_rows, "punch": wear_runner.punch_rows,
+            "oscillator": wear_runner.oscillator_rows}
+    return [r for c in cases for r in make[c]()]

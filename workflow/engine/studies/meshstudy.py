@@ -141,13 +141,16 @@ def worn_profile(model, law, eps_path, options) -> dict:
     """Worn steady state of ``model`` by pseudo-time wear (eq. 22,
     :func:`workflow.engine.worn_steady_state` with ``options``, a
     :class:`~workflow.engine.WearOptions` whose methods include
-    ``"pseudo-time"``): ``W`` (p,) [m], ``steady``, ``steps``, ``frequency_hz``."""
+    ``"pseudo-time"``): ``W`` (p,) [m], ``steady``, ``steps``, ``frequency_hz``, and the wear
+    measures, energies, operating point and resonance shift of :class:`WearStudy`."""
     from workflow.engine.studies.wearstudy import worn_steady_state
 
     study = worn_steady_state(model, law, options, eps_path=eps_path)
     h = study.histories["pseudo-time"]
     return {"W": np.asarray(h.W, dtype=float), "steady": bool(h.steady), "steps": int(h.iterations),
-            "frequency_hz": float(study.omega / 2 / np.pi)}
+            "frequency_hz": float(study.omega / 2 / np.pi), "measures": study.measures,
+            "energy_per_cycle_J": study.energy_per_cycle_J, "operating_point": study.operating_point,
+            "resonance_shift": study.resonance_shift}
 
 
 # ------------------------------------------------------------------ convergence over the meshes
@@ -178,20 +181,32 @@ def rel_change(a, b) -> float | None:
     return float(abs(b - a) / abs(b))
 
 
+def _shift_change(worn: list[dict]) -> float | None:
+    """|Δ(worn − new resonance shift)| between the two finest worn meshes, relative to the new
+    resonance frequency (the issue's "< 1e-4 relative")."""
+    if len(worn) < 2 or any(r.get("resonance_shift_hz") is None for r in worn[-2:]):
+        return None
+    return abs(worn[-1]["resonance_shift_hz"] - worn[-2]["resonance_shift_hz"]) / worn[-1]["peak_hz"]
+
+
 def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
     """Relative changes between the two finest meshes and observed orders; for the
     wear, between the two finest meshes that have a worn profile (``profiles``:
     one per such mesh, coarse to fine)."""
     worn = [r for r in rows if r.get("max_wear_m") is not None]
-    last = (lambda k: rel_change(worn[-2][k], worn[-1][k])) if len(worn) >= 2 else (lambda k: None)
+    last = (lambda k: rel_change(worn[-2].get(k), worn[-1].get(k))) if len(worn) >= 2 else (lambda k: None)
     out = {"peak_change_last": rel_change(rows[-2]["peak_amplitude_m"], rows[-1]["peak_amplitude_m"]),
            "peak_hz_change_last": rel_change(rows[-2]["peak_hz"], rows[-1]["peak_hz"]),
            "energy_change_last": rel_change(rows[-2]["energy_J"], rows[-1]["energy_J"]),
            "max_wear_change_last": last("max_wear_m"), "wear_volume_change_last": last("wear_volume_m3"),
+           "changes_last": {"worn_volume": last("wear_volume_m3"), "max_wear": last("max_wear_m"),
+                            "profile_l2": last("profile_l2_m"), "filtered_max": last("filtered_max_wear_m"),
+                            "resonance_shift": _shift_change(worn)},
            "wear_pairs_last": [r.get("pairs") for r in worn[-2:]] if len(worn) >= 2 else None,
            "observed_order": {k: observed_order([r["h_contact_m"] for r in rs], [r.get(k) for r in rs])
                               for rs, ks in ((rows, ("peak_hz", "peak_amplitude_m", "energy_J")),
-                                             (worn, ("max_wear_m", "wear_volume_m3"))) for k in ks}}
+                                             (worn, ("max_wear_m", "wear_volume_m3", "profile_l2_m",
+                                                     "filtered_max_wear_m"))) for k in ks}}
     for k in ("midside_gap_min_m", "vertex_only_midside_gap_min_m"):
         vals = [r[k] for r in rows if r.get(k) is not None]
         out[f"worst_{k}"] = min(vals) if vals else None  # < 0: the flank meshes interpenetrate

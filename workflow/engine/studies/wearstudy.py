@@ -40,7 +40,11 @@ class WearOptions:
     ``dt_max_blocks``; ``eps_check_factor`` (0: off); ``nh_check``: the
     unworn wear rates re-solved at 1.5×Nh (:func:`nh_check`); ``compare_unworn``:
     also solve the unworn point by Newton and by pseudo-time (the paper's
-    comparison)."""
+    comparison); ``operating_point`` "frequency" (``frequency_hz``) or "detuning"
+    (``detuning`` × the friction-damped resonance, :mod:`workflow.engine.studies.operating`);
+    ``measure_length_m``: ℓ [m] of the filtered profile among the wear measures
+    (:mod:`workflow.engine.wear_measures`); ``resonance_shift``: find the friction-damped
+    resonance of the worn and the new model (two FRF searches)."""
 
     methods: tuple = ("pseudo-time", "implicit")
     method: str = "hbm"
@@ -63,6 +67,10 @@ class WearOptions:
     eps_check_factor: float = penalty.CHECK_FACTOR
     nh_check: bool = True
     compare_unworn: bool = True
+    operating_point: str = "frequency"
+    detuning: float = 1.0
+    measure_length_m: float = 2e-3
+    resonance_shift: bool = True
 
 
 @dataclass
@@ -85,6 +93,10 @@ class WearStudy:
     reference_check: dict | None = None
     eps_check: dict = field(default_factory=dict)
     nh_check: dict = field(default_factory=dict)
+    operating_point: dict = field(default_factory=dict)
+    measures: dict = field(default_factory=dict)
+    energy_per_cycle_J: dict = field(default_factory=dict)
+    resonance_shift: dict | None = None
 
     def unconverged(self) -> list[str]:
         """One line per wear method that did not reach the steady state, with what to change:
@@ -188,6 +200,7 @@ def build_problem(model, law, opt: WearOptions, rc=None):
     from workflow.engine.linear import condensed
     from workflow.engine.studies.study import static_state
     from workflow.engine.hb import HBProblem
+    from workflow.engine.studies.variants import resolved_nit
 
     rc = relative_coordinates(model) if rc is None else rc
     w_tied = first_tied_frequency(rc)
@@ -196,7 +209,7 @@ def build_problem(model, law, opt: WearOptions, rc=None):
         raise SceneError(f"wear.frequency_hz = {opt.frequency_hz:g} Hz is outside 0.01–100 × the first tied "
                          f"frequency of the model ({f_tied:.4g} Hz); 0 means at that resonance")
     omega = 2 * np.pi * opt.frequency_hz if opt.frequency_hz > 0 else w_tied
-    nit = 2 * opt.nh + 1 if opt.method == "hdhb" else (opt.nit or 2 * opt.nh + 1)
+    nit = resolved_nit(opt.method, opt.nh, opt.nit)
     cond = condensed(rc, omega, opt.nh)
     st = static_state(cond.Zr, cond.Fr, law, opt.max_passes)
     return HBProblem(cond.Zr, cond.Fr, law, opt.nh, nit, opt.method, max_passes=opt.max_passes, static=st), rc, omega
@@ -264,7 +277,11 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     bad = [m for m in opt.methods if m not in METHODS]
     if bad:
         raise SceneError(f"wear.methods: {bad} not among {', '.join(METHODS)}")
-    hb, rc, omega = build_problem(model, law, opt)
+    from workflow.engine.studies.operating import operating_frequency
+
+    f_op, point = operating_frequency(model, law, opt)
+    hb, rc, omega = build_problem(model, law, replace(opt, frequency_hz=f_op))
+    point["frequency_hz"] = omega / 2 / np.pi
     if eps_path is None:
         eps_path = penalty.path_of(law, np.real(hb.Zr[0]))
     if log is not None:
@@ -287,7 +304,9 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
             h.finer_nh = finer_nh_resolve(rc, omega, wp, h, opt, eps_path)
             if log is not None:
                 log.info(f"{m}: the vibration lost at max W = {np.max(h.W):.3e} m; {_lost_hint(h)}")
-    study = WearStudy(omega=omega, hb=hb, rc=rc, base=base, unworn=unworn, histories=histories, tracked_pair=i0)
+    study = WearStudy(omega=omega, hb=hb, rc=rc, base=base, unworn=unworn, histories=histories, tracked_pair=i0,
+                      operating_point=point)
+    _measure(study, model, law, wp, opt, log)
     ref = next((m for m in ("implicit", "explicit") if m in histories), None)
     if ref is not None and "pseudo-time" in histories:
         study.profile_max_rel_diff = profile_rel_diff(histories[ref].W, histories["pseudo-time"].W)
@@ -312,6 +331,40 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
             log.info(log_line("wear Nh-check (1.5×Nh, convergence)", f"the {study.nh_check['measure']}",
                               study.nh_check))
     return study
+
+
+def _measure(study: WearStudy, model, law, wp, opt: WearOptions, log) -> None:
+    """The worn state's measures (:func:`workflow.engine.wear_measures.wear_measures`), the
+    friction energy per cycle before and after wear [J] and, with ``opt.resonance_shift``, the
+    worn − new friction-damped resonance — of the march the checks compare with (pseudo-time
+    first), in place; nothing when no march reached a worn steady state."""
+    from workflow.engine.dissipation import energy_per_cycle
+    from workflow.engine.studies.operating import resonance_shift
+    from workflow.engine.wear_measures import wear_measures
+
+    h = _steady_history(study.histories)
+    if h is None:
+        return
+    study.measures = {"method": h.method, **wear_measures(h.W, model.position, model.area, model.flank,
+                                                          opt.measure_length_m)}
+    energy = {}
+    for name, x, W in (("new", study.base.x, np.zeros(wp.p)), ("worn", h.x, h.W)):
+        st = wp.evaluate(x, W=W)
+        energy[name] = float(energy_per_cycle(st.lam[..., 1:], st.slip).sum())
+    wp.set_wear(np.zeros(wp.p))
+    study.energy_per_cycle_J = energy
+    if opt.resonance_shift:
+        new = None
+        if study.operating_point.get("resonance_hz") is not None:
+            new = {"hz": study.operating_point["resonance_hz"],
+                   "amplitude_m": study.operating_point["resonance_amplitude_m"]}
+        study.resonance_shift = resonance_shift(model, law, h.W, opt, new=new)
+        r = study.resonance_shift
+        if log is not None and r.get("hz") is None:
+            log.info(f"friction-damped resonance shift not found: {r['reason']}")
+        elif log is not None:
+            log.info(f"friction-damped resonance new {r['new_hz']:.6g} Hz, worn {r['worn_hz']:.6g} Hz "
+                     f"({r['rel']:+.2e}), peak amplitude {r['amplitude_rel']:+.2%} ({r['seconds']:.1f} s)")
 
 
 def _steady_history(histories: dict):

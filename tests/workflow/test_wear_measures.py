@@ -1,0 +1,139 @@
+"""Wear measures that can converge with the contact mesh, and the wear study's operating point
+(issue 48 items 1 and 3)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from workflow.engine.wear_measures import (filter_matrix, filtered_profile, profile_l2, scar, wear_measures,
+                                           worn_volume)
+
+
+def _flank(nx: int, ny: int, length=0.04, width=0.01, flank=0):
+    """A rectangular flank meshed nx × ny, pairs at the cell centres with their tributary areas."""
+    x = (np.arange(nx) + 0.5) * length / nx
+    y = (np.arange(ny) + 0.5) * width / ny
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    pos = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
+    return pos, np.full(X.size, length * width / X.size), np.full(X.size, flank)
+
+
+def _profile(pos, depth=2e-6, centre=0.01, half=0.008):
+    """A smooth scar: depth · cos² over |x − centre| < half, zero outside (m)."""
+    s = np.clip((pos[:, 0] - centre) / half, -1.0, 1.0)
+    return depth * np.cos(0.5 * np.pi * s) ** 2
+
+
+def test_volume_and_rms_of_a_uniform_depth_are_exact():
+    pos, A, fl = _flank(8, 3)
+    W = np.full(len(A), 1.5e-6)
+    assert worn_volume(W, A, fl)[0] == pytest.approx(1.5e-6 * 0.04 * 0.01, rel=1e-12)
+    assert profile_l2(W, A, fl)[0] == pytest.approx(1.5e-6, rel=1e-12)
+
+
+def test_filter_keeps_constants_and_tends_to_the_identity_and_the_mean():
+    pos, A, fl = _flank(10, 4)
+    A = A * np.linspace(0.5, 1.5, len(A))                      # uneven tributary areas
+    for ell in (1e-4, 2e-3, 1.0):
+        S = filter_matrix(pos, A, ell)
+        np.testing.assert_allclose(S.sum(axis=1), 1.0, rtol=1e-13)
+        np.testing.assert_allclose(S @ np.full(len(A), 3.0), 3.0, rtol=1e-13)
+    np.testing.assert_array_equal(filter_matrix(pos, A, 0.0), np.eye(len(A)))
+    # ℓ far below the spacing (1 mm): the identity to exp(−(1 mm)²/(2ℓ²)); far above: the area mean
+    np.testing.assert_allclose(filter_matrix(pos, A, 1e-4), np.eye(len(A)), atol=1e-20)
+    W = np.random.default_rng(1).random(len(A))
+    np.testing.assert_allclose(filter_matrix(pos, A, 1e3) @ W, np.sum(A * W) / A.sum(), rtol=1e-9)
+
+
+def test_flanks_are_filtered_apart():
+    p0, A0, f0 = _flank(6, 2, flank=0)
+    p1, A1, f1 = _flank(6, 2, flank=1)
+    pos, A, fl = np.vstack([p0, p1]), np.concatenate([A0, A1]), np.concatenate([f0, f1])
+    W = np.where(fl == 0, 1e-6, 0.0)
+    Wf = filtered_profile(W, pos, A, fl, 1.0)                 # same positions, a huge ℓ
+    np.testing.assert_allclose(Wf[fl == 0], 1e-6, rtol=1e-12)
+    assert np.all(Wf[fl == 1] == 0.0)
+
+
+def test_integral_measures_converge_with_the_contact_mesh():
+    """A smooth scar sampled on meshes 8×2 … 64×8: the volume and the ℓ-filtered RMS depth converge
+    at the midpoint rule's second order (the change shrinks ≥ 3× per doubling), the scar width
+    to within one cell; the node-wise maximum only approaches the depth as a cell centre nears the
+    scar's centre."""
+    meshes = [(8, 2), (16, 4), (32, 8), (64, 8)]
+    exact_volume = 2e-6 * 0.01 * 0.008                       # ∫ depth cos² over 2·half × width
+    vol, l2, width = [], [], []
+    for nx, ny in meshes:
+        pos, A, fl = _flank(nx, ny)
+        m = wear_measures(_profile(pos), pos, A, fl, 2e-3)["flanks"]["intrados"]
+        vol.append(m["worn_volume_m3"])
+        l2.append(m["profile_l2_m"])
+        width.append(m["scar_width_m"])
+        cell = 0.04 / nx
+        assert abs(m["scar_width_m"] - 2 * 0.008 * (2 / np.pi) * np.arccos(np.sqrt(0.05))) <= 2 * cell
+    err = np.abs(np.array(vol) - exact_volume)
+    assert err[1] <= err[0] / 3 and err[2] <= err[1] / 3 and err[-1] / exact_volume < 1e-3
+    d = np.abs(np.diff(l2))
+    assert d[1] <= d[0] / 3 and d[-1] / l2[-1] < 1e-3
+
+
+def test_scar_ignores_a_flank_that_barely_wears():
+    p0, A0, f0 = _flank(6, 2, flank=0)
+    p1, A1, f1 = _flank(6, 2, flank=1)
+    pos, A, fl = np.vstack([p0, p1]), np.concatenate([A0, A1]), np.concatenate([f0, f1])
+    W = np.where(fl == 0, _profile(pos), 1e-17 * _profile(pos))
+    sc = scar(W, pos, A, fl)
+    assert sc[0]["width_m"] > 0 and sc[1] == {"area_m2": 0.0, "width_m": 0.0}
+
+
+def _block():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_wear import _reduced_block_model
+    from workflow.engine.contact import ContactLaw
+
+    m = _reduced_block_model()
+    return m, ContactLaw(mu=np.full(m.n_pairs, 0.3), eps_n=1e5, eps_t=1e5, gap=np.zeros(m.n_pairs))
+
+
+def test_detuning_wears_at_the_friction_damped_peak():
+    """operating_point = "detuning", r = 1: the wear runs at the model's own friction-damped peak —
+    the amplitude there is not exceeded 0.1 % to either side (a maximum, whatever found it)."""
+    from workflow.engine import WearOptions, solve_point, worn_steady_state
+    from workflow.engine.hb import HBProblem
+    from workflow.engine.linear import condensed
+    from reduction.condense import relative_coordinates
+    from workflow.engine.studies.frf import observed
+
+    m, law = _block()
+    opt = WearOptions(methods=("pseudo-time",), nh=2, nit=32, k_w=1e-14, cycles_per_block=1e6, eps_check_factor=0.0,
+                      nh_check=False, compare_unworn=False, max_steps=3, operating_point="detuning",
+                      resonance_shift=False)
+    st = worn_steady_state(m, law, opt)
+    f_r = st.operating_point["resonance_hz"]
+    assert st.operating_point["kind"] == "detuning" and st.omega / 2 / np.pi == pytest.approx(f_r, rel=1e-14)
+    rc = relative_coordinates(m)
+
+    def amp(f):
+        c = condensed(rc, 2 * np.pi * f, 2)
+        hb = HBProblem(c.Zr, c.Fr, law, 2, 32)
+        pr = solve_point(hb, [hb.x0()], solver="newton-powell", tol=1e-10, maxiter=100)
+        assert pr.converged
+        return observed(rc, c.omega, hb.harmonics(pr.result.x))[0]
+
+    top = amp(f_r)
+    assert top == pytest.approx(st.operating_point["resonance_amplitude_m"], rel=1e-6)
+    assert amp(f_r * 0.999) < top and amp(f_r * 1.001) < top
+
+
+def test_detuning_out_of_range_and_unknown_operating_point_are_scene_errors():
+    from workflow.engine import WearOptions, worn_steady_state
+    from workflow.errors import SceneError
+
+    m, law = _block()
+    with pytest.raises(SceneError, match="wear.operating_point"):
+        worn_steady_state(m, law, WearOptions(operating_point="resonant"))
+    with pytest.raises(SceneError, match="wear.detuning"):
+        worn_steady_state(m, law, WearOptions(operating_point="detuning", detuning=3.0))
