@@ -14,7 +14,8 @@ from workflow.errors import SceneError
 from workflow.schema import param
 
 PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report",
-            "scaling", "verification", "contact_convergence", "interface_scaling", "cyclic_modes")
+            "scaling", "verification", "contact_convergence", "interface_scaling", "cyclic_modes",
+            "nonlinear_modes")
 
 
 @dataclass
@@ -280,6 +281,29 @@ class Scaling:
 
 
 @dataclass
+class NonlinearModes:
+    mode: int = param(0, "", "tied mode whose nonlinear mode is followed (0: the lowest)", min=0)
+    harmonics: int = param(7, "", "Nh of the EPMC", min=1)
+    time_samples: int = param(0, "", "nit per period (0: the smallest power of 2 ≥ 4(2Nh+1), at least 64)", min=0)
+    amplitude_range: list = param([0.1, 3000.0], "", "modal amplitudes of the backbone, in units of the first "
+                                                     "slip onset of the tied mode (from, to)", min=0.0)
+    points: int = param(41, "", "backbone points at least (log-spaced in amplitude)", min=3)
+    max_steps: int = param(150, "", "continuation steps at most", min=1)
+    synthesis_forces: list = param([], "N", "tip forces at which the single-mode synthesis is compared with the "
+                                            "direct HB FRF ([]: excitation.amplitude)", min=0.0)
+    jenkins_check: bool = param(True, "", "also check the EPMC on a Jenkins oscillator against its "
+                                          "multi-harmonic reference (≈ 2 s)")
+
+    def check(self):
+        if len(self.amplitude_range) != 2 or not 0 < self.amplitude_range[0] < self.amplitude_range[1]:
+            raise SceneError(f"nonlinear_modes.amplitude_range = {self.amplitude_range}: two increasing positive "
+                             "numbers (× the slip onset)")
+        if self.time_samples and self.time_samples < 2 * self.harmonics + 1:
+            raise SceneError(f"nonlinear_modes.time_samples = {self.time_samples} < 2·Nh+1 = "
+                             f"{2 * self.harmonics + 1}")
+
+
+@dataclass
 class Verification:
     cases: list = param(["coulomb", "coulomb-damped", "coulomb-stop", "2dof-damper"], "",
                         "friction cases with exact references (workflow/verification/suite.py); pad-chain adds a "
@@ -416,5 +440,5 @@ SECTIONS = {
     "excitation": Excitation, "modes": Modes, "reduction": Reduction, "contact": Contact, "hb": HB,
     "sweep": Sweep, "pseudotime": PseudoTime, "wear": Wear, "remap": Remap, "extreme": Extreme,
     "scaling": Scaling, "verification": Verification, "contact_convergence": ContactConvergence,
-    "interface_scaling": InterfaceScaling, "cyclic": Cyclic,
+    "interface_scaling": InterfaceScaling, "cyclic": Cyclic, "nonlinear_modes": NonlinearModes,
 }

@@ -10,7 +10,13 @@ on a user's bundle; ``docs/architecture.md`` shows where everything lives):
   time, linear tied/sliding limits, ε-check and the reference's convergence;
 * :func:`solve_point` — one frequency through the solver cascade;
 * :func:`worn_steady_state` (model, law, options) → :class:`WearStudy`:
-  the reference wear march and pseudo-time to the worn steady state.
+  the reference wear march and pseudo-time to the worn steady state, at a fixed
+  frequency or a detuning of the friction-damped resonance, with its measures;
+* :func:`backbone` (model, law) → :class:`~workflow.engine.nlmodes.Backbone`: the
+  friction-damped nonlinear mode by EPMC, and :func:`synthesize` the forced
+  response from it (single-nonlinear-mode synthesis);
+* :func:`hill_stability` (model, hb, x, ω) → :class:`~workflow.engine.stability.Stability`:
+  the Floquet multipliers of a periodic HB solution.
 
 Everything takes a :class:`reduction.reduced.ReducedModel` (the seam with the
 finite-element half) and returns arrays and result objects; nothing here
@@ -22,7 +28,9 @@ from workflow.engine.studies.frf import SweepResult
 from workflow.engine.studies.study import FRFOptions, FRFStudy, contact_law, frf, static_state
 from workflow.engine.studies.variants import Variant, variants
 from workflow.engine.studies.wearstudy import WearOptions, WearStudy, worn_steady_state
+from workflow.engine.nlmodes import backbone, synthesize
+from workflow.engine.stability import hill_stability
 
 __all__ = ["FRFOptions", "FRFStudy", "PointResult", "SweepResult", "Variant", "contact_law", "frf",
-           "WearOptions", "WearStudy", "penalty", "solve_point", "static_state", "variants",
-           "worn_steady_state"]
+           "WearOptions", "WearStudy", "backbone", "hill_stability", "penalty", "solve_point", "static_state",
+           "synthesize", "variants", "worn_steady_state"]

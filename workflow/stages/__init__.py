@@ -42,6 +42,7 @@ PRODUCERS: dict[str, str] = {
     "contact_convergence": "contact_convergence",
     "interface_scaling": "interface_scaling",
     "cyclic_modes": "cyclic_modes",
+    "nonlinear_modes": "nonlinear_modes",
 }
 
 #: stage name → module path. Tests and plug-ins may register others here.
