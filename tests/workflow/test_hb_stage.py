@@ -361,3 +361,22 @@ def test_arclength_sweep_traces_the_same_frf_as_the_grid(tmp_path):
     # curves' own points, so it carries the interpolation error near the sharp peak
     assert run["solver"] == "arclength-newton" and run["error"] is not None
     assert s_grid["runs"][0]["error"] <= run["error"] < 0.15
+
+
+def test_stability_columns_and_summary(tmp_path):
+    """hb.stability: frf.csv carries stable and floquet_max per converged point, summary.json
+    runs[].stable / floquet_max, and the log says it; a damped friction-damped response through
+    one resonance is stable everywhere (|μ| < 1)."""
+    import json
+
+    model = blade_chain(force=0.1, preload=np.array([2.0, 8.0, 30.0]))
+    summary, out = run_stage(tmp_path, model, methods=["hbm"], harmonics=[2], time_samples=[32], stability=True,
+                             branch_check=False, time_check=False,
+                             sweep=dict(f_start_hz=99.0, f_stop_hz=105.0, points=4), **LEAN)
+    json.dumps(summary)
+    run = summary["runs"][0]
+    rows = read_frf(out)
+    assert [r["stable"] for r in rows] == ["1"] * 4 and run["stable"] == [True] * 4
+    mu = np.array([float(r["floquet_max"]) for r in rows])
+    assert np.all((0 < mu) & (mu < 1)) and np.allclose(mu, run["floquet_max"], rtol=1e-8)
+    assert "stability of HBM-2 nit=32" in (out / "stage.log").read_text()

@@ -138,20 +138,17 @@ def test_synthesis_against_direct_hb(jenkins_backbone, force):
 
 
 @pytest.mark.slow
-def test_quick_sector_backbone_starts_at_its_tied_mode():
+def test_quick_sector_backbone_starts_at_its_tied_mode(tmp_path):
     """The quick sector (110 DOFs, 16 pairs, 8 of them open under the preload): the backbone's
     first point is the linear tied mode with the open pairs free (complex eigenproblem) to
-    1e-8, and it sees the friction damping grow past the slip onset."""
-    from pathlib import Path
+    Newton's tolerance, and it sees the friction damping grow past the slip onset."""
+    from quickmodel import quick_reduced
 
-    from reduction.reduced import ReducedModel
-
-    path = Path("/tmp/bw/quick_reduced.npz")
-    if not path.exists():
-        pytest.skip("no quick-sector reduced model at /tmp/bw/quick_reduced.npz")
-    model = ReducedModel.load(path)
+    model = quick_reduced(tmp_path)
     law = contact_law(model, mu=0.5)
     bb = nlmodes.backbone(model, law, nh=7, nit=64, amplitudes=(2e-5, 6e-4, 8))
-    assert bb.frequency_hz[0] == pytest.approx(bb.tied_hz, rel=1e-8)
+    # Newton stops at 1e-9 of the scaled residual; the frequency it leaves is then known to the
+    # condition of the η row times that: measured 2.2e-8 on a freshly built sector
+    assert bb.frequency_hz[0] == pytest.approx(bb.tied_hz, rel=1e-7)
     assert bb.damping_ratio[0] == pytest.approx(bb.tied_damping_ratio, rel=1e-6)
     assert bb.damping_ratio[-1] > 1.2 * bb.damping_ratio[0]

@@ -85,7 +85,7 @@ def bench(path: Path, *, mu: float, nh: int, nit: int, forces, amplitudes, max_s
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("model", nargs="?", default="/tmp/bw/quick_reduced.npz")
+    ap.add_argument("model", nargs="?", default="results/quick/reduction/reduced.npz")
     ap.add_argument("--mu", type=float, default=0.5)
     ap.add_argument("--nh", type=int, default=7)
     ap.add_argument("--nit", type=int, default=64)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 FRF_COLUMNS = ("method", "Nh", "nit", "solver", "frequency_hz", "amplitude_m", "iterations", "seconds",
-               "converged", "amplitude_max_m", "role", "reason")
+               "converged", "amplitude_max_m", "role", "reason", "stable", "floquet_max")
 
 
 def _csv(rows, header) -> str:
@@ -49,7 +49,9 @@ def _frf_csv(path: Path, runs, ref) -> str:
         for i, f in enumerate(r.freqs_hz):
             rows.append([v.method, v.nh, v.nit, r.solver, _g(float(f)), _g(float(r.amplitude[i])),
                          int(r.iterations[i]), f"{r.seconds[i]:.6f}", int(r.converged[i]),
-                         _g(float(r.amplitude_max[i])), role, "" if r.converged[i] else r.reasons[i]])
+                         _g(float(r.amplitude_max[i])), role, "" if r.converged[i] else r.reasons[i],
+                         "" if r.stable is None or r.stable[i] is None else int(r.stable[i]),
+                         "" if r.floquet_max is None or not np.isfinite(r.floquet_max[i]) else _g(float(r.floquet_max[i]))])
     write_text(path, _csv(rows, FRF_COLUMNS))
     return path.name
 
@@ -172,7 +174,16 @@ def _frf_axes(plt, save, freqs, tied, slide, ref, sel, title, name):
         ax.semilogy(ref.freqs_hz, ref.amplitude, "k-", lw=2.5, alpha=0.35, label=f"reference {ref.variant.label}")
     for r in sel:
         m = np.where(r.converged, r.amplitude, np.nan)
-        ax.semilogy(r.freqs_hz, m, ls=_STYLE.get(r.variant.method, "-"), marker=".", ms=3, label=r.variant.label)
+        line, = ax.semilogy(r.freqs_hz, m, ls=_STYLE.get(r.variant.method, "-"), marker=".", ms=3,
+                            label=r.variant.label)
+        if r.stable is not None and any(s is False for s in r.stable):
+            # unstable points (hb.stability): over the curve, dashed between two unstable neighbours
+            bad = np.array([s is False for s in r.stable])
+            ax.semilogy(r.freqs_hz, np.where(bad, m, np.nan), ls="none", marker="o", mfc="none", ms=6,
+                        color=line.get_color(), label=f"{r.variant.label}: unstable")
+            seg = bad & np.roll(bad, -1)
+            for i in np.flatnonzero(seg[:-1]):
+                ax.semilogy(r.freqs_hz[i:i + 2], m[i:i + 2], ls="--", color="w", lw=1.2)
     top = max([np.nanmax(r.amplitude) for r in sel if np.isfinite(r.amplitude).any()] + [1e-300])
     ax.set_ylim(top / 30, top * 3)
     ax.set_xlabel("frequency (Hz)")

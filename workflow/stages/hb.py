@@ -42,7 +42,7 @@ def options(scene):
     return FRFOptions(solver=hb.solver, tol=hb.tol, max_iterations=hb.max_iterations, max_passes=ct.max_passes,
                       sweep=sw.method, max_steps=sw.max_steps, reference=ref, eps_check_factor=ct.eps_check,
                       reference_check=hb.reference_check, refine_peak=hb.refine_peak, nh_check=hb.nh_check,
-                      branch_check=hb.branch_check, time_check=hb.time_check,
+                      branch_check=hb.branch_check, time_check=hb.time_check, stability=hb.stability,
                       pseudo=pseudo_options(pt)), variants(hb)
 
 
@@ -130,6 +130,7 @@ def summarise(study, scene) -> dict:
         "iterations": int(r.iterations.sum()), "peak_hz": r.peak_hz(),
         "peak_amplitude_m": float(np.nanmax(np.where(r.converged, r.amplitude, np.nan))) if r.converged.any() else None,
         "dlft_max_passes": r.dlft_max_passes,
+        "stable": r.stable, "floquet_max": None if r.floquet_max is None else [float(v) for v in r.floquet_max],
     } for r in study.runs]
     ref = study.reference
     reference = None

@@ -45,6 +45,8 @@ class SweepResult:
     error: float | None = None
     dlft_max_passes: int = 0
     linear_solver: str = "dense"                 # Newton's linear solve (cascade.linear_solver)
+    stable: list | None = None                   # per point True / False / None (FRFOptions.stability)
+    floquet_max: np.ndarray | None = None        # per point largest |Floquet multiplier| (NaN: none)
 
     @property
     def converged_points(self) -> int:

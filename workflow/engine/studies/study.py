@@ -151,7 +151,9 @@ class FRFOptions:
     headline sweep's last point from an independent start (:func:`_branch_points`,
     :func:`workflow.engine.studies.epscheck.branch_runs`); ``time_check``: the headline peak
     integrated in physical time from its HB state (:func:`workflow.engine.timecheck.time_check`:
-    is it a periodic orbit of the time-domain model?)."""
+    is it a periodic orbit of the time-domain model?); ``stability``: the Floquet multipliers of
+    every converged point of every run (:mod:`workflow.engine.studies.sweepstability`), in
+    :attr:`SweepResult.stable` and :attr:`SweepResult.floquet_max`."""
 
     solver: str = "newton-powell"
     tol: float = 1e-8
@@ -169,6 +171,7 @@ class FRFOptions:
     nh_check: bool = True
     branch_check: bool = True
     time_check: bool = True
+    stability: bool = False
 
 
 @dataclass
@@ -379,8 +382,25 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
                          condense_seconds=t_cond, condensation=condensation(rc))
         _check(study, rc, opt, log)
         _headline(study, model, rc, opt, refine=freqs_hz is None and len(freqs) > 1, log=log)
+        if opt.stability:
+            _stability(study, model, rc, log)
     study.seconds = time.perf_counter() - t0
     return study
+
+
+def _stability(study: FRFStudy, model, rc, log) -> None:
+    """Stable / unstable and the largest Floquet multiplier of every converged point, in place."""
+    from workflow.engine.studies.sweepstability import sweep_stability
+
+    for r in study.runs + ([study.reference] if study.reference is not None else []):
+        st = sweep_stability(model, rc, study.law, study.static, r)
+        r.stable, r.floquet_max = st["stable"], st["floquet_max"]
+        if log is not None:
+            bad = [f for f, s in zip(r.freqs_hz, st["stable"]) if s is False]
+            log.info(f"stability of {r.variant.label} ({st['seconds']:.1f} s): "
+                     + (f"{len(bad)} unstable points, {min(bad):.6g}–{max(bad):.6g} Hz" if bad else
+                        f"every converged point stable (largest multiplier {np.nanmax(st['floquet_max']):.6f})"
+                        if np.isfinite(st["floquet_max"]).any() else "not computed"))
 
 
 def _check(study: FRFStudy, rc, opt, log) -> None:

@@ -1,0 +1,180 @@
+"""Floquet stability of HB solutions (workflow/engine/stability.py) against independent references
+(workflow/verification/floquet.py): Duffing (Hill vs shooting, stability change at the folds of an
+independent HB continuation), a Jenkins oscillator solved by the engine (vs event-driven shooting),
+the linear limits (closed form) and the quick sector."""
+from __future__ import annotations
+
+
+import numpy as np
+import pytest
+
+from workflow import engine
+from workflow.engine import stability
+from workflow.engine.hb import HBProblem
+from workflow.engine.linear import condensed
+from workflow.verification import floquet, models
+from workflow.verification.timeint import Pads
+
+DUFF = dict(m=1.0, c=0.05, k=1.0, k3=0.5, F=0.3)
+
+
+def _duffing_hill(coef, omega, nh=10, nit=64):
+    t = 2 * np.pi / omega * np.arange(nit) / nit
+    x = floquet.duffing_time(coef, omega, t)
+    Kt = (3 * DUFF["k3"] * x * x)[:, None, None]
+    return stability.hill_exponents([[DUFF["m"]]], [[DUFF["c"]]], [[DUFF["k"]]], Kt, None, omega, nh)
+
+
+def test_duffing_hill_matches_shooting_and_changes_stability_at_the_folds():
+    p = DUFF
+    br = floquet.duffing_branch(p["m"], p["c"], p["k"], p["k3"], p["F"], 0.8, 2.2, nh=7, ds=0.05)
+    assert len(br.turns) == 2                              # the two folds of the hardening Duffing
+    # a turning point lies between points t and t+1 of ``turns`` (ω turns back); Hill's largest
+    # multiplier must cross 1 within one step of it, and the branch between the folds is unstable
+    near = sorted({i for t in br.turns for i in range(t - 4, t + 6)} | set(range(0, len(br.omegas), 10)))
+    fmax = {i: _duffing_hill(br.coef[i], br.omegas[i]).floquet_max for i in near}
+    lo, hi = br.turns
+    for i, f in fmax.items():
+        if i <= lo - 1 or i >= hi + 2:
+            assert f < 1, (i, f)
+        if lo + 2 <= i <= hi - 1:
+            assert f > 1, (i, f)
+    # Hill vs shooting (variational equations) at three points: lower, middle (unstable), upper branch.
+    # Bounds: Hill at 10 harmonics of the smooth coefficient 3k3x² converges exponentially; the
+    # error is the Nh = 7 HB orbit's, amplified next to a fold where the two multipliers are real
+    # and close: measured 3.6e-6 five steps past the upper fold, 1e-9 elsewhere. Bound 2e-5.
+    for i in (br.turns[0] - 5, (br.turns[0] + br.turns[1]) // 2, br.turns[1] + 5):
+        a, w = br.coef[i], br.omegas[i]
+        z0 = [floquet.duffing_time(a, w, [0.0])[0], w * a[2::2] @ np.arange(1, 8)]
+        ref = floquet.duffing_monodromy(p["m"], p["c"], p["k"], p["k3"], p["F"], w, z0)
+        assert ref.residual < 1e-9
+        h = _duffing_hill(a, w)
+        assert abs(h.floquet_max - ref.floquet_max) < 2e-5 * ref.floquet_max, (i, h.floquet_max, ref.floquet_max)
+        # Liouville: the product of the two multipliers is exp(−cT/m)
+        assert len(h.exponents) == 2
+        assert np.isclose(np.exp(np.sum(h.exponents).real * 2 * np.pi / w), np.exp(-p["c"] / p["m"] * 2 * np.pi / w),
+                          rtol=1e-8)
+
+
+def _jenkins(cN=0.0, mu=0.5, N0=0.3):
+    M, K = np.array([[1.0]]), np.array([[1.0]])
+    C = 0.02 * K
+    pads = Pads(dof=np.array([0]), k=np.array([1.0]), mu=mu, N0=np.array([N0]), cN=np.array([[cN]]))
+    model, _ = models.jenkins(M, C, K, [0.1], 0, pads, "jenkins-1dof")
+    return model, (M, C, K, np.array([0.1]), pads)
+
+
+def _engine_point(model, law, omega, nh=15, nit=128):
+    from reduction.condense import relative_coordinates
+
+    rc = relative_coordinates(model)
+    c = condensed(rc, omega, nh)
+    hb = HBProblem(c.Zr, c.Fr, law, nh, nit)
+    pr = engine.solve_point(hb, [hb.x0()], solver="newton-powell", tol=1e-10, maxiter=100)
+    assert pr.converged
+    return hb, pr.result.x, rc
+
+
+@pytest.mark.parametrize("omega,cN", [(1.3, 0.0), (1.2, 0.1)])
+def test_jenkins_multipliers_match_event_driven_shooting(omega, cN):
+    """Engine HB (DLFT) + the monodromy of its linearisation (anchors as states) vs central
+    differences of the exact stick–slip period map. The error is set by the switching instants,
+    known to a sample of the DLFT: at ω = 1.2 (normal load varying, real multipliers) 9.2e-3 at
+    nit = 512, 4.9e-4 at 2048 (the default); at ω = 1.3 1.26e-3 flat from nit = 1024 to 4096,
+    where the DLFT's stick fraction (0.5195–0.5200 of the period against the exact 0.5203) is
+    the HB orbit's own and the multiplier moves by ≈ 2 per unit of stick fraction. ε 10⁴ → 10⁵:
+    6e-5; the HB's Nh 7 → 31: < 1e-6; backward Euler's substeps 2 → 32: 2e-6. Bound 2e-3."""
+    model, (M, C, K, f, pads) = _jenkins(cN)
+    law = engine.contact_law(model, mu=pads.mu)
+    ref, ss = floquet.jenkins_monodromy(M, C, K, f, omega, pads)
+    assert ref.residual < 1e-8 and 0.05 < ss.stick_fraction[0] < 0.95          # it slips and sticks
+    hb, x, rc = _engine_point(model, law, omega)
+    st = stability.hill_stability(model, hb, x, omega, rc=rc)
+    assert st.stable and ref.floquet_max < 1
+    assert abs(st.floquet_max - ref.floquet_max) < 2e-3, (st.floquet_max, ref.floquet_max)
+    assert st.truncation_change < 2e-3          # nit 2048 → 4096: the switching instants again
+    # the memoryless tangent (no anchor states) is not the law's linearisation: far off
+    ml = stability.hill_stability(model, hb, x, omega, rc=rc, memory=False, nh_check=None)
+    assert abs(ml.floquet_max - ref.floquet_max) > 0.1
+
+
+def _tied_exponents(model, eps):
+    """Closed form: the damped eigenvalues of M q̈ + C q̇ + (K + Bᵀ diag(ε) B) q = 0."""
+    import scipy.linalg as sla
+
+    M, C, K, B = model.M, model.C, model.K, model.B
+    Kt = K + B.T @ np.diag(eps) @ B
+    m = M.shape[0]
+    A = np.block([[np.zeros((m, m)), np.eye(m)], [-Kt, -C]])
+    E = np.block([[np.eye(m), np.zeros((m, m))], [np.zeros((m, m)), M]])
+    s = sla.eigvals(A, E)
+    return s[np.isfinite(s)]
+
+
+@pytest.mark.parametrize("method", ["monodromy", "hill"])
+def test_all_stuck_limit_gives_the_tied_damped_eigenvalues(method):
+    """μ → ∞ (every pair stuck all period, no anchor state): the Floquet exponents are the damped
+    eigenvalues of the tied linear system (ε of the tangent on every contact DOF), so the largest
+    multiplier is exp(max Re s · T) < 1. Bounds: Hill with a constant tangent is exact at any
+    truncation (the copies decouple); the monodromy's backward Euler with Richardson: O(h²)."""
+    model, spec = models.two_dof_damper(mu=50.0)
+    law = engine.contact_law(model, mu=50.0)
+    omega = 0.9 * spec.omega_n
+    hb, x, rc = _engine_point(model, law, omega, nh=3, nit=32)
+    assert np.all(hb.contact_state(x) == 1)
+    st = stability.hill_stability(model, hb, x, omega, rc=rc, method=method, nh_check=None)
+    from workflow.engine import penalty
+
+    ks = penalty.reference_stiffness(np.real(hb.Zr[0]))
+    eps = stability.EPS_FACTOR * np.stack([ks[:, 0], ks[:, 1], ks[:, 1]], axis=1).ravel()
+    s = _tied_exponents(model, eps)
+    T = 2 * np.pi / omega
+    expect = float(np.exp(s.real.max() * T))
+    assert st.stable and expect < 1
+    # Hill: QZ's backward error on a pencil whose contact rows are ε_Hill = 10⁴ k_static (‖𝒜‖/|s| ≈ 1e8)
+    tol = 1e-6 if method == "hill" else 1e-4
+    assert abs(st.floquet_max - expect) < tol, (st.floquet_max, expect)
+
+
+@pytest.mark.slow
+def test_quick_sector_is_stable_around_resonance(tmp_path):
+    """Three points around the first tied resonance (≈ 212 Hz) of the quick sector (16 pairs):
+    stable, and the monodromy's change from nit = 512 to 1024 small (the switching instants'
+    resolution) — on a Ritz basis of the stuck and sliding modes below 6ω."""
+    from quickmodel import quick_reduced
+    from reduction.condense import relative_coordinates
+
+    model = quick_reduced(tmp_path)
+    law = engine.contact_law(model, mu=0.5)
+    rc = relative_coordinates(model)
+    prev = None
+    for f in (200.0, 208.0, 214.0):
+        w = 2 * np.pi * f
+        c = condensed(rc, w, 3)
+        hb = HBProblem(c.Zr, c.Fr, law, 3, 64)
+        guesses = [hb.x0()] if prev is None else [prev, hb.x0()]
+        pr = engine.solve_point(hb, guesses, solver="newton-powell", tol=1e-8, maxiter=100,
+                                eps_path=engine.penalty.path_of(law, np.real(c.Zr[0])))
+        assert pr.converged
+        prev = pr.result.x
+        st = stability.hill_stability(model, hb, prev, w, rc=rc, modes=6.0)
+        assert st.stable, (f, st.floquet_max)
+        assert st.truncation_change < 1e-3, (f, st.truncation_change)
+
+
+def test_frf_stability_of_every_point_matches_shooting():
+    """engine.frf with stability on: every converged point of the Jenkins oscillator's sweep
+    through its resonance carries its largest multiplier; at two points it is the event-driven
+    shooting's to the bound of test_jenkins_multipliers_match_event_driven_shooting (2e-3) — the
+    Ritz basis of the sweep path changes nothing on a one-DOF structure."""
+    model, (M, C, K, f, pads) = _jenkins()
+    law = engine.contact_law(model, mu=pads.mu)
+    w = np.array([1.2, 1.3])
+    st = engine.frf(model, law, [engine.Variant("hbm", 15, 128)], freqs_hz=w / (2 * np.pi),
+                    options=engine.FRFOptions(stability=True, eps_check_factor=0.0, nh_check=False,
+                                              branch_check=False, time_check=False, tol=1e-10))
+    r = st.runs[0]
+    assert r.converged.all() and r.stable == [True, True]
+    for i, omega in enumerate(w):
+        ref, _ = floquet.jenkins_monodromy(M, C, K, f, omega, pads)
+        assert abs(r.floquet_max[i] - ref.floquet_max) < 2e-3, (omega, r.floquet_max[i], ref.floquet_max)

@@ -1,0 +1,581 @@
+"""Hill's method: Floquet stability of a periodic harmonic-balance solution (issue #49).
+
+The linearised problem
+----------------------
+About a T-periodic solution q(t) (T = 2π/ω) of ``M q̈ + C q̇ + K q + Bᵀ λ(t) = f(t)``
+(docs/contracts.md §4, §6) a perturbation δq obeys the linear T-periodic system
+
+    M δq̈ + C δq̇ + K δq + Bᵀ δλ = 0,      δu = B δq   (relative contact DOFs),
+
+with δλ the linearised DLFT law along the period (:mod:`workflow.engine.contact`). The
+DLFT is a rigid contact (eqs. 13–17: in stick ``X_T`` equals the anchor, in contact the gap
+is closed; ε is numerical) with *memory*: a pair in stick pulls towards an anchor w that
+only slip moves. Its exact linearisation therefore carries the anchor perturbation δw of
+every pair that slips or separates during the period as a state (Jenkins element: a
+spring ε_T in series with a Coulomb slider, ε → ∞):
+
+* contact, normal: ``δλ_N = ε_N δu_N``; separation: ``δλ = 0`` and the anchor follows,
+  ``δw = δu_T``;
+* tangential: ``δλ_T = ε_T (δu_T − δw)`` with, in stick, ``δẇ = 0``; in slip (direction
+  t = λ_T/‖λ_T‖, n ⊥ t in the tangent plane) the Coulomb limit along t,
+  ``ε_T tᵀ(δu_T − δw) = μ δ|λ_N| = −μ ε_N δu_N`` (algebraic: the μ·dλ_N coupling), and
+  across t the rotation of the slip direction, ``nᵀδẇ = κ nᵀ(δu_T − δw)`` with
+  ``κ = |ẇ| ε_T/(μ|λ_N|)`` (1/s, the slip rate over the elastic slip length).
+
+This periodic descriptor system is exact for the piecewise-smooth law: its algebraic slip
+rows reproduce the saltation at stick → slip (the perturbed force is clipped to the cone).
+At s = 0 it is the HB Jacobian's linearisation (the DLFT carries the same anchor
+derivative, :func:`workflow.engine.contact.dlft_pass`), so an exponent crosses 0 exactly at
+a fold of the HB curve. A pair stuck during the whole period keeps no anchor state: its
+anchor is a parameter set by the load history (the "stuck zeroth harmonic" of
+:meth:`~workflow.engine.hb.HBProblem.static_state`) whose perturbation is a neutral
+multiplier 1 of the family of periodic solutions, not a dynamic instability; so is a pair
+whose anchor the DLFT never moves (it only touches the cone after shaking down: every
+reference on a circle is periodic, :func:`workflow.engine.contact.dlft_pass`), which takes
+the stick tangent at the touching instants.
+
+``memory=False`` drops the anchors: the memoryless tangent ``δλ = K_c(t) δu`` (ε_N in
+contact, ε_T in stick, in slip ``fac·ε_T (I − t tᵀ)`` and ``−μ ε_N t`` on δu_N, zero when
+separated; the issue's first formulation). It is not the linearisation of a law with
+memory: in stick it pulls δu back to 0 instead of to its value at the stick onset, and in
+slip it keeps the perturbed force the cone clips, so friction does not damp perturbations.
+Measured on the 1-DOF Jenkins oscillator (ω = 1.3, stable, shooting 0.3738) it finds a real
+multiplier 1.58–1.64: an *unstable* orbit that is stable.
+
+Two ways to the multipliers
+---------------------------
+* ``method="monodromy"`` (default): the monodromy matrix of the linearised system,
+  integrated over one period on the tangent's samples (:func:`monodromy`). Measured
+  against event-driven shooting on Jenkins oscillators: 5e-4…1.3e-3 on the largest
+  multiplier at nit = 2048, the error set by the switching instants (known to a sample).
+* ``method="hill"``: Hill's method below. It is exact for a smooth periodic system (Duffing:
+  1e-9 against shooting at 10 harmonics) and for a constant tangent (all stuck), but the
+  stick/slip switches make the anchor rows switch between differential and algebraic:
+  the truncated pencil then has spurious eigenvalues and does not converge in N (Jenkins,
+  ω = 1.3: 0.917, 0.839 at N = 8, 16, an infinite one selected at 32, against 0.374). It is
+  kept for smooth laws and as the generic core (:func:`hill_exponents`).
+
+The penalty
+-----------
+The DLFT's ε (:mod:`workflow.engine.penalty`) is *not* a contact stiffness: it is the
+stiffness the HB lends to the unresolved harmonics (at the automatic choice ≈ the contact
+DOFs' own static stiffness), and the contact it solves is rigid. A tangent with that ε
+would put a compliance the model does not have in series with the structure (a Jenkins pad
+of spring k_d with ε ≈ k_d: half the stuck stiffness). The tangent here takes
+``ε_Hill = eps_factor × k_static`` per pair and direction (:func:`workflow.engine.penalty.
+reference_stiffness`), a stand-in for ε → ∞ whose error falls as 1/eps_factor; the
+default :data:`EPS_FACTOR` = 10⁴ is measured converged (the bench reports the change of the
+largest multiplier from 10³ to 10⁴ and 10⁵).
+
+Hill's method
+-------------
+With the Floquet form ``z(t) = e^{st} Σ_{n=−N…N} z_n e^{inωt}`` a first-order periodic
+descriptor system ``E(t) ż = A(t) z`` becomes the generalised eigenproblem (Hill 1886;
+Lazarus & Thomas 2010, eqs. 10–14; Peletan et al. 2013, §3; Detroux et al. 2015, §2.3)
+
+    Σ_k [Â_{n−k} − i k ω Ê_{n−k}] z_k = s Σ_k Ê_{n−k} z_k,     n = −N…N,
+
+with Â_j, Ê_j the complex Fourier coefficients of A(t), E(t) (from samples, by FFT;
+nit ≥ 4N+1 so that |j| ≤ 2N is not aliased). Here z = [δq, δv, δw], E = diag(I, M, E_w(t)).
+
+Selection rule. The truncated problem has (2N+1) copies ``s + i n ω`` of each exponent; a
+copy's eigenvector is the same coefficients shifted by n harmonics. We keep the copy whose
+eigenvector's *harmonic centroid* ``c = Σ n ‖δq_n‖² / Σ ‖δq_n‖²`` (and δw) satisfies
+|c| < ½: one copy per family in the untruncated problem, where shifting moves c by exactly
+1 — the eigenvector-symmetry rule of Lazarus & Thomas 2010 (§3.2) in a form that needs no
+count of the DOFs. Unlike the strip rule |Im s| ≤ ω/2 it does not need the copy of a mode
+far above Nω (which the truncation lacks) to be in the problem: the central copy of any
+mode has c ≈ 0. Multipliers are ``|exp(s T)| = exp(Re s · T)``; the solution is stable when
+the largest is ≤ 1 + :data:`STABLE_TOL`.
+
+Solvers. Small problems (≤ :data:`DENSE_MAX` unknowns) take every eigenvalue (LAPACK's
+QZ). Larger ones take the ``n_exp`` exponents nearest the shift σ = :data:`SHIFT` × ω by
+shift-invert Arnoldi (ARPACK through :func:`scipy.sparse.linalg.eigs` on
+``(𝒜 − σℰ)⁻¹ ℰ``, one sparse LU): every exponent whose copy lies within the returned
+``radius`` of σ is found, so the least stable ones are, as long as the radius exceeds
+ω/2 + (σ − Re s) for them (reported, :attr:`Stability.radius`). ``modes`` projects δq on
+a Ritz basis (the structure's modes with the contacts stuck and with them sliding, below a
+cut-off) for large models.
+
+Everything takes SI units: M kg, K N/m, C N·s/m, ω rad/s, exponents s in 1/s.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from workflow.engine.contact import SEPARATION, SLIP, STICK
+
+__all__ = ["Stability", "HillResult", "hill_exponents", "hill_descriptor", "hill_stability",
+           "contact_tangent", "monodromy", "EPS_FACTOR", "STABLE_TOL"]
+
+#: ε of the Hill tangent as a multiple of the static contact stiffness (the rigid limit; module docstring)
+EPS_FACTOR = 1.0e4
+#: a multiplier up to 1 + STABLE_TOL counts as stable (neutral directions: a free rigid-body
+#: motion of a separated blade has multiplier 1 to round-off)
+STABLE_TOL = 1.0e-6
+#: at most this many unknowns of the Hill pencil are solved densely (all eigenvalues)
+DENSE_MAX = 1500
+#: shift of the shift-invert Arnoldi, as a multiple of ω (right of the imaginary axis: the
+#: least stable exponents are the nearest)
+SHIFT = 0.05
+#: exponents (with their copies) asked of ARPACK by default
+N_EXP = 40
+#: samples per period of the monodromy's tangent (the switching instants are known to T/nit)
+MONODROMY_NIT = 2048
+#: relative change of a pair's stick reference λ_x^T (of max|λ|) above which its anchor moves
+ANCHOR_TOL = 1e-9
+#: backward-Euler steps a sample interval in :func:`monodromy` (Richardson-extrapolated)
+SUBSTEPS = 2
+
+
+@dataclass
+class HillResult:
+    """:func:`hill_descriptor`'s output. ``exponents`` (k,) complex, 1/s: the selected
+    Floquet exponents (one per family, sorted by decreasing real part); ``multipliers``
+    |exp(sT)| of them; ``all`` every eigenvalue computed; ``centroid`` their harmonic
+    centroids; ``radius`` (1/s): ARPACK's search radius about ``sigma`` (inf when dense);
+    ``method`` "dense" or "shift-invert"; ``size`` unknowns of the pencil."""
+
+    exponents: np.ndarray
+    multipliers: np.ndarray
+    all: np.ndarray
+    centroid: np.ndarray
+    radius: float
+    sigma: complex
+    method: str
+    size: int
+
+    @property
+    def floquet_max(self) -> float:
+        return float(self.multipliers.max()) if len(self.multipliers) else float("nan")
+
+
+@dataclass
+class Stability:
+    """Stability of one periodic HB solution (:func:`hill_stability`).
+
+    stable              largest multiplier ≤ 1 + :data:`STABLE_TOL`
+    floquet_max         the largest Floquet multiplier |exp(s T)| (dimensionless)
+    exponents           selected exponents s (1/s), decreasing real part
+    truncation_change   |floquet_max(nh_hill) − floquet_max(nh_check)| (None: not checked)
+    method              "dense" or "shift-invert" (and "+ritz(r)" when projected)
+    seconds             wall time of the whole analysis (both truncations)
+    nh_hill, nh_check   the harmonics of the Hill problem and of the truncation check
+    eps_factor          ε of the tangent / static stiffness
+    memory              anchors as states (True) or the memoryless tangent
+    radius              search radius of the shift-invert (inf: dense, every exponent)
+    anchors             pairs carrying an anchor state (those that slip or separate)
+    """
+
+    stable: bool
+    floquet_max: float
+    exponents: np.ndarray
+    truncation_change: float | None
+    method: str
+    seconds: float
+    nh_hill: int = 0
+    nh_check: int | None = None
+    eps_factor: float = EPS_FACTOR
+    memory: bool = True
+    radius: float = float("inf")
+    anchors: int = 0
+    detail: dict = field(default_factory=dict, repr=False)
+
+
+# ------------------------------------------------------------------ Fourier blocks
+def _coefficients(samples: np.ndarray, nh: int) -> np.ndarray:
+    """Complex Fourier coefficients F̂_j, j = −2N…2N, of T-periodic samples (nit, …) on
+    τ_k = 2πk/nit: ``F(τ) = Σ_j F̂_j e^{ijτ}``; (4N+1, …), index j + 2N."""
+    samples = np.asarray(samples)
+    nit = samples.shape[0]
+    if nit < 4 * nh + 1:
+        raise ValueError(f"Hill: {nit} time samples alias the harmonics ±{2 * nh} of an Nh = {nh} "
+                         f"Hill problem; give nit ≥ {4 * nh + 1}")
+    F = np.fft.fft(samples, axis=0) / nit
+    j = np.arange(-2 * nh, 2 * nh + 1)
+    return F[j % nit]
+
+
+def _toeplitz(hat: np.ndarray, nh: int, rows=None, cols=None) -> sp.csr_matrix:
+    """Block Toeplitz (nc·a × nc·b), block (n, k) = hat[n − k] (hat: (4N+1, a, b) coefficients,
+    index j + 2N), harmonic-major; ``rows``/``cols``: (a', a) / (b, b') maps applied around it
+    (None: identity). Sparse: zero entries of every coefficient are left out."""
+    nc = 2 * nh + 1
+    _, a, b = hat.shape
+    mask = np.any(hat != 0, axis=0)
+    ii, jj = np.nonzero(mask)
+    n = np.arange(nc)
+    N, Kk = np.meshgrid(n, n, indexing="ij")
+    vals = hat[(N - Kk + 2 * nh)[:, :, None], ii[None, None, :], jj[None, None, :]]   # (nc, nc, nnz)
+    r = (N[:, :, None] * a + ii[None, None, :]).ravel()
+    c = (Kk[:, :, None] * b + jj[None, None, :]).ravel()
+    T = sp.csr_matrix((vals.ravel(), (r, c)), shape=(nc * a, nc * b))
+    return T
+
+
+def _blockdiag(A, nc: int, diag_scale=None) -> sp.csr_matrix:
+    """I_nc ⊗ A (A dense or sparse); with ``diag_scale`` (nc,) the block n times diag_scale[n]."""
+    A = sp.csr_matrix(A)
+    if diag_scale is None:
+        return sp.kron(sp.identity(nc, format="csr"), A, format="csr")
+    return sp.kron(sp.diags(diag_scale), A, format="csr")
+
+
+# ------------------------------------------------------------------ the Hill pencil
+def _pencil(M, C, K, omega, nh, B=None, Ku=None, Cu=None, Kw=None, Ew=None, Au=None, Aw=None):
+    """(𝒜, ℰ) sparse complex, the Hill pencil of the module docstring, unknowns ordered
+    [δq (nc·m); δv (nc·m); δw (nc·na)], each harmonic-major (n = −N…N). The tangents are
+    sample arrays (nit, ·, ·) on δu = B δq: Ku (r×r), Cu (r×r, velocity), Kw (r×na); the
+    anchor equations ``E_w δẇ = A_u δu + A_w δw``: Ew, Aw (na×na), Au (na×r)."""
+    m = M.shape[0]
+    nc = 2 * nh + 1
+    n = np.arange(-nh, nh + 1)
+    I_m = sp.identity(m, format="csr")
+    Bs = sp.identity(m, format="csr") if B is None else sp.csr_matrix(B)
+    BB = _blockdiag(Bs, nc)
+    iw = 1j * omega * n
+    Aqq = _blockdiag(I_m, nc, -iw)
+    Aqv = _blockdiag(I_m, nc)
+    Avq = -_blockdiag(K, nc)
+    Avv = -_blockdiag(C, nc) - _blockdiag(M, nc, iw)
+    if Ku is not None:
+        Avq = Avq - BB.T @ _toeplitz(_coefficients(Ku, nh), nh) @ BB
+    if Cu is not None:
+        Avv = Avv - BB.T @ _toeplitz(_coefficients(Cu, nh), nh) @ BB
+    Eqq, Evv = _blockdiag(I_m, nc), _blockdiag(M, nc)
+    if Kw is None:
+        A = sp.bmat([[Aqq, Aqv], [Avq, Avv]], format="csc")
+        E = sp.block_diag([Eqq, Evv], format="csc")
+        return A, E
+    na = Kw.shape[2]
+    Ewt = _toeplitz(_coefficients(Ew, nh), nh)
+    Avw = -BB.T @ _toeplitz(_coefficients(Kw, nh), nh)
+    Awq = _toeplitz(_coefficients(Au, nh), nh) @ BB
+    Aww = _toeplitz(_coefficients(Aw, nh), nh) - Ewt @ sp.diags(np.repeat(iw, na))
+    A = sp.bmat([[Aqq, Aqv, None], [Avq, Avv, Avw], [Awq, None, Aww]], format="csc")
+    E = sp.block_diag([Eqq, Evv, Ewt], format="csc")
+    return A, E
+
+
+def _centroid(V: np.ndarray, m: int, na: int, nh: int) -> np.ndarray:
+    """Harmonic centroid Σ n w_n / Σ w_n of eigenvectors V (columns) with w_n = ‖δq_n‖² + ‖δw_n‖²."""
+    nc = 2 * nh + 1
+    q = np.abs(V[: nc * m]) ** 2
+    w = q.reshape(nc, m, -1).sum(axis=1)
+    if na:
+        w = w + (np.abs(V[2 * nc * m:]) ** 2).reshape(nc, na, -1).sum(axis=1)
+    n = np.arange(-nh, nh + 1)[:, None]
+    tot = w.sum(axis=0)
+    return (n * w).sum(axis=0) / np.where(tot > 0, tot, 1.0)
+
+
+def hill_descriptor(A: sp.spmatrix, E: sp.spmatrix, omega: float, nh: int, m: int, na: int = 0, *,
+                    n_exp: int | None = None, sigma: complex | None = None, dense: bool | None = None,
+                    ) -> HillResult:
+    """Floquet exponents of a Hill pencil (𝒜, ℰ) from :func:`_pencil` (``m`` DOFs, ``na``
+    anchor states a harmonic; ω rad/s): every eigenvalue (``dense``, default when the
+    pencil has ≤ :data:`DENSE_MAX` unknowns) or the ``n_exp`` nearest ``sigma`` (default
+    :data:`SHIFT`·ω) by shift-invert Arnoldi, then the centroid selection (module docstring)."""
+    size = A.shape[0]
+    dense = size <= DENSE_MAX if dense is None else dense
+    T = 2 * np.pi / omega
+    sigma = SHIFT * omega if sigma is None else sigma
+    if dense:
+        w, V = sla.eig(A.toarray(), E.toarray(), check_finite=False, overwrite_a=True, overwrite_b=True)
+        ok = np.isfinite(w)
+        w, V = w[ok], V[:, ok]
+        radius, method = float("inf"), "dense"
+    else:
+        k = min(int(n_exp or N_EXP), size - 2)
+        lu = spla.splu((A - sigma * E).tocsc())
+        Ec = E.tocsr()
+        op = spla.LinearOperator((size, size), matvec=lambda x: lu.solve(Ec @ x), dtype=complex)
+        nu, V = spla.eigs(op, k=k, which="LM", tol=1e-12, maxiter=max(1000, 20 * k))
+        ok = np.abs(nu) > 0
+        w, V = sigma + 1.0 / nu[ok], V[:, ok]
+        radius = float(np.max(np.abs(w - sigma))) if len(w) else 0.0
+        method = "shift-invert"
+    c = _centroid(V, m, na, nh)
+    sel = np.abs(c) < 0.5
+    s = w[sel]
+    order = np.argsort(-s.real)
+    s = s[order]
+    return HillResult(exponents=s, multipliers=np.exp(s.real * T), all=w, centroid=c, radius=radius,
+                      sigma=sigma, method=method, size=size)
+
+
+def hill_exponents(M, C, K, Kt_samples, Ct_samples, omega: float, nh: int, *, B=None,
+                   n_exp: int | None = None, sigma: complex | None = None, dense: bool | None = None
+                   ) -> HillResult:
+    """Floquet exponents of ``M δq̈ + (C + Bᵀ C_t(t) B) δq̇ + (K + Bᵀ K_t(t) B) δq = 0`` by
+    Hill's method truncated at ``nh`` harmonics (any linear T-periodic second-order system).
+
+    M, C, K: (m, m) kg, N·s/m, N/m (M may be singular: massless DOFs give infinite
+    eigenvalues, left out). Kt_samples, Ct_samples: (nit, r, r) the time-varying stiffness
+    (N/m) and damping (N·s/m) at τ_k = 2πk/nit (None: absent), nit ≥ 4·nh+1; B (r, m)
+    (default identity). ω rad/s. Returns a :class:`HillResult` (exponents in 1/s)."""
+    M, C, K = (np.asarray(a, dtype=float) for a in (M, C, K))
+    A, E = _pencil(M, C, K, omega, nh, B=B, Ku=None if Kt_samples is None else np.asarray(Kt_samples, float),
+                   Cu=None if Ct_samples is None else np.asarray(Ct_samples, float))
+    return hill_descriptor(A, E, omega, nh, M.shape[0], 0, n_exp=n_exp, sigma=sigma, dense=dense)
+
+
+# ------------------------------------------------------------------ the DLFT tangent
+def contact_tangent(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, memory: bool = True,
+                    eps_dlft_t=None):
+    """The linearised DLFT law along the period (module docstring) from a
+    :class:`~workflow.engine.contact.DLFTResult`'s samples: state (nit, p), λ (nit, p, 3) N,
+    λ_x^T (nit, p, 2) N, its start reference ref_T (p, 2) N; ε_N, ε_T (p,) N/m of the
+    tangent; μ (p,); ω rad/s; ``eps_dlft_t`` (p,) N/m the DLFT's own ε_T (λ_x^T = ε_DLFT·w;
+    default ``eps_t``).
+
+    Returns a dict of sample arrays on δu (3p) and the anchor states (2 per pair that
+    slips or separates at some instant, ``active`` (p,) bool): ``Ku`` (nit, 3p, 3p),
+    ``Kw`` (nit, 3p, na), ``Ew``, ``Aw`` (nit, na, na), ``Au`` (nit, na, 3p); without
+    ``memory`` only ``Ku`` (the memoryless tangent)."""
+    nit, p = state.shape
+    contact = state != SEPARATION
+    stick = state == STICK
+    slip = state == SLIP
+    lamT = lam[:, :, 1:]
+    nT = np.linalg.norm(lamT, axis=2)
+    t = lamT / np.maximum(nT, 1e-300)[:, :, None]                       # slip direction
+    nperp = np.stack([-t[:, :, 1], t[:, :, 0]], axis=2)                 # ⊥ t in the tangent plane
+    Ku = np.zeros((nit, p, 3, 3))
+    Ku[:, :, 0, 0] = np.where(contact, eps_n, 0.0)
+    I2 = np.eye(2)
+    if not memory:
+        # λ_pre = λ^k + λ_x^k − λ_x^{k−1}: fac = ‖λ_T‖/‖λ_pre^T‖ (1 when touching the cone)
+        prev = np.concatenate([ref_T[None], lam_x_T[:-1]], axis=0)
+        pre = lamT + lam_x_T - prev
+        fac = nT / np.maximum(np.linalg.norm(pre, axis=2), 1e-300)
+        tt = np.einsum("kia,kib->kiab", t, t)
+        KT = np.where(stick[:, :, None, None], eps_t[None, :, None, None] * I2,
+                      np.where(slip[:, :, None, None],
+                               (fac * eps_t[None, :])[:, :, None, None] * (I2 - tt), 0.0))
+        Ku[:, :, 1:, 1:] = KT
+        Ku[:, :, 1:, 0] = np.where(slip[:, :, None], -(mu * eps_n)[None, :, None] * t, 0.0)
+        return {"Ku": _pair_blockdiag(Ku), "active": np.zeros(p, bool)}
+    # a pair's anchor is a state only if the law moves it during the period (slip or separation);
+    # stuck all period, or only touching the cone (shakedown: the DLFT keeps the anchor), it is a
+    # parameter of a family of periodic solutions — a neutral multiplier 1, left out
+    prev = np.concatenate([ref_T[None], lam_x_T[:-1]], axis=0)
+    moved = np.linalg.norm(lam_x_T - prev, axis=2) > ANCHOR_TOL * max(float(np.abs(lam).max()), 1e-300)
+    active = np.any(moved | ~contact, axis=0)
+    idx = np.flatnonzero(active)
+    pa = len(idx)
+    Ku[:, :, 1:, 1:] = np.where(contact[:, :, None, None], eps_t[None, :, None, None] * I2, 0.0)
+    # slip rate |ẇ| = |Δλ_x^T|/(ε_DLFT Δt) (backward difference): κ = |ẇ| ε_T / (μ|λ_N|)
+    dt = 2 * np.pi / omega / nit
+    wdot = np.linalg.norm(lam_x_T - prev, axis=2) / dt / (eps_t if eps_dlft_t is None else eps_dlft_t)[None, :]
+    # κ only matters while a pair slips (μ|λ_N| > 0); elsewhere 0, not an overflow the masks then drop
+    cone = mu[None, :] * np.abs(lam[:, :, 0])
+    kappa = np.divide(wdot * eps_t[None, :], cone, out=np.zeros_like(cone), where=cone > 0)
+    Kw = np.zeros((nit, p, 3, pa, 2))
+    Ew = np.zeros((nit, pa, 2, pa, 2))
+    Aw = np.zeros((nit, pa, 2, pa, 2))
+    Au = np.zeros((nit, pa, 2, p, 3))
+    for a, i in enumerate(idx):
+        st, sl, sep = stick[:, i], slip[:, i], ~contact[:, i]
+        Kw[:, i, 1:, a, :] = np.where(contact[:, i, None, None], -eps_t[i] * I2, 0.0)
+        ti, ni = t[:, i], nperp[:, i]
+        tt = np.einsum("ka,kb->kab", ti, ti)
+        nn = np.einsum("ka,kb->kab", ni, ni)
+        Ew[:, a, :, a, :] = np.where(st[:, None, None], I2, np.where(sl[:, None, None], nn, 0.0))
+        # slip: t-row tᵀ(δu_T − δw) + μ (ε_N/ε_T) δu_N = 0 (divided by ε_T); n-row nᵀδẇ = κ nᵀ(δu_T − δw)
+        slipAw = -(tt + kappa[:, i, None, None] * nn)
+        Aw[:, a, :, a, :] = np.where(sl[:, None, None], slipAw, np.where(sep[:, None, None], -I2, 0.0))
+        slipAu = np.zeros((nit, 2, 3))
+        slipAu[:, :, 1:] = tt + kappa[:, i, None, None] * nn
+        slipAu[:, :, 0] = ti * (mu[i] * eps_n[i] / eps_t[i])
+        sepAu = np.zeros((nit, 2, 3))
+        sepAu[:, :, 1:] = I2
+        Au[:, a, :, i, :] = np.where(sl[:, None, None], slipAu, np.where(sep[:, None, None], sepAu, 0.0))
+    return {"Ku": _pair_blockdiag(Ku), "Kw": Kw.reshape(nit, 3 * p, 2 * pa), "Ew": Ew.reshape(nit, 2 * pa, 2 * pa),
+            "Aw": Aw.reshape(nit, 2 * pa, 2 * pa), "Au": Au.reshape(nit, 2 * pa, 3 * p), "active": active}
+
+
+def _pair_blockdiag(Kp: np.ndarray) -> np.ndarray:
+    """(nit, p, 3, 3) per-pair blocks → (nit, 3p, 3p) block-diagonal."""
+    nit, p = Kp.shape[:2]
+    out = np.zeros((nit, p, 3, p, 3))
+    ar = np.arange(p)
+    out[:, ar, :, ar, :] = Kp.transpose(1, 0, 2, 3)
+    return out.reshape(nit, 3 * p, 3 * p)
+
+
+
+def monodromy(M, C, K, B, tan: dict, omega: float, *, substeps: int = 2, richardson: bool = True) -> np.ndarray:
+    """Monodromy matrix (dimensionless) of the linearised periodic system of the module
+    docstring, ``E(t) ż = A(t) z`` with z = [δq, δv, δw], by time integration over one period
+    on the tangent's own samples (:func:`contact_tangent`, coefficients constant on each of
+    the nit intervals): backward Euler, ``substeps`` a sample interval, extrapolated
+    (Richardson, 2·Z(h/2) − Z(h)) unless ``richardson`` is False. Backward Euler is the
+    one-step method that handles the algebraic slip rows (E singular, index 1): the step
+    that enters slip projects δw onto the cone's constraint — the saltation of the exact
+    law. Its error: O(h²) after extrapolation, and O(T/nit) from the switching instants,
+    known only to a sample (the DLFT's own resolution). Dense; M, C, K (m, m), B (3p, m)."""
+    m = M.shape[0]
+    na = tan["Kw"].shape[2] if "Kw" in tan else 0
+    n = 2 * m + na
+    nit = tan["Ku"].shape[0]
+    Bd = np.asarray(B.toarray() if sp.issparse(B) else B, dtype=float)
+    T = 2 * np.pi / omega
+
+    def run(sub):
+        h = T / nit / sub
+        Z = np.eye(n)
+        A = np.zeros((n, n))
+        E = np.zeros((n, n))
+        A[:m, m:2 * m] = np.eye(m)
+        E[:m, :m] = np.eye(m)
+        E[m:2 * m, m:2 * m] = M
+        A[m:2 * m, m:2 * m] = -C
+        for k in range(nit):
+            A[m:2 * m, :m] = -K - Bd.T @ tan["Ku"][k] @ Bd
+            if na:
+                A[m:2 * m, 2 * m:] = -Bd.T @ tan["Kw"][k]
+                A[2 * m:, :m] = tan["Au"][k] @ Bd
+                A[2 * m:, 2 * m:] = tan["Aw"][k]
+                E[2 * m:, 2 * m:] = tan["Ew"][k]
+            lu = sla.lu_factor(E - h * A, check_finite=False)
+            for _ in range(sub):
+                Z = sla.lu_solve(lu, E @ Z, check_finite=False)
+        return Z
+
+    Z = run(substeps)
+    return 2 * run(2 * substeps) - Z if richardson else Z
+
+# ------------------------------------------------------------------ on a reduced model
+def _dlft_samples(hb, x, nit: int):
+    """The DLFT of the HB solution x of ``hb`` (:class:`~workflow.engine.hb.HBProblem`) on nit
+    samples: the solution's own when nit = hb.nit, else the same harmonics of U_r through the
+    same law and anchor on a finer grid (HBM)."""
+    from workflow.engine.hb import HBProblem
+
+    if nit == hb.nit:
+        prob, xx = hb, x
+    else:
+        prob = HBProblem(hb.Zr, hb.Fr, hb.law, hb.nh, nit, "hbm", max_passes=max(hb.max_passes, 50),
+                         pass_tol=hb.pass_tol, stick_anchor=hb.stick_anchor, static=hb.static)
+        xx = prob.unknowns_from_harmonics(hb.harmonics(x))
+    prob.contact_time(xx)
+    return prob.last_dlft
+
+
+def _ritz(rcM, rcK, nr: int, eps: np.ndarray, omega: float, modes):
+    """A Ritz basis (m, r) for δq in relative coordinates: the modes of the structure with
+    every pair stuck (ε on [n, t1, t2]) and with the pairs sliding (ε on n only) below
+    ``modes`` × ω if a float, or the ``modes`` lowest of each if an int; M-orthonormalised."""
+    vecs = []
+    for mask in (np.ones(3), np.array([1.0, 0.0, 0.0])):
+        Kc = rcK.copy()
+        Kc[np.arange(nr), np.arange(nr)] += eps * np.tile(mask, nr // 3)
+        lam, V = sla.eigh(Kc, rcM)
+        keep = (lam <= (modes * omega) ** 2) if isinstance(modes, float) else (np.arange(len(lam)) < int(modes))
+        vecs.append(V[:, keep])
+    V = np.concatenate(vecs, axis=1)
+    # M-orthonormal basis of the union (drop dependent directions)
+    G = V.T @ rcM @ V
+    g, W = np.linalg.eigh(G)
+    keep = g > 1e-10 * g.max()
+    return V @ (W[:, keep] / np.sqrt(g[keep]))
+
+
+def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_hill: int | None = None,
+                   nh_check: int | None = 0, memory: bool = True, eps_factor: float = EPS_FACTOR,
+                   nit: int | None = None, dense: bool | None = None, n_exp: int | None = None, modes=None,
+                   rc=None, substeps: int = SUBSTEPS) -> Stability:
+    """Floquet stability of the HB solution ``x`` of ``hb`` (:class:`~workflow.engine.hb.HBProblem`)
+    at ω (rad/s) on ``model`` (:class:`~reduction.reduced.ReducedModel`).
+
+    The periodic orbit enters only through the contact law's samples along the period
+    (:func:`contact_tangent` of the DLFT at x, ``nit`` samples); the structure's own M, C, K are
+    those of ``model`` in relative coordinates (``rc``: :func:`reduction.condense.relative_coordinates`,
+    computed if not given), where B = [I, 0]. The q-harmonics the condensation eliminated,
+    ``q_h = (K − (hω)²M + ihωC)⁻¹(F_h − Bᵀλ_h)``, are not needed: the linear problem is the
+    full one, not the condensed Zr (which is not polynomial in s).
+
+    method    "monodromy" (default): the monodromy of the linearisation by time integration
+              (:func:`monodromy`, nit default max(hb.nit, :data:`MONODROMY_NIT`)), the check
+              at 2·nit; "hill": Hill's method (:func:`hill_descriptor`) at ``nh_hill``
+              harmonics (default max(2·Nh, 8)), the check at ``nh_check`` (0: ⌈1.5·nh_hill⌉),
+              the DLFT on nit ≥ 4·nh+1 samples. ``nh_check`` None: no check, half the cost.
+    memory    anchors as states (exact, default) or the memoryless tangent
+    eps_factor ε of the tangent / static stiffness per pair and direction
+    modes     None: the full δq; a float: a Ritz basis of the modes with the pairs stuck
+              and sliding below modes × ω; an int: that many of each (large models)
+    dense, n_exp  Hill's eigensolver, see :func:`hill_descriptor`
+    """
+    from reduction.condense import relative_coordinates
+    from workflow.engine import penalty
+    from workflow.engine.errors import SceneError
+
+    if method not in ("monodromy", "hill"):
+        raise SceneError(f"stability.method: {method!r} is not one of monodromy, hill")
+    t0 = time.perf_counter()
+    rc = relative_coordinates(model) if rc is None else rc
+    nr = hb.nr
+    ks = penalty.reference_stiffness(np.real(hb.Zr[0]))
+    en, et = eps_factor * ks[:, 0], eps_factor * ks[:, 1]
+    M, K, C = (np.asarray(getattr(rc, a), dtype=float) for a in ("M", "K", "C"))
+    m = M.shape[0]
+    B = sp.hstack([sp.identity(nr), sp.csr_matrix((nr, m - nr))]).tocsr()
+    tag = ""
+    if modes is not None:
+        V = _ritz(M, K, nr, np.stack([en, et, et], axis=1).ravel(), omega, modes)
+        M, K, C = V.T @ M @ V, V.T @ K @ V, V.T @ C @ V
+        B = V[:nr]
+        tag = f"+ritz({V.shape[1]})"
+    T = 2 * np.pi / omega
+
+    def tangent(n_samples):
+        res = _dlft_samples(hb, x, int(n_samples))
+        return res, contact_tangent(res.state, res.lam, res.lam_x_T, res.ref_T, en, et, hb.law.mu, omega, memory,
+                                    eps_dlft_t=hb.law.eps_t)
+
+    if method == "monodromy":
+        nit = max(hb.nit, MONODROMY_NIT) if nit is None else int(nit)
+
+        def solve(n_samples):
+            res, tan = tangent(n_samples)
+            mult = np.linalg.eigvals(monodromy(M, C, K, B, tan, omega, substeps=substeps))
+            mult = mult[np.argsort(-np.abs(mult))]
+            with np.errstate(divide="ignore", invalid="ignore"):   # a multiplier 0: s = −∞ (a slaved anchor)
+                s = np.log(mult.astype(complex)) / T
+            return float(np.abs(mult[0])), s, res, tan, "monodromy", float("inf"), 2 * M.shape[0]
+        first = solve(nit)
+        check = solve(2 * nit) if nh_check is not None else None
+        nh_hill, nh_check = 0, None
+    else:
+        nh_hill = max(2 * hb.nh, 8) if nh_hill is None else int(nh_hill)
+        if nh_check == 0:
+            nh_check = int(np.ceil(1.5 * nh_hill))
+        top = max(nh_hill, nh_check or 0)
+        if nit is None:
+            nit = hb.nit if hb.nit >= 4 * top + 1 else 8 * (top + 1)
+        res, tan = tangent(nit)
+        na = 2 * int(tan["active"].sum()) if memory else 0
+
+        def solve(nh):
+            kw = dict(Ku=tan["Ku"])
+            if na:
+                kw.update(Kw=tan["Kw"], Ew=tan["Ew"], Aw=tan["Aw"], Au=tan["Au"])
+            A, E = _pencil(M, C, K, omega, nh, B=B, **kw)
+            h = hill_descriptor(A, E, omega, nh, M.shape[0], na, n_exp=n_exp, dense=dense)
+            return h.floquet_max, h.exponents, res, tan, h.method, h.radius, h.size
+        first = solve(nh_hill)
+        check = solve(nh_check) if nh_check else None
+    fm, s, res, tan, how, radius, size = first
+    s = s[np.argsort(-s.real)]
+    return Stability(stable=bool(fm <= 1 + STABLE_TOL), floquet_max=fm, exponents=s,
+                     truncation_change=None if check is None else abs(check[0] - fm), method=how + tag,
+                     seconds=time.perf_counter() - t0, nh_hill=nh_hill, nh_check=nh_check,
+                     eps_factor=eps_factor, memory=memory, radius=radius, anchors=int(tan["active"].sum()),
+                     detail={"size": size, "nit": int(nit), "states": np.bincount(res.state.ravel(), minlength=3)})
