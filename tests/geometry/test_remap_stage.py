@@ -131,6 +131,7 @@ def test_remap_stage_refuses_excessive_wear(upstream, tmp_path):
         stage.run(scene, {"bundle": root / "assembly", "wear": tmp_path / "wear"}, tmp_path / "out", log)
 
 
+@pytest.mark.slow   # ~10 s: in make test-slow, to keep make test within 3 minutes on 2 cores
 def test_zero_wear_reassembly_has_no_frequency_shift(upstream, tmp_path):
     """The shift is caused by the wear alone: zero wear re-assembles the same model."""
     from reduction.bundle import read_bundle

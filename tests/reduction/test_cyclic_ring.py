@@ -97,6 +97,7 @@ def nd_spectra(cyclic_sector):
     return np.array([nd_modes(bundle.K, bundle.M, base, bundle.cyclic, k, MODES_PER_ND)[0] for k in range(N)])
 
 
+@pytest.mark.slow   # ~10 s: in make test-slow, to keep make test within 3 minutes on 2 cores
 def test_nd_spectra_are_the_full_ring_spectrum(cyclic_sector, full_ring, nd_spectra):
     """(a) The sorted union of the ND spectra equals the ring's lowest eigenvalues (same M, K(Ω), tie, clamp)."""
     bundle, _ = cyclic_sector

@@ -6,6 +6,7 @@ import pytest
 from workflow.bench import wear_conditioning as wc
 
 
+@pytest.mark.slow   # ~10 s: in make test-slow, to keep make test within 3 minutes on 2 cores
 def test_worn_depth_is_far_more_sensitive_to_the_frequency_than_to_friction(tmp_path):
     """At the tied frequency, 1e-4 of excitation frequency moves the worn steady state more than
     1 % of μ (measured: 3.2 % against 0.7 % on 4 × 2, 3.3 % against 0.8 % on 7 × 5), and forcing
