@@ -178,3 +178,26 @@ def test_frf_stability_of_every_point_matches_shooting():
     for i, omega in enumerate(w):
         ref, _ = floquet.jenkins_monodromy(M, C, K, f, omega, pads)
         assert abs(r.floquet_max[i] - ref.floquet_max) < 2e-3, (omega, r.floquet_max[i], ref.floquet_max)
+
+
+def test_turning_points_of_a_continued_path_and_the_stability_across_them():
+    """engine.studies.sweepstability.turning_points finds the Duffing branch's two folds (the
+    independent continuation's own turns, within one step), and turning_point_rows says the
+    stability changes across each when the two sides differ — and not where they do not."""
+    from types import SimpleNamespace
+
+    from workflow.engine.studies.sweepstability import turning_point_rows, turning_points
+
+    p = DUFF
+    br = floquet.duffing_branch(p["m"], p["c"], p["k"], p["k3"], p["F"], 0.8, 2.2, nh=7, ds=0.05)
+    found = turning_points(br.omegas)
+    assert len(found) == 2 and all(abs(i - t) <= 1 for i, t in zip(found, br.turns)), (found, br.turns)
+    f = np.array([1.0, 2.0, 3.0, 2.5, 2.0, 2.5, 3.5])
+    sw = SimpleNamespace(freqs_hz=f, amplitude=np.arange(7.0), converged=np.ones(7, bool),
+                         stable=[True, True, True, False, False, True, True])
+    rows = turning_point_rows(sw)
+    assert [r["index"] for r in rows] == [2, 4] and [r["stability_changes"] for r in rows] == [True, True]
+    sw.stable = [True] * 7
+    assert [r["stability_changes"] for r in turning_point_rows(sw)] == [False, False]
+    sw.stable, sw.converged = None, np.array([1, 1, 1, 0, 1, 1, 1], bool)
+    assert [r["index"] for r in turning_point_rows(sw)] == [] and turning_points(f[:3]) == []

@@ -123,6 +123,8 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
 
 def summarise(study, scene) -> dict:
     """summary.json entries of an FRF study (NaN → None)."""
+    from workflow.engine.studies.sweepstability import turning_point_rows
+
     runs = [{
         "method": r.variant.method, "harmonics": r.variant.nh, "time_samples": r.variant.nit,
         "solver": r.solver, "seconds": round(r.total_seconds, 4), "cpu_seconds": round(r.cpu_seconds, 4),
@@ -131,6 +133,7 @@ def summarise(study, scene) -> dict:
         "peak_amplitude_m": float(np.nanmax(np.where(r.converged, r.amplitude, np.nan))) if r.converged.any() else None,
         "dlft_max_passes": r.dlft_max_passes,
         "stable": r.stable, "floquet_max": None if r.floquet_max is None else [float(v) for v in r.floquet_max],
+        "turning_points": turning_point_rows(r),
     } for r in study.runs]
     ref = study.reference
     reference = None

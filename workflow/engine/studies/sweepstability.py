@@ -46,3 +46,33 @@ def sweep_stability(model, rc, law, static, sweep, *, nit: int | None = None) ->
         fmax[i] = st.floquet_max
         stable[i] = bool(st.stable)
     return {"stable": stable, "floquet_max": fmax, "seconds": time.perf_counter() - t0}
+
+
+def turning_points(freqs_hz, converged=None) -> list[int]:
+    """Indices of the turning points (folds) of a swept path: the points where the frequency
+    reverses, f[i] an extremum of f[i−1], f[i], f[i+1] along the path (an arc-length sweep
+    passes them; a grid sweep never has one). Only converged neighbours count."""
+    f = np.asarray(freqs_hz, dtype=float)
+    ok = np.ones(len(f), bool) if converged is None else np.asarray(converged, bool)
+    out = []
+    for i in range(1, len(f) - 1):
+        if ok[i - 1] and ok[i] and ok[i + 1] and (f[i] - f[i - 1]) * (f[i + 1] - f[i]) < 0:
+            out.append(i)
+    return out
+
+
+def turning_point_rows(sweep) -> list[dict]:
+    """Per turning point of ``sweep``: its frequency (Hz), amplitude (m) and, where the sweep's
+    stability is known, whether it changes within one continuation step of it — a fold of a
+    branch of periodic solutions is where a real Floquet multiplier crosses 1 (saddle-node), so
+    the two sides of it differ in stability."""
+    rows = []
+    for i in turning_points(sweep.freqs_hz, sweep.converged):
+        row = {"index": int(i), "frequency_hz": float(sweep.freqs_hz[i]), "amplitude_m": float(sweep.amplitude[i]),
+               "stability_changes": None}
+        if sweep.stable is not None:
+            near = [sweep.stable[j] for j in range(max(i - 1, 0), min(i + 2, len(sweep.stable)))]
+            if all(s is not None for s in near):
+                row["stability_changes"] = len(set(near)) > 1
+        rows.append(row)
+    return rows
