@@ -230,7 +230,10 @@ class Wear:
     detuning: float = param(1.0, "", "f / f_r with operating_point = \"detuning\" (1: at the friction-damped peak)",
                             min=0.5, max=2.0)
     measure_length_m: float = param(2e-3, "m", "ℓ of the filtered worn profile among the wear measures (volume, "
-                                               "scar, RMS depth); the wear law itself stays node-wise", min=0.0)
+                                               "scar, RMS depth)", min=0.0)
+    length_m: float = param(0.0, "m", "length scale of the wear law: the frictional power per unit area averaged "
+                                      "over ℓ on each flank (a Gaussian weighted by the tributary areas) before "
+                                      "Archard's law; 0: node-wise, the paper's eq. 21 (docs/wear.md)", min=0.0)
     resonance_shift: bool = param(True, "", "find the friction-damped resonance of the worn and the new model "
                                             "(worn − new shift in summary.json; two FRF searches)")
 

@@ -611,3 +611,62 @@ def test_matrix_free_march_reaches_the_dense_worn_steady_state(monkeypatch):
     assert dense.steady and free.steady
     assert abs(free.iterations - dense.iterations) <= 0.1 * dense.iterations
     assert profile_rel_diff(free.W, dense.W) <= 1e-3
+
+
+def test_wear_law_with_a_length_scale():
+    """wear.length_m: rate = S · rate_local, S the area-weighted Gaussian of each flank. ℓ → 0 is
+    the node-wise law exactly; ℓ far above the pairs' spacing gives every pair of a flank the
+    area-weighted mean rate; the derivatives (S·∂rate/∂x, S·diag ∂rate/∂W) match finite
+    differences as the node-wise ones do (test_wear_derivatives_match_finite_differences)."""
+    from workflow.engine.wear import averaging, rate_w
+
+    hb = hb_problem(20.0, nh=2, nit=32)
+    x = hb.solve(tol=1e-11).x
+    p = hb.p
+    pos = np.column_stack([np.arange(p) * 1e-3, np.zeros(p), np.zeros(p)])
+    area = np.array([1e-6, 2e-6, 1.5e-6])
+    W = np.array([1e-7, 0.0, 2e-7])
+    local = WearProblem(hb, area=area, k_w=1e-14).evaluate(x, W)
+    assert averaging(pos, area, np.zeros(p), 0.0) is None
+    tiny = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(p), 1e-5))
+    np.testing.assert_allclose(tiny.evaluate(x, W).rate, local.rate, rtol=1e-12)   # exp(−(1 mm)²/2ℓ²) = 0
+    wide = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(p), 10.0))
+    assert not wide.structured
+    st = wide.evaluate(x, W, jacobian=True)
+    np.testing.assert_allclose(st.rate, np.sum(area * local.rate) / area.sum(), rtol=1e-6)
+    # two flanks do not mix
+    two = averaging(pos, area, np.array([0, 1, 1]), 10.0)
+    assert two[0, 0] == 1.0 and two[0, 1:].sum() == 0.0 and two[1:, 0].sum() == 0.0
+    h = 1e-10
+    for i in range(p):
+        Wp = W.copy()
+        Wp[i] += h
+        sp = wide.evaluate(x, Wp)
+        np.testing.assert_allclose((sp.rate - st.rate) / h, rate_w(st)[:, i], rtol=1e-3, atol=1e-20)
+    v = np.random.default_rng(0).standard_normal(hb.n) * 1e-10
+    sp, sm = wide.evaluate(x + v, W), wide.evaluate(x - v, W)
+    np.testing.assert_allclose((sp.rate - sm.rate) / 2, st.G_x @ v, rtol=1e-3, atol=1e-22)
+
+
+def test_length_scale_march_reaches_a_worn_steady_state(tmp_path):
+    """The pseudo-time march on the block model (3 pairs 1 mm apart, the middle one preloaded
+    twice as hard, stuck): node-wise, the outer pairs wear (86 µm) and the middle one not at all;
+    with ℓ = 1 mm the wear spreads onto it (measured 8.7 / 28.4 / 58.8 µm), steady with every
+    averaged rate ~0; with ℓ = 10 mm ≫ the spacing every pair wears at the flank's mean rate,
+    the stuck pair with its slipping neighbours, and there is no worn steady state."""
+    from workflow.engine import WearOptions, worn_steady_state
+    from workflow.engine.contact import ContactLaw
+
+    m = _reduced_block_model()
+    law = ContactLaw(mu=np.full(m.n_pairs, 0.3), eps_n=1e5, eps_t=1e5, gap=np.zeros(m.n_pairs))
+    base = dict(methods=("pseudo-time",), nh=2, nit=32, k_w=1e-14, cycles_per_block=1e6, frequency_hz=20.0,
+                eps_check_factor=0.0, nh_check=False, compare_unworn=False, resonance_shift=False)
+    node = worn_steady_state(m, law, WearOptions(**base)).histories["pseudo-time"]
+    ell = worn_steady_state(m, law, WearOptions(**base, length_m=1e-3)).histories["pseudo-time"]
+    assert node.steady and ell.steady and node.W[1] == 0.0 < ell.W[1]
+    # steady: the wear still to come over a block of cycles is below wear.steady_tol of max W
+    assert np.max(ell.final_rate) * base["cycles_per_block"] <= 1e-4 * np.max(ell.W)
+    assert np.ptp(ell.W) < np.ptp(node.W)
+    wide = worn_steady_state(m, law, WearOptions(**base, length_m=1e-2)).histories["pseudo-time"]
+    assert not wide.steady and wide.persistent_slip
+    assert np.ptp(wide.W) < 0.05 * np.max(wide.W)

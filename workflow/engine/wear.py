@@ -136,10 +136,18 @@ class WearProblem:
     (:meth:`HBProblem.contact_blocks`, :meth:`HBProblem.apply_contact_blocks`).
     """
 
-    def __init__(self, hb, area, k_w: float, share: float = 0.5, eps_path=(), structured: bool | None = None):
+    def __init__(self, hb, area, k_w: float, share: float = 0.5, eps_path=(), structured: bool | None = None,
+                 averaging=None):
         from workflow.engine import wear_structured
 
         self.hb = hb
+        #: (p, p) row-stochastic averaging of the frictional power over a length (the wear law
+        #: with a length scale, :func:`averaging`), or None: the node-wise law (eq. 21). It
+        #: couples pairs, so the march forms J (the matrix-free step's rank-one pair blocks assume
+        #: a pair's rate depends on its own pair alone).
+        self.averaging = None if averaging is None else np.asarray(averaging, dtype=float)
+        if self.averaging is not None:
+            structured = False
         #: the linear algebra of the HB solves and pseudo-time steps: matrix-free J and GMRES
         #: (True), or J formed and factored (False; the implicit reference march always forms
         #: it); None: by size (:func:`workflow.engine.wear_structured.use`)
@@ -191,7 +199,8 @@ class WearProblem:
         lam = res.lam
         slip = res.lam_x_T / law.eps_t[None, :, None]
         rate = wear_per_cycle(lam, slip, self.area, self.k_w)
-        st = WearState(R=R, rate=rate, lam=lam, slip=slip, J=J)
+        S = self.averaging
+        st = WearState(R=R, rate=rate if S is None else S @ rate, lam=lam, slip=slip, J=J)
         if not jacobian:
             return st
         g = self._rate_sensitivity(res, law, lam, slip)
@@ -207,6 +216,9 @@ class WearProblem:
         # chain to x: a = a_F − A y + ε (y + shift)  ⇒  da/dy = diag(ε) − A; every row of a
         # belongs to one pair, so ∂rate/∂x has row i = g_i · (diag ε − A)[pair i's rows]
         st.G_x = hb.penalty_rows(g[:, None, :])[:, 0, :]
+        if S is not None:                   # rate = S · rate_local: its derivatives likewise
+            st.G_x = S @ st.G_x
+            st.G_W = S * st.G_W[None, :]
         st.R_W = np.zeros((self.n, self.p))
         st.R_W[self._rows, np.arange(self.p)[:, None]] = w
         return st
@@ -285,7 +297,31 @@ class WearProblem:
         (J⁻¹ by least squares where J is singular, :func:`_newton_parts`)."""
         parts = _newton_parts(st)
         GY = parts[3] if parts is not None else st.G_x @ scipy.linalg.lstsq(st.J, st.R_W)[0]
-        return np.diag(st.G_W) - GY
+        return rate_w(st) - GY
+
+
+def rate_w(st: WearState) -> np.ndarray:
+    """∂rate/∂W at fixed x as a (p, p) matrix: diagonal for the node-wise law (a pair's rate sees
+    only its own W), full with a length scale (:attr:`WearProblem.averaging`)."""
+    return np.diag(st.G_W) if st.G_W.ndim == 1 else st.G_W
+
+
+def averaging(position, area, flank, length: float) -> np.ndarray | None:
+    """(p, p) averaging of the frictional power over ``length`` [m] (a Gaussian weighted by the
+    tributary areas, within each flank: :func:`workflow.engine.wear_measures.filter_matrix`), or
+    None for length 0 — the wear law with a length scale: rate_i = k_w Σ_j S_ij q_j, q the
+    cycle's frictional work per unit area. Averaging q (not p or the slip alone) keeps the worn
+    steady state what it is: no slip anywhere, no wear anywhere."""
+    from workflow.engine.wear_measures import filter_matrix
+
+    if length <= 0:
+        return None
+    fl = np.asarray(flank)
+    S = np.zeros((len(fl), len(fl)))
+    for f in np.unique(fl):
+        m = np.flatnonzero(fl == f)
+        S[np.ix_(m, m)] = filter_matrix(np.asarray(position)[m], np.asarray(area)[m], length)
+    return S
 
 
 #: reciprocal condition number (1-norm, LAPACK's estimate from the LU factors) below which a
@@ -829,8 +865,7 @@ def _augmented_step(wp: WearProblem, st: WearState, h: float):
     parts = _newton_parts(st)
     if parts is not None:
         y0, Y, g0, GY, _ = parts
-        S = h * GY
-        S[np.diag_indices(p)] += 1.0 - h * st.G_W
+        S = h * GY + np.eye(p) - h * rate_w(st)
         try:
             dW = np.linalg.solve(S, h * (st.rate - g0))
             return -y0 - Y @ dW, dW
@@ -840,7 +875,7 @@ def _augmented_step(wp: WearProblem, st: WearState, h: float):
     A[:n, :n] = st.J
     A[:n, n:] = st.R_W
     A[n:, :n] = -h * st.G_x
-    A[n:, n:] = np.eye(p) - h * np.diag(st.G_W)
+    A[n:, n:] = np.eye(p) - h * rate_w(st)
     b = np.concatenate([-st.R, h * st.rate])
     try:
         dz = np.linalg.solve(A, b)

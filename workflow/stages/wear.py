@@ -44,7 +44,7 @@ def options(scene):
                        steady_tol=w.steady_tol, reference_check=w.reference_check, max_steps=pt.max_steps,
                        rtol=pt.wear_rtol, dt_max_blocks=pt.wear_dt_max, eps_check_factor=ct.eps_check,
                        nh_check=hb.nh_check, operating_point=w.operating_point, detuning=w.detuning,
-                       measure_length_m=w.measure_length_m, resonance_shift=w.resonance_shift)
+                       measure_length_m=w.measure_length_m, resonance_shift=w.resonance_shift, length_m=w.length_m)
 
 
 def run_wear(model, scene, out: Path, log) -> dict:
@@ -74,7 +74,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
                "methods": {m: h.summary() for m, h in study.histories.items()},
                "eps_check": study.eps_check, "nh_check": study.nh_check, "unconverged": study.unconverged(), "warnings": study.warnings(),
                "mu_source": model.friction(ct.mu)[1],
-               "operating_point": study.operating_point, "law_length_m": 0.0, "measures": study.measures,
+               "operating_point": study.operating_point, "law_length_m": float(w.length_m), "measures": study.measures,
                "worn_volume_m3": {k: v["worn_volume_m3"] for k, v in (study.measures.get("flanks") or {}).items()},
                "energy_per_cycle_J": study.energy_per_cycle_J, "resonance_shift": study.resonance_shift}
     if study.profile_max_rel_diff is not None:

@@ -42,7 +42,8 @@ class WearOptions:
     also solve the unworn point by Newton and by pseudo-time (the paper's
     comparison); ``operating_point`` "frequency" (``frequency_hz``) or "detuning"
     (``detuning`` × the friction-damped resonance, :mod:`workflow.engine.studies.operating`);
-    ``measure_length_m``: ℓ [m] of the filtered profile among the wear measures
+    ``length_m``: the wear law's length scale ℓ [m] (0: node-wise, eq. 21;
+    :func:`workflow.engine.wear.averaging`); ``measure_length_m``: ℓ [m] of the filtered profile among the wear measures
     (:mod:`workflow.engine.wear_measures`); ``resonance_shift``: find the friction-damped
     resonance of the worn and the new model (two FRF searches)."""
 
@@ -70,6 +71,7 @@ class WearOptions:
     operating_point: str = "frequency"
     detuning: float = 1.0
     measure_length_m: float = 2e-3
+    length_m: float = 0.0
     resonance_shift: bool = True
 
 
@@ -291,7 +293,10 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     # the paper's comparison at the unworn point: Newton and pseudo-time from the same start
     unworn = unworn_solvers(hb, hb.x0(), tol=opt.tol, max_steps=min(opt.max_steps, 400), eps_path=eps_path) \
         if opt.compare_unworn else {}
-    wp = WearProblem(hb, model.area, opt.k_w, opt.blade_share, eps_path=eps_path)
+    from workflow.engine.wear import averaging
+
+    wp = WearProblem(hb, model.area, opt.k_w, opt.blade_share, eps_path=eps_path,
+                     averaging=averaging(model.position, model.area, model.flank, opt.length_m))
     i0 = int(np.argmax(wp.evaluate(base.x).rate))
     histories = {}
     for m in opt.methods:
@@ -403,7 +408,7 @@ def nh_check(rc, omega: float, wp, x, opt: WearOptions, eps_path, *, worn=None, 
                      eps_path=eps_path)
     if not pr.converged:
         return {**out, "measure": "unworn wear rates"}
-    wfine = WearProblem(fine, wp.area, wp.k_w, wp.share, eps_path=wp.eps_path)
+    wfine = WearProblem(fine, wp.area, wp.k_w, wp.share, eps_path=wp.eps_path, averaging=wp.averaging)
     return {**out, **_changes(wp.evaluate(x).rate, wfine, pr.result.x, opt, worn, track, f"at Nh = {nh2}")}
 
 
@@ -428,7 +433,7 @@ def eps_check(wp, x, opt: WearOptions, *, worn=None, track: int = 1) -> dict:
         return {**out, "measure": "unworn wear rates"}
     from workflow.engine.wear import WearProblem
 
-    wbig = WearProblem(big, wp.area, wp.k_w, wp.share, eps_path=(1.0 / fac, fac ** -0.5))
+    wbig = WearProblem(big, wp.area, wp.k_w, wp.share, eps_path=(1.0 / fac, fac ** -0.5), averaging=wp.averaging)
     return {**out, **_changes(rate0, wbig, pr.result.x, opt, worn, track, f"at ε × {fac:g}")}
 
 
