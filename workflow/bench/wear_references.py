@@ -6,18 +6,8 @@ Writes ``wear_references.csv`` and ``wear_references.json``: rows (case, quantit
 exact, error) — ``error`` relative, against the scale named in the quantity (the shape of
 summary.json ``verification.wear_rows``).
 
-* (a) ``jenkins``: :class:`~workflow.verification.wear_exact.JenkinsWear` (k_t = 1e5 N/m,
-  k_n = 1e7 N/m, μ = 0.5, X = 0.1 mm, N₀ = 15 N, A = 1 mm², k_w = 2.5e-16 m²/N: r = 1e-6 /cycle,
-  N_c = 20 N, δ₀ = 1.5 µm), lumped model ``JenkinsWear.model()``, ε = (k_n, k_t) (the
-  automatic penalty picks exactly these: massless node), HBM Nh = 3, nit = 64, at
-  100/π Hz; through :func:`workflow.engine.worn_steady_state`. Also ε = 10 k_t (the
-  ε-check's penalty), where the DLFT predictor is no longer the exact drive.
-* (b) ``punch``: :class:`~workflow.verification.wear_exact.PunchWear`, three contacts
-  (edges A = 1.5 mm², gap 2 µm; centre 1 mm², no gap), N₀ = 12 N, k_w = 1e-15: persistent
-  slip (no worn steady state); the march's W(n), its final rates against the sinking speed V
-  and the worn profile's offset against the closed forms.
-* (d) ``oscillator`` (slow, ~2 min): :class:`~workflow.verification.wear_exact.OscillatorWear`
-  at the tied resonance, reference by event-driven steady states and cycle jumps.
+The cases (a) ``jenkins``, (b) ``punch``, (d) ``oscillator`` (slow, ~2 min) are those of
+:mod:`workflow.verification.wear_runner`.
 """
 from __future__ import annotations
 
