@@ -1,4 +1,4 @@
-"""Friction-damped nonlinear modes (EPMC) and single-mode synthesis (workflow/engine/nlmodes.py)
+"""Friction-damped nonlinear modes (EPMC) and single-mode synthesis (workflow/engine/studies/nlmodes.py)
 against closed forms and independent references (workflow/verification/masing.py).
 
 The lumped case: a unit mass on a spring k = 1 N/m with a Jenkins element (k_t = 2 N/m,
@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workflow.engine import contact_law, nlmodes
+from workflow.engine import contact_law
+from workflow.engine.studies import nlmodes
 from workflow.verification import masing, models
 from workflow.verification.timeint import Pads
 

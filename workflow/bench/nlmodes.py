@@ -43,7 +43,7 @@ def bench(path: Path, *, mu: float, nh: int, nit: int, forces, amplitudes, max_s
 
     from reduction.reduced import ReducedModel
     from workflow import engine
-    from workflow.engine import nlmodes
+    from workflow.engine.studies import nlmodes
 
     model = ReducedModel.load(path)
     law = engine.contact_law(model, mu=model.friction(mu)[0])

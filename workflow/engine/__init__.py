@@ -12,7 +12,7 @@ on a user's bundle; ``docs/architecture.md`` shows where everything lives):
 * :func:`worn_steady_state` (model, law, options) → :class:`WearStudy`:
   the reference wear march and pseudo-time to the worn steady state, at a fixed
   frequency or a detuning of the friction-damped resonance, with its measures;
-* :func:`backbone` (model, law) → :class:`~workflow.engine.nlmodes.Backbone`: the
+* :func:`backbone` (model, law) → :class:`~workflow.engine.studies.nlmodes.Backbone`: the
   friction-damped nonlinear mode by EPMC, and :func:`synthesize` the forced
   response from it (single-nonlinear-mode synthesis);
 * :func:`hill_stability` (model, hb, x, ω) → :class:`~workflow.engine.stability.Stability`:
@@ -28,7 +28,7 @@ from workflow.engine.studies.frf import SweepResult
 from workflow.engine.studies.study import FRFOptions, FRFStudy, contact_law, frf, static_state
 from workflow.engine.studies.variants import Variant, variants
 from workflow.engine.studies.wearstudy import WearOptions, WearStudy, worn_steady_state
-from workflow.engine.nlmodes import backbone, synthesize
+from workflow.engine.studies.nlmodes import backbone, synthesize
 from workflow.engine.stability import hill_stability
 
 __all__ = ["FRFOptions", "FRFStudy", "PointResult", "SweepResult", "Variant", "contact_law", "frf",

@@ -46,7 +46,7 @@ def plot_backbone(path: Path, bb) -> Path:
 def plot_synthesis(path: Path, curves) -> Path:
     """Per force level: the direct HB FRF (points) and the single-mode synthesis (line) of the
     observed first-harmonic amplitude, with both peaks. ``curves``: (force N, direct dict of
-    :func:`workflow.stages.nonlinear_modes.direct_peak`, :class:`~workflow.engine.nlmodes.Synthesis`)."""
+    :func:`workflow.stages.nonlinear_modes.direct_peak`, :class:`~workflow.engine.studies.nlmodes.Synthesis`)."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -1,8 +1,8 @@
 """Nonlinear-modes stage: the friction-damped backbone of one tied mode by EPMC, and the
 single-nonlinear-mode synthesis against the direct HB FRF (issue 49 items 2–3).
 
-Reads the reduced model, calls :func:`workflow.engine.nlmodes.backbone` and
-:func:`~workflow.engine.nlmodes.synthesize` (the method and its choices are documented there
+Reads the reduced model, calls :func:`workflow.engine.studies.nlmodes.backbone` and
+:func:`~workflow.engine.studies.nlmodes.synthesize` (the method and its choices are documented there
 and in docs/stability-and-modes.md), solves the direct FRF at each synthesis force with the
 engine's front door (:func:`workflow.engine.frf`) and writes ``backbone.csv``,
 ``synthesis.csv``, ``backbone.png`` and ``synthesis.png``.
@@ -40,7 +40,7 @@ def direct_peak(model, law, nh: int, nit: int) -> dict:
 
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
-    from workflow.engine import nlmodes
+    from workflow.engine.studies import nlmodes
     from workflow.engine.fourier import default_nit
     from workflow.io import write_rows
     from workflow.report.modes import plot_backbone, plot_synthesis

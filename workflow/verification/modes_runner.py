@@ -1,4 +1,4 @@
-"""The engine's nonlinear modes (:mod:`workflow.engine.nlmodes`) against the independent Jenkins
+"""The engine's nonlinear modes (:mod:`workflow.engine.studies.nlmodes`) against the independent Jenkins
 reference of :mod:`workflow.verification.masing` — the ``nonlinear_modes.checks`` of the stage.
 Like :mod:`workflow.verification.runner`, it calls the engine; the reference never does.
 
@@ -17,7 +17,8 @@ def jenkins_errors(nh: int = 7, nit: int = 64) -> dict:
     with the exact hysteresis (:func:`workflow.verification.masing.epmc_galerkin`, Nh = 25) at four
     amplitudes in slip (1.2–5 × the onset): {"jenkins_frequency_error", "jenkins_damping_error",
     "amplitudes", "nh", "nit"}."""
-    from workflow.engine import contact_law, nlmodes
+    from workflow.engine import contact_law
+    from workflow.engine.studies import nlmodes
     from workflow.verification import masing, models
     from workflow.verification.timeint import Pads
 

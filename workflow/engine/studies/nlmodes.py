@@ -610,7 +610,10 @@ def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 6
         G[0, -1] = 1.0
         G[1, nx] = 1.0 / w
         G[2, nx + 1] = 1.0 / xi
-        return np.array([z[-1], np.log(w), np.log(xi)]), G
+        # a Newton trial may step to ξ ≤ 0 (below the structural damping): its NaN row is the
+        # line search's signal to shorten the step, not something to warn about
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.array([z[-1], np.log(w), np.log(xi)]), G
 
     def augmented(z, p_prev, t, ds, jac=True):
         v, a = denorm(z)
