@@ -576,36 +576,61 @@ def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 6
     static, x0a, F0 = _static(st, law, max_passes)
     prob = _EPMC(st, law, nh, nit, static.anchor, F0, max_passes)
     onset = _onset(st, law, static)
+    a_min, a_max, npts = _amplitude_range(amplitudes, onset_range, onset)
+    lim = linear_limits(model, law, mode=mode, static=static)
+    path = _Path(prob, st)
+    out, stopped, steps = path.follow(x0a, a_min, a_max, npts, tol=tol, maxiter=maxiter, max_steps=max_steps,
+                                      log=log)
+    bb = _backbone_of(prob, st, law, out["a"], out["v"])
+    n = len(out["a"])
+    return Backbone(**bb, converged=np.ones(n, bool), residual=np.array(out["res"]),
+                    iterations=np.array(out["it"], int), nh=nh, nit=nit, mode=st.mode,
+                    tied_hz=lim["tied_hz"], tied_damping_ratio=lim["tied_damping_ratio"],
+                    sliding_hz=lim["sliding_hz"], onset=onset, seconds=time.perf_counter() - t_start,
+                    stopped=stopped, unknowns=np.array(out["v"]).reshape(n, prob.n),
+                    info={"unknowns": prob.n, "tied_hz_undamped": st.omega_tied / (2 * np.pi),
+                          "sliding_damping_ratio": lim["sliding_damping_ratio"], "range": (a_min, a_max, npts),
+                          "steps": steps})
+
+
+def _amplitude_range(amplitudes, onset_range, onset: float) -> tuple[float, float, int]:
+    """(a_min, a_max, n) of :func:`backbone` from its ``amplitudes`` / ``onset_range`` (m·√kg)."""
     if amplitudes is None:
         if not np.isfinite(onset) or onset <= 0:
             raise SolverError("nonlinear modes: no slip onset of the tied mode (no pair in contact, or none "
                               "loaded by the mode): give the amplitudes")
         lo, hi, npts = onset_range or (*DEFAULT_RANGE, DEFAULT_POINTS)
         a_min, a_max, npts = float(lo) * onset, float(hi) * onset, int(npts)
+    elif isinstance(amplitudes, tuple) and len(amplitudes) == 3:
+        a_min, a_max, npts = float(amplitudes[0]), float(amplitudes[1]), int(amplitudes[2])
     else:
-        if isinstance(amplitudes, tuple) and len(amplitudes) == 3:
-            a_min, a_max, npts = float(amplitudes[0]), float(amplitudes[1]), int(amplitudes[2])
-        else:
-            arr = np.asarray(amplitudes, dtype=float).ravel()
-            if arr.size == 0 or np.any(np.diff(arr) <= 0):
-                raise SceneError("nonlinear modes: amplitudes must be increasing")
-            a_min, a_max, npts = float(arr[0]), float(arr[-1]), arr.size
+        arr = np.asarray(amplitudes, dtype=float).ravel()
+        if arr.size == 0 or np.any(np.diff(arr) <= 0):
+            raise SceneError("nonlinear modes: amplitudes must be increasing")
+        a_min, a_max, npts = float(arr[0]), float(arr[-1]), arr.size
     if not (0 < a_min <= a_max and np.isfinite(a_max)):
         raise SceneError(f"nonlinear modes: amplitudes must be positive and increasing (got {a_min:g} … {a_max:g})")
-    lim = linear_limits(model, law, mode=mode, static=static)
-    nc, na, nr, nx = prob.nc, prob.na, prob.nr, prob.nx
-    s_min, s_max = np.log(a_min), np.log(a_max)
-    ds_max = (s_max - s_min) / max(npts - 1, 1) if npts > 1 else 1.0
+    return a_min, a_max, npts
 
-    def denorm(z):
+
+class _Path:
+    """The continuation's unknowns z = [X / a on the scaled rows, ω, ξ, log a] and its
+    arclength equation in the plane (log a, log ω, log ξ)."""
+
+    def __init__(self, prob: "_EPMC", st: "_Structure"):
+        self.prob, self.st = prob, st
+        self.na, self.nx, self.nr = prob.na, prob.nx, prob.nr
+
+    def denorm(self, z):
         a = float(np.exp(z[-1]))
         v = z[:-1].copy()
-        v[na:nx] *= a
+        v[self.na:self.nx] *= a
         return v, a
 
-    def plane(z):
+    def plane(self, z):
         """(log a, log ω, log ξ) of z and its gradient rows (3, n + 1)."""
-        _, w, xi = prob.split(z[:-1])
+        nx = self.nx
+        _, w, xi = self.prob.split(z[:-1])
         G = np.zeros((3, z.size))
         G[0, -1] = 1.0
         G[1, nx] = 1.0 / w
@@ -615,11 +640,13 @@ def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 6
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.array([z[-1], np.log(w), np.log(xi)]), G
 
-    def augmented(z, p_prev, t, ds, jac=True):
-        v, a = denorm(z)
+    def augmented(self, z, p_prev, t, ds, jac=True):
+        """The EPMC residual and the arclength row ``t · (plane(z) − p_prev) = ds``, with their Jacobian."""
+        prob, na, nx, nr = self.prob, self.na, self.nx, self.nr
+        v, a = self.denorm(z)
         prob.a = a
         R, J, _ = prob.evaluate(v, jacobian=jac)
-        pz, G = plane(z)
+        pz, G = self.plane(z)
         Ra = np.concatenate([R, [t @ (pz - p_prev) - ds]])
         if not jac:
             return Ra, None
@@ -629,7 +656,7 @@ def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 6
         Ja[:-1, :-1] = J * dv[None, :]
         X, omega, xi = prob.split(v)
         w1 = prob.first_harmonic(X, prob.cond(omega, xi))
-        f = float(np.real(np.vdot(w1, st.Mt @ w1)))
+        f = float(np.real(np.vdot(w1, self.st.Mt @ w1)))
         vs = np.zeros(prob.n)
         vs[na:nx] = v[na:nx]
         Js = J @ vs
@@ -639,80 +666,97 @@ def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 6
         Ja[-1] = t @ G
         return Ra, Ja
 
-    # the first point: natural parameter at a_min from the tied mode
-    X = np.zeros((nc, na))
-    X[0] = x0a
-    X[1, nr] = a_min
-    v0 = np.concatenate([X.ravel(), [st.omega_tied, st.xi_tied]])
-    prob.weights(a_min)
-    prob.a = a_min
-    r = newton(lambda v: prob.evaluate(v)[:2], v0, fun=lambda v: prob.evaluate(v, False)[0],
-               tol=tol, scale=1.0, maxiter=maxiter)
-    if not r.converged:
-        raise SolverError(f"nonlinear modes: the first point (a = {a_min:.3g}, the tied mode) did not converge: "
-                          f"{r.reason}")
-    z = r.x.copy()
-    z[na:nx] /= a_min
-    path = [np.concatenate([z, [s_min]])]
-    out = {"res": [r.residual_norm], "it": [r.iterations]}
-    stopped = ""
-    ds = min(ds_max, s_max - s_min) if s_max > s_min else 0.0
-    steps = 0
-    jumps, jumping, restart = list(JUMPS), False, 0
-    while ds > 0 and path[-1][-1] < s_max - 1e-12:
-        steps += 1
-        if steps > max_steps:
-            stopped = f"{max_steps} continuation steps made (max_steps) before a_max"
-            break
-        p_prev, _ = plane(path[-1])
-        if len(path) - restart >= 2:
-            d = plane(path[-1])[0] - plane(path[-2])[0]
-            t = d / np.linalg.norm(d)
-            dz = path[-1] - path[-2]
-            zp = path[-1] + dz * (ds / np.linalg.norm(d))
-        else:
-            t = np.array([1.0, 0.0, 0.0])
-            zp = path[-1].copy()
-            zp[-1] += ds
-        prob.weights(float(np.exp(path[-1][-1])))
-        r = newton(lambda zz: augmented(zz, p_prev, t, ds), zp, fun=lambda zz: augmented(zz, p_prev, t, ds, False)[0],
+    def first(self, x0a, a_min: float, tol: float, maxiter: int):
+        """The first point: natural parameter at a_min from the tied mode; (z, SolveResult)."""
+        prob, st = self.prob, self.st
+        X = np.zeros((prob.nc, self.na))
+        X[0] = x0a
+        X[1, self.nr] = a_min
+        v0 = np.concatenate([X.ravel(), [st.omega_tied, st.xi_tied]])
+        prob.weights(a_min)
+        prob.a = a_min
+        r = newton(lambda v: prob.evaluate(v)[:2], v0, fun=lambda v: prob.evaluate(v, False)[0],
                    tol=tol, scale=1.0, maxiter=maxiter)
-        if r.converged:
-            jumping = False
-            path.append(r.x)
-            out["res"].append(r.residual_norm)
-            out["it"].append(r.iterations)
-            if log is not None:
-                _, a = denorm(r.x)
-                _, w, xi = prob.split(r.x[:-1])
-                log(f"a = {a:.4g}: {w / (2 * np.pi):.4f} Hz, D = {xi / (2 * w):.3e}, {r.iterations} iterations")
-            ds = min(ds * (1.5 if r.iterations <= 4 else 1.0), ds_max)
-            jumps = list(JUMPS)
-            continue
-        # a failed step: shorter ones down to MIN_SHORT × ds_max, then longer ones (JUMPS × ds_max),
-        # then another branch next to the last point (_switch)
-        if ds > MIN_SHORT * ds_max and not jumping:
-            ds *= 0.5
-            continue
-        if jumps:
-            jumping = True
-            ds = jumps.pop(0) * ds_max
-            continue
-        z_new = _switch(prob, path, tol, maxiter)
-        if z_new is not None:
-            # another branch next to the last point (a grazing contact's corner): go on from it
-            path.append(z_new)
-            out["res"].append(float(np.linalg.norm(prob.evaluate(denorm(z_new)[0], False)[0])))
-            out["it"].append(0)
-            restart = len(path) - 1
-            ds, jumps, jumping = MIN_SHORT * ds_max, list(JUMPS), False
-            continue
-        stopped = f"no convergence beyond a = {np.exp(path[-1][-1]):.4g} ({r.reason})"
-        break
-    out["a"] = [float(np.exp(z[-1])) for z in path]
-    out["v"] = [denorm(z)[0] for z in path]
-    # post-processing
-    n = len(out["a"])
+        if not r.converged:
+            raise SolverError(f"nonlinear modes: the first point (a = {a_min:.3g}, the tied mode) did not converge: "
+                              f"{r.reason}")
+        z = r.x.copy()
+        z[self.na:self.nx] /= a_min
+        return np.concatenate([z, [np.log(a_min)]]), r
+
+    def follow(self, x0a, a_min, a_max, npts, *, tol, maxiter, max_steps, log):
+        """Pseudo-arclength from a_min to past a_max (see :func:`backbone`): ({"a", "v", "res",
+        "it"} over the points, why it stopped early or "", steps made)."""
+        prob = self.prob
+        s_min, s_max = np.log(a_min), np.log(a_max)
+        ds_max = (s_max - s_min) / max(npts - 1, 1) if npts > 1 else 1.0
+        z0, r = self.first(x0a, a_min, tol, maxiter)
+        path = [z0]
+        out = {"res": [r.residual_norm], "it": [r.iterations]}
+        stopped = ""
+        ds = min(ds_max, s_max - s_min) if s_max > s_min else 0.0
+        steps = 0
+        jumps, jumping, restart = list(JUMPS), False, 0
+        while ds > 0 and path[-1][-1] < s_max - 1e-12:
+            steps += 1
+            if steps > max_steps:
+                stopped = f"{max_steps} continuation steps made (max_steps) before a_max"
+                break
+            p_prev, _ = self.plane(path[-1])
+            if len(path) - restart >= 2:
+                d = self.plane(path[-1])[0] - self.plane(path[-2])[0]
+                t = d / np.linalg.norm(d)
+                zp = path[-1] + (path[-1] - path[-2]) * (ds / np.linalg.norm(d))
+            else:
+                t = np.array([1.0, 0.0, 0.0])
+                zp = path[-1].copy()
+                zp[-1] += ds
+            prob.weights(float(np.exp(path[-1][-1])))
+            r = newton(lambda zz: self.augmented(zz, p_prev, t, ds), zp,
+                       fun=lambda zz: self.augmented(zz, p_prev, t, ds, False)[0], tol=tol, scale=1.0,
+                       maxiter=maxiter)
+            if r.converged:
+                jumping = False
+                path.append(r.x)
+                out["res"].append(r.residual_norm)
+                out["it"].append(r.iterations)
+                if log is not None:
+                    _, a = self.denorm(r.x)
+                    _, w, xi = prob.split(r.x[:-1])
+                    log(f"a = {a:.4g}: {w / (2 * np.pi):.4f} Hz, D = {xi / (2 * w):.3e}, {r.iterations} iterations")
+                ds = min(ds * (1.5 if r.iterations <= 4 else 1.0), ds_max)
+                jumps = list(JUMPS)
+                continue
+            # a failed step: shorter ones down to MIN_SHORT × ds_max, then longer ones (JUMPS × ds_max),
+            # then another branch next to the last point (_switch)
+            if ds > MIN_SHORT * ds_max and not jumping:
+                ds *= 0.5
+                continue
+            if jumps:
+                jumping = True
+                ds = jumps.pop(0) * ds_max
+                continue
+            z_new = _switch(prob, path, tol, maxiter)
+            if z_new is not None:
+                # another branch next to the last point (a grazing contact's corner): go on from it
+                path.append(z_new)
+                out["res"].append(float(np.linalg.norm(prob.evaluate(self.denorm(z_new)[0], False)[0])))
+                out["it"].append(0)
+                restart = len(path) - 1
+                ds, jumps, jumping = MIN_SHORT * ds_max, list(JUMPS), False
+                continue
+            stopped = f"no convergence beyond a = {np.exp(path[-1][-1]):.4g} ({r.reason})"
+            break
+        out["a"] = [float(np.exp(z[-1])) for z in path]
+        out["v"] = [self.denorm(z)[0] for z in path]
+        return out, stopped, steps
+
+
+def _backbone_of(prob: "_EPMC", st: "_Structure", law, amplitudes, unknowns) -> dict:
+    """The :class:`Backbone` arrays of the points (a, v): frequency, damping, the energies per
+    cycle, the deflections and the contact states."""
+    nh, nit, nr = prob.nh, prob.nit, prob.nr
+    n = len(amplitudes)
     f_hz, D, xi_ = np.zeros(n), np.zeros(n), np.zeros(n)
     e_f, e_c, e_x, e_h = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
     obs = np.zeros((n, nh + 1, st.Ot.shape[0]), complex)
@@ -720,7 +764,7 @@ def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 6
     z1 = np.zeros((n, st.m), complex)
     stuck, sep, slip = (np.zeros(n, int) for _ in range(3))
     j = np.arange(nh + 1)
-    for i, (a, v) in enumerate(zip(out["a"], out["v"])):
+    for i, (a, v) in enumerate(zip(amplitudes, unknowns)):
         prob.at(a)
         X, omega, xi = prob.split(v)
         c = prob.cond(omega, xi)
@@ -738,16 +782,10 @@ def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 6
         Ur[i] = W[:, :nr]
         z1[i] = st.T @ W[1]
         stuck[i], sep[i], slip[i] = _states(res)
-    return Backbone(amplitude=np.array(out["a"]), frequency_hz=f_hz, damping_ratio=D, xi=xi_,
-                    energy_per_cycle_J=e_f + e_c, energy_friction_J=e_f, energy_structural_J=e_c,
-                    energy_xi_J=e_x, energy_friction_hb_J=e_h, observed=obs, Ur=Ur, z1=z1, stuck_pairs=stuck, separating_pairs=sep,
-                    slipping_pairs=slip, converged=np.ones(n, bool), residual=np.array(out["res"]),
-                    iterations=np.array(out["it"], int), nh=nh, nit=nit, mode=st.mode,
-                    tied_hz=lim["tied_hz"], tied_damping_ratio=lim["tied_damping_ratio"],
-                    sliding_hz=lim["sliding_hz"], onset=onset, seconds=time.perf_counter() - t_start,
-                    stopped=stopped, unknowns=np.array(out["v"]).reshape(n, prob.n), info={"unknowns": prob.n, "tied_hz_undamped": st.omega_tied / (2 * np.pi),
-                                           "sliding_damping_ratio": lim["sliding_damping_ratio"],
-                                           "range": (a_min, a_max, npts), "steps": steps})
+    return dict(amplitude=np.array(amplitudes), frequency_hz=f_hz, damping_ratio=D, xi=xi_,
+                energy_per_cycle_J=e_f + e_c, energy_friction_J=e_f, energy_structural_J=e_c, energy_xi_J=e_x,
+                energy_friction_hb_J=e_h, observed=obs, Ur=Ur, z1=z1, stuck_pairs=stuck, separating_pairs=sep,
+                slipping_pairs=slip)
 
 
 # ---------------------------------------------------------------- synthesis
