@@ -789,6 +789,43 @@ def _backbone_of(prob: "_EPMC", st: "_Structure", law, amplitudes, unknowns) -> 
 
 
 # ---------------------------------------------------------------- synthesis
+def _curve(p, W, DC, DF, g, aa):
+    """The synthesised FRF as a curve in the modal amplitude: the two Ω (Hz) of |L(Ω)| = g/a at
+    each sample where the branches exist (``p`` = min_Ω |L| a − g ≤ 0), NaN elsewhere."""
+    lo, hi = np.full(W.size, np.nan), np.full(W.size, np.nan)
+    for i in np.flatnonzero(p <= 0):
+        # |L|² − (g/a)² as a quartic in Ω
+        c4 = [1.0, 0.0, 4 * W[i] ** 2 * DC[i] ** 2 - 2 * W[i] ** 2, 8 * W[i] ** 3 * DC[i] * DF[i],
+              W[i] ** 4 + 4 * W[i] ** 4 * DF[i] ** 2 - (g[i] / aa[i]) ** 2]
+        r = np.roots(c4)
+        r = np.sort(r[(np.abs(r.imag) <= 1e-9 * W[i]) & (r.real > 0)].real)
+        if r.size:
+            lo[i], hi[i] = r[0] / (2 * np.pi), r[-1] / (2 * np.pi)
+    return lo, hi
+
+
+def _at_frequencies(freqs, tt, W, DC, DF, aa, g, at) -> np.ndarray:
+    """(n_freq, k) observed amplitudes (m) where |L(Ω)| a = g along the backbone samples ``tt``
+    (linear interpolation between the samples that bracket it), ascending, NaN-padded."""
+    if not freqs.size:
+        return np.zeros((0, 1))
+    rows = []
+    for F in freqs:
+        Omg = 2 * np.pi * F
+        h = np.abs(W ** 2 - Omg ** 2 + 1j * (2 * Omg * W * DC + 2 * W ** 2 * DF)) * aa - g
+        cross = np.flatnonzero(np.sign(h[:-1]) * np.sign(h[1:]) < 0)
+        vals = []
+        for k in cross:
+            x = tt[k] + h[k] / (h[k] - h[k + 1]) * (tt[k + 1] - tt[k])
+            a_, *_, o_ = at(x)
+            vals.append(float(o_[0] * a_[0]))
+        rows.append(sorted(vals))
+    out = np.full((freqs.size, max([len(r) for r in rows] + [1])), np.nan)
+    for i, r in enumerate(rows):
+        out[i, :len(r)] = r
+    return out
+
+
 def _min_over_frequency(W, Dc, Df):
     """(min_Ω |L|, argmin Ω) of ``L = ω² − Ω² + i(2ΩωD_c + 2ω²D_f)`` per sample: Newton on
     ∂|L|²/∂Ω = 4Ω³ + 2Ω(4ω²D_c² − 2ω²) + 8ω³D_cD_f from Ω = ω√(1 − 2D_c²) (the root for
@@ -865,34 +902,9 @@ def synthesize(bb: Backbone, model, force_scale: float = 1.0, freqs_hz=None, *, 
         peak_a = float(a_[0])
         peak_hz = float(_min_over_frequency(w_, dc, df)[1][0]) / (2 * np.pi)
         peak_m = float(o_[0]) * peak_a
-    # the curve: the two Ω of |L(Ω)| = g/a around the minimum
-    lo, hi = np.full(tt.size, np.nan), np.full(tt.size, np.nan)
-    for i in np.flatnonzero(p <= 0):
-        # |L|² − (g/a)² as a quartic in Ω
-        c4 = [1.0, 0.0, 4 * W[i] ** 2 * DC[i] ** 2 - 2 * W[i] ** 2, 8 * W[i] ** 3 * DC[i] * DF[i],
-              W[i] ** 4 + 4 * W[i] ** 4 * DF[i] ** 2 - (g[i] / aa[i]) ** 2]
-        r = np.roots(c4)
-        r = np.sort(r[(np.abs(r.imag) <= 1e-9 * W[i]) & (r.real > 0)].real)
-        if r.size:
-            lo[i], hi[i] = r[0] / (2 * np.pi), r[-1] / (2 * np.pi)
-    out_amp = np.zeros((0, 1))
+    lo, hi = _curve(p, W, DC, DF, g, aa)
     freqs = np.zeros(0) if freqs_hz is None else np.asarray(freqs_hz, dtype=float).ravel()
-    if freqs.size:
-        rows = []
-        for F in freqs:
-            Omg = 2 * np.pi * F
-            h = np.abs(W ** 2 - Omg ** 2 + 1j * (2 * Omg * W * DC + 2 * W ** 2 * DF)) * aa - g
-            cross = np.flatnonzero(np.sign(h[:-1]) * np.sign(h[1:]) < 0)
-            vals = []
-            for k in cross:
-                x = tt[k] + h[k] / (h[k] - h[k + 1]) * (tt[k + 1] - tt[k])
-                a_, *_, o_ = at(x)
-                vals.append(float(o_[0] * a_[0]))
-            rows.append(sorted(vals))
-        kmax = max([len(r) for r in rows] + [1])
-        out_amp = np.full((freqs.size, kmax), np.nan)
-        for i, r in enumerate(rows):
-            out_amp[i, :len(r)] = r
+    out_amp = _at_frequencies(freqs, tt, W, DC, DF, aa, g, at)
     return Synthesis(freqs_hz=freqs, amplitude=out_amp, peak_hz=float(peak_hz), peak_amplitude_m=float(peak_m),
                      peak_modal_amplitude=peak_a, curve_amplitude=aa, curve_low_hz=lo, curve_high_hz=hi,
                      curve_observed_m=o * aa,
