@@ -488,6 +488,17 @@ def _ritz(rcM, rcK, nr: int, eps: np.ndarray, omega: float, modes):
     return V @ (W[:, keep] / np.sqrt(g[keep]))
 
 
+def _structure(rc, nr: int, en, et, omega: float, modes):
+    """(M, C, K, B, tag) of the linearised structure in relative coordinates (B = [I, 0]: the
+    first ``nr`` are the contact DOFs), or on the Ritz basis of ``modes`` (:func:`_ritz`, tag
+    "+ritz(n)")."""
+    M, K, C = (np.asarray(getattr(rc, a), dtype=float) for a in ("M", "K", "C"))
+    if modes is None:
+        return M, C, K, sp.hstack([sp.identity(nr), sp.csr_matrix((nr, M.shape[0] - nr))]).tocsr(), ""
+    V = _ritz(M, K, nr, np.stack([en, et, et], axis=1).ravel(), omega, modes)
+    return V.T @ M @ V, V.T @ C @ V, V.T @ K @ V, V[:nr], f"+ritz({V.shape[1]})"
+
+
 def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_hill: int | None = None,
                    nh_check: int | None = 0, memory: bool = True, eps_factor: float = EPS_FACTOR,
                    nit: int | None = None, dense: bool | None = None, n_exp: int | None = None, modes=None,
@@ -521,18 +532,9 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
         raise SceneError(f"stability.method: {method!r} is not one of monodromy, hill")
     t0 = time.perf_counter()
     rc = relative_coordinates(model) if rc is None else rc
-    nr = hb.nr
     ks = penalty.reference_stiffness(np.real(hb.Zr[0]))
     en, et = eps_factor * ks[:, 0], eps_factor * ks[:, 1]
-    M, K, C = (np.asarray(getattr(rc, a), dtype=float) for a in ("M", "K", "C"))
-    m = M.shape[0]
-    B = sp.hstack([sp.identity(nr), sp.csr_matrix((nr, m - nr))]).tocsr()
-    tag = ""
-    if modes is not None:
-        V = _ritz(M, K, nr, np.stack([en, et, et], axis=1).ravel(), omega, modes)
-        M, K, C = V.T @ M @ V, V.T @ K @ V, V.T @ C @ V
-        B = V[:nr]
-        tag = f"+ritz({V.shape[1]})"
+    M, C, K, B, tag = _structure(rc, hb.nr, en, et, omega, modes)
     T = 2 * np.pi / omega
 
     def tangent(n_samples):
