@@ -137,3 +137,28 @@ def test_detuning_out_of_range_and_unknown_operating_point_are_scene_errors():
         worn_steady_state(m, law, WearOptions(operating_point="resonant"))
     with pytest.raises(SceneError, match="wear.detuning"):
         worn_steady_state(m, law, WearOptions(operating_point="detuning", detuning=3.0))
+
+
+def test_wear_response_curve_of_a_jenkins_oscillator():
+    """The wear response curve (engine.studies.operating.wear_response) of the cycle-jump
+    oscillator of workflow/verification/wear_exact.py: off its slip band (f/f_r = 0.9, 0.95,
+    1.1) the pad sticks, dissipates nothing and does not wear; inside it (1.0, 1.05) it slips and
+    wears to lift-off, W = N₀/k_n (the closed form's end state, to the march's steady tolerance);
+    the dissipation is largest at the friction-damped peak itself."""
+    from workflow import engine
+    from workflow.engine.studies.operating import wear_response
+    from workflow.verification.wear_runner import _options, oscillator
+
+    o = oscillator()
+    model = o.model()
+    resp = wear_response(model, engine.contact_law(model, mu=o.mu), _options(("pseudo-time",), o.k_w, 0.0, nh=3),
+                         [1.1, 0.9, 1.0, 0.95, 1.05])
+    rows = resp["rows"]
+    assert [r["detuning"] for r in rows] == [0.9, 0.95, 1.0, 1.05, 1.1]
+    for r in rows:
+        assert r["steady"] and r["frequency_hz"] == pytest.approx(r["detuning"] * resp["resonance_hz"], rel=1e-14)
+        if r["detuning"] in (1.0, 1.05):
+            assert r["max_wear_m"] == pytest.approx(o.delta0, rel=1e-4) and r["energy_new_J"] > 0
+        else:
+            assert r["max_wear_m"] == 0.0 and r["energy_new_J"] == 0.0
+    assert max(rows, key=lambda r: r["energy_new_J"])["detuning"] == 1.0

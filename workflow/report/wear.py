@@ -131,3 +131,28 @@ def tip_cycles(study) -> tuple:
         return None, None
     before = tip_cycle(recover(rc, w, hb.harmonics(study.base.x)))
     return before, {m: tip_cycle(recover(rc, w, hb.harmonics(h.x))) for m, h in study.histories.items()}
+
+
+def plot_wear_response(path: Path, response: dict) -> Path:
+    """The wear response curve: worn volume and max depth at the worn steady state against
+    f / f_r (f_r the friction-damped resonance); marches that did not reach a steady state hollow."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from workflow.report.png import finish_axes, write_figure
+
+    rows = response["rows"]
+    r = np.array([x["detuning"] for x in rows])
+    ok = np.array([x["steady"] for x in rows])
+    fig, axs = plt.subplots(1, 2, figsize=(10, 4))
+    for ax, key, scale, label in ((axs[0], "worn_volume_m3", 1e9, "worn volume (mm³)"),
+                                  (axs[1], "max_wear_m", 1e6, "max wear depth (µm, node-wise)")):
+        y = np.array([np.nan if x[key] is None else scale * x[key] for x in rows])
+        ax.plot(r, y, "-", color="C0", lw=1)
+        ax.plot(r[ok], y[ok], "o", color="C0", label="worn steady state")
+        if (~ok).any():
+            ax.plot(r[~ok], y[~ok], "o", mfc="none", color="C3", label="not steady (where the march stopped)")
+        finish_axes(ax, f"f / f_r (f_r = {response['resonance_hz']:.4g} Hz)", label)
+    return write_figure(fig, path)

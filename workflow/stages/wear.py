@@ -77,6 +77,16 @@ def run_wear(model, scene, out: Path, log) -> dict:
                "operating_point": study.operating_point, "law_length_m": float(w.length_m), "measures": study.measures,
                "worn_volume_m3": {k: v["worn_volume_m3"] for k, v in (study.measures.get("flanks") or {}).items()},
                "energy_per_cycle_J": study.energy_per_cycle_J, "resonance_shift": study.resonance_shift}
+    if w.response_detunings:
+        from workflow.engine.studies.operating import wear_response
+        from workflow.report.wear import plot_wear_response
+
+        resp = wear_response(model, law_of(scene, model), options(scene), w.response_detunings)
+        write_rows(out / "wear_response.csv", resp["rows"])
+        summary["response"] = {**resp, "csv": "wear_response.csv",
+                               "figure": plot_wear_response(out / "wear_response.png", resp).name}
+        log.info(f"wear response curve: {len(resp['rows'])} points around f_r = {resp['resonance_hz']:.6g} Hz, "
+                 f"{sum(r['steady'] for r in resp['rows'])} steady, {resp['seconds']:.1f} s")
     if study.profile_max_rel_diff is not None:
         summary["profile_max_rel_diff"] = study.profile_max_rel_diff
         summary["cpu_ratio_pseudo_over_reference"] = study.cpu_ratio_pseudo_over_reference
