@@ -121,6 +121,7 @@ def _rel(a, b):
     return float(np.max(np.abs(a - b) / np.abs(b)))
 
 
+@pytest.mark.slow  # the two-rank pipeline runs (~20 s for the module's runs): make test-slow, with the MPI quick scene
 def test_pipeline_two_ranks_equals_serial(runs):
     import json
 
@@ -147,6 +148,7 @@ def test_pipeline_two_ranks_equals_serial(runs):
     assert np.max(np.abs(hp - hs)) / np.max(np.abs(hs)) < 1e-6
 
 
+@pytest.mark.slow  # the two-rank pipeline runs (~20 s for the module's runs): make test-slow, with the MPI quick scene
 def test_sweeps_spread_over_two_ranks_equal_serial(runs):
     """HB variants shared over the ranks and the reference band cut in two: the same FRFs."""
     import csv
@@ -166,6 +168,7 @@ def test_sweeps_spread_over_two_ranks_equal_serial(runs):
             assert abs(float(p[k]["amplitude_m"]) - float(r["amplitude_m"])) < 1e-6 * top, k
 
 
+@pytest.mark.slow  # the two-rank pipeline runs (~20 s for the module's runs): make test-slow, with the MPI quick scene
 def test_serial_bundle_reduced_on_two_ranks(runs, tmp_path):
     """Same bundle, 1 vs 2 ranks: the reduced model agrees block by block (modal block up to signs)."""
     from reduction.reduced import ReducedModel
@@ -186,6 +189,7 @@ def test_serial_bundle_reduced_on_two_ranks(runs, tmp_path):
     assert _rel(_tied(p)[0], _tied(s)[0]) < REL
 
 
+@pytest.mark.slow  # the two-rank pipeline runs (~20 s for the module's runs): make test-slow, with the MPI quick scene
 def test_failure_on_two_ranks_is_one_error(runs, tmp_path):
     """A stage error under MPI: one line from rank 0, exit status 2 on the job, no hang."""
     _, parallel = runs

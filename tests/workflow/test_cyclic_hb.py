@@ -92,6 +92,7 @@ def test_cyclic_hb_equals_full_disk_through_the_resonance(eo, ratios):
     assert slipping_points >= 2  # the band crosses the stick–slip region, not only the stuck flanks
 
 
+@pytest.mark.slow  # ~12 s: make test-slow (the sector = the full lumped disk is also test_cyclic_ring's)
 def test_linear_limits_tied_and_sliding_equal_the_full_disk():
     """Tied (u_r = 0) and sliding (μ = 0: normal contact kept, tangential free)
     FRFs of the cyclic model = those of the full disk; each of the N tips of

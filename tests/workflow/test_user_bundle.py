@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "reduction"))
 import lattice  # noqa: E402
@@ -44,6 +45,7 @@ def _go(capsys, tmp_path, *more):
                *more)
 
 
+@pytest.mark.slow  # ~8 s (a user's bundle through the whole pipeline): make test-slow
 def test_per_pair_mu_used_and_reported(tmp_path, capsys, monkeypatch):
     monkeypatch.delenv("BLADEWEAR_CACHE", raising=False)
     _bundle(tmp_path / "bundle", static_load=-200.0)

@@ -146,7 +146,7 @@ def test_wear_response_curve_of_a_jenkins_oscillator():
     wears to lift-off, W = N₀/k_n (the closed form's end state, to the march's steady tolerance);
     the dissipation is largest at the friction-damped peak itself."""
     from workflow import engine
-    from workflow.engine.studies.operating import wear_response
+    from workflow.engine.studies.wearresponse import wear_response
     from workflow.verification.wear_runner import _options, oscillator
 
     o = oscillator()

@@ -78,7 +78,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
                "worn_volume_m3": {k: v["worn_volume_m3"] for k, v in (study.measures.get("flanks") or {}).items()},
                "energy_per_cycle_J": study.energy_per_cycle_J, "resonance_shift": study.resonance_shift}
     if w.response_detunings:
-        from workflow.engine.studies.operating import wear_response
+        from workflow.engine.studies.wearresponse import wear_response
         from workflow.report.wear import plot_wear_response
 
         resp = wear_response(model, law_of(scene, model), options(scene), w.response_detunings)

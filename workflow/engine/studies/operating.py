@@ -90,33 +90,3 @@ def resonance_shift(model, law, W, opt, new: dict | None = None) -> dict:
             "new_amplitude_m": new["amplitude_m"], "worn_amplitude_m": worn["amplitude_m"],
             "seconds": worn["seconds"] + new.get("seconds", 0.0)}
 
-
-def wear_response(model, law, opt, detunings) -> dict:
-    """The wear response curve: the worn steady state at each ``detunings`` r × the model's
-    friction-damped resonance f_r (found once) — what a designer reads instead of one number at
-    one frequency. ``opt``: the :class:`~workflow.engine.studies.wearstudy.WearOptions` of each
-    march (pseudo-time; the per-point checks and the resonance shift off: a curve of marches).
-    {"resonance_hz", "rows": [{"detuning", "frequency_hz", "steady", "max_wear_m",
-    "worn_volume_m3", "energy_new_J", "persistent_slip", "reason", "seconds"}], "seconds"}; a point
-    without a worn steady state (persistent slip: the wear feeds the vibration) says so, its depth
-    where the march stopped."""
-    import time
-    from dataclasses import replace
-
-    from workflow.engine.studies.wearstudy import worn_steady_state
-
-    t0 = time.perf_counter()
-    res = friction_damped_resonance(model, law, method=opt.method, nh=opt.nh, nit=opt.nit, tol=opt.tol,
-                                    max_iterations=opt.max_iterations, max_passes=opt.max_passes)
-    rows = []
-    for r in sorted(float(d) for d in detunings):
-        t = time.perf_counter()
-        one = replace(opt, methods=("pseudo-time",), operating_point="frequency", frequency_hz=r * res["hz"],
-                      eps_check_factor=0.0, nh_check=False, compare_unworn=False, resonance_shift=False)
-        st = worn_steady_state(model, law, one)
-        h = st.histories["pseudo-time"]
-        rows.append({"detuning": r, "frequency_hz": st.omega / (2 * np.pi), "steady": bool(h.steady),
-                     "max_wear_m": float(np.max(h.W)), "worn_volume_m3": st.measures.get("worn_volume_m3"),
-                     "energy_new_J": st.energy_per_cycle_J.get("new"), "persistent_slip": bool(h.persistent_slip),
-                     "reason": h.reason, "seconds": time.perf_counter() - t})
-    return {"resonance_hz": res["hz"], "rows": rows, "seconds": time.perf_counter() - t0}
