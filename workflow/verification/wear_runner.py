@@ -19,6 +19,8 @@ themselves never do. ``error`` is relative, against the scale named in the quant
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from workflow.verification.wear_exact import JenkinsWear, OscillatorWear, PunchWear
