@@ -298,7 +298,8 @@ class NonlinearModes:
     amplitude_range: list = param([0.1, 3000.0], "", "modal amplitudes of the backbone, in units of the first "
                                                      "slip onset of the tied mode (from, to)", min=0.0)
     points: int = param(41, "", "backbone points at least (log-spaced in amplitude)", min=3)
-    max_steps: int = param(150, "", "continuation steps at most", min=1)
+    max_steps: int = param(80, "", "continuation steps at most (each a Newton solve of the whole EPMC system; "
+                                    "a backbone that cannot turn a corner spends them there)", min=1)
     synthesis_forces: list = param([], "N", "tip forces at which the single-mode synthesis is compared with the "
                                             "direct HB FRF ([]: excitation.amplitude)", min=0.0)
     jenkins_check: bool = param(True, "", "also check the EPMC on a Jenkins oscillator against its "
