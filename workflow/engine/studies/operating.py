@@ -18,20 +18,15 @@ OPERATING_POINTS = ("frequency", "detuning")
 #: grid of the resonance search: ±10 % around the first tied mode the load excites (the FRF's
 #: default band), refined between grid points to 1e-6 of the frequency
 RESONANCE_POINTS = 15
-#: a resonance known to be near ``near_hz`` (the worn one, next to the new): ±2 % on 9 points, peak
-#: refined the same (measured worn − new on the quick sector −0.25 % at the peak, −0.03 % at the
-#: tied resonance); half the cost of a full search on the 130-pair contact mesh
-NEAR_BAND, NEAR_POINTS = 0.02, 9
 
 
 def friction_damped_resonance(model, law, *, method: str, nh: int, nit: int, tol: float, max_iterations: int,
-                              max_passes: int, near_hz: float | None = None) -> dict:
+                              max_passes: int) -> dict:
     """The friction-damped resonance of ``model`` under ``law`` (its wear, if any, in the gap):
     {"hz", "amplitude_m", "seconds"} — the refined peak of an FRF over the default band
-    (:func:`workflow.engine.frf`, :data:`RESONANCE_POINTS` points — or ±:data:`NEAR_BAND` around
-    ``near_hz`` [Hz] on :data:`NEAR_POINTS` —, without its checks: the
+    (:func:`workflow.engine.frf`, :data:`RESONANCE_POINTS` points, without its checks: the
     wear study checks its own convergence). Raises :class:`SceneError` when the peak is on the
-    band's edge (no resonance inside it)."""
+    band's edge (no resonance inside ±10 % of the tied mode)."""
     import time
 
     from workflow.engine.studies.study import FRFOptions, frf
@@ -41,9 +36,8 @@ def friction_damped_resonance(model, law, *, method: str, nh: int, nit: int, tol
     opt = FRFOptions(solver="newton-powell", tol=tol, max_iterations=max_iterations, max_passes=max_passes,
                      eps_check_factor=0.0, reference_check=False, nh_check=False, branch_check=False,
                      time_check=False)
-    band = (0.0, 0.0) if near_hz is None else ((1 - NEAR_BAND) * near_hz, (1 + NEAR_BAND) * near_hz)
-    st = frf(model, law, [Variant(method, nh, resolved_nit(method, nh, nit))], band_hz=band,
-             points=RESONANCE_POINTS if near_hz is None else NEAR_POINTS, options=opt)
+    st = frf(model, law, [Variant(method, nh, resolved_nit(method, nh, nit))], points=RESONANCE_POINTS,
+             options=opt)
     run = st.runs[0]
     ok = np.flatnonzero(run.converged)
     if st.peak is None or ok.size == 0:
@@ -52,8 +46,8 @@ def friction_damped_resonance(model, law, *, method: str, nh: int, nit: int, tol
     i = int(np.argmax(np.where(run.converged, run.amplitude, -np.inf)))
     if i in (0, len(run.freqs_hz) - 1):
         raise SceneError(f"wear.operating_point = \"detuning\": the friction-damped peak is on the edge of the band "
-                         f"{run.freqs_hz[0]:.4g}–{run.freqs_hz[-1]:.4g} Hz (no resonance inside it); use "
-                         "wear.operating_point = \"frequency\"")
+                         f"{run.freqs_hz[0]:.4g}–{run.freqs_hz[-1]:.4g} Hz (no resonance within ±10 % of the tied "
+                         "mode); use wear.operating_point = \"frequency\"")
     return {"hz": float(st.peak["hz"]), "amplitude_m": float(st.peak["amplitude_m"]),
             "seconds": time.perf_counter() - t0}
 
@@ -85,8 +79,7 @@ def resonance_shift(model, law, W, opt, new: dict | None = None) -> dict:
               max_passes=opt.max_passes)
     try:
         new = new or friction_damped_resonance(model, law.with_wear(np.zeros(law.p)), **kw)
-        worn = friction_damped_resonance(model, law.with_wear(np.maximum(np.asarray(W, float), 0.0)),
-                                         near_hz=new["hz"], **kw)
+        worn = friction_damped_resonance(model, law.with_wear(np.maximum(np.asarray(W, float), 0.0)), **kw)
     except (SceneError, BundleError, SolverError) as exc:
         # no resonance inside the band, no tied mode the load excites, an FRF that failed: said,
         # not a failed wear study
