@@ -82,6 +82,7 @@ def stage_run(tmp_path_factory):
     return scene, s, tmp
 
 
+@pytest.mark.slow  # the stage on a meshed 47-sector (~12 s): make test-slow
 def test_stage_writes_the_nd_map_campbell_and_figures(stage_run):
     scene, s, tmp = stage_run
     assert s["n_sectors"] == 47 and s["nodal_diameters"] == [0, 1, 23]     # 46 folded onto 1
@@ -96,6 +97,7 @@ def test_stage_writes_the_nd_map_campbell_and_figures(stage_run):
     assert (F[1] > F[0] * 1.05).all()
 
 
+@pytest.mark.slow  # the stage on a meshed 47-sector (~12 s): make test-slow
 def test_stage_refuses_a_bundle_without_cyclic_faces(stage_run, tmp_path):
     import shutil
 
@@ -118,6 +120,7 @@ def test_nodal_diameters_beyond_n_are_a_scene_error():
     assert _nodal_diameters(P.Cyclic(), 8) == [0, 1, 2, 3, 4]
 
 
+@pytest.mark.slow  # the stage on a meshed 47-sector (~12 s): make test-slow
 def test_campbell_reassembly_at_the_bundle_speed_is_the_bundle_stiffness(stage_run):
     from reduction.bundle import read_bundle
     from reduction.cyclic_modes import stiffness_function

@@ -12,6 +12,10 @@ from workflow import engine
 from workflow.engine import cascade, penalty
 from workflow.engine.hb import HBProblem
 
+#: the module's sweeps (~11 s): make test-slow, to keep make test within 3 minutes on 2 cores;
+#: the three collocated forms' one FRF is also tests/workflow/test_hb_stage.py's
+pytestmark = pytest.mark.slow
+
 BAND = (94.0, 104.0)
 
 
