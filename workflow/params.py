@@ -302,8 +302,9 @@ class NonlinearModes:
                                     "a backbone that cannot turn a corner spends them there)", min=1)
     synthesis_forces: list = param([], "N", "tip forces at which the single-mode synthesis is compared with the "
                                             "direct HB FRF ([]: excitation.amplitude)", min=0.0)
-    jenkins_check: bool = param(True, "", "also check the EPMC on a Jenkins oscillator against its "
-                                          "multi-harmonic reference (≈ 2 s)")
+    jenkins_check: bool = param(True, "", "also check, on a Jenkins oscillator, the EPMC against its "
+                                          "multi-harmonic reference and the Floquet multiplier against "
+                                          "event-driven shooting (≈ 3 s)")
 
     def check(self):
         if len(self.amplitude_range) != 2 or not 0 < self.amplitude_range[0] < self.amplitude_range[1]:

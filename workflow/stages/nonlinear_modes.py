@@ -83,12 +83,20 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     write_rows(out / "synthesis.csv", levels)
     checks = {"snm_peak_error": _max(r["amplitude_error"] for r in levels),
               "snm_frequency_error": _max(r["frequency_error"] for r in levels), "floquet_vs_shooting": None}
+    # the Jenkins checks (nonlinear_modes.jenkins_check): the EPMC against its multi-harmonic
+    # reference, the Floquet multiplier against event-driven shooting
     if nm.jenkins_check:
         from workflow.verification.modes_runner import jenkins_errors
 
         j = jenkins_errors(nh=nh, nit=nit)
         checks.update(jenkins_frequency_error=j["jenkins_frequency_error"],
                       jenkins_damping_error=j["jenkins_damping_error"])
+        from workflow.verification.modes_runner import floquet_error
+
+        fl = floquet_error()
+        checks["floquet_vs_shooting"] = fl["floquet_vs_shooting"]
+        log.info(f"Floquet multiplier of a Jenkins oscillator: {fl['engine']:.6f} against event-driven shooting's "
+                 f"{fl['shooting']:.6f} ({fl['floquet_vs_shooting']:.1e})")
         log.info(f"Jenkins oscillator against its Nh = 25 Galerkin reference: frequency "
                  f"{j['jenkins_frequency_error']:.1e}, damping {j['jenkins_damping_error']:.1e}")
     figures = [plot_backbone(out / "backbone.png", bb), plot_synthesis(out / "synthesis.png", curves)]

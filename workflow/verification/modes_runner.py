@@ -36,3 +36,31 @@ def jenkins_errors(nh: int = 7, nit: int = 64) -> dict:
     return {"jenkins_frequency_error": float(max(ef)) if ef else None,
             "jenkins_damping_error": float(max(ed)) if ed else None,
             "amplitudes": [float(X[i]) for i in pick], "nh": nh, "nit": nit}
+
+
+def floquet_error(omega: float = 1.3) -> dict:
+    """|μ|max of the engine's stability (:func:`workflow.engine.hill_stability`, its defaults) on a
+    1-DOF Jenkins oscillator (m = k = 1, c = 0.02, pad k_t = 1, μN = 0.15, F = 0.1; it sticks and
+    slips each period at ω = 1.3 rad/s) against event-driven shooting
+    (:func:`workflow.verification.floquet.jenkins_monodromy`): {"floquet_vs_shooting" (absolute
+    difference), "engine", "shooting", "omega"}."""
+    from reduction.condense import relative_coordinates
+    from workflow import engine
+    from workflow.engine.hb import HBProblem
+    from workflow.engine.linear import condensed
+    from workflow.verification import floquet, models
+    from workflow.verification.timeint import Pads
+
+    M, K = np.array([[1.0]]), np.array([[1.0]])
+    C, f = 0.02 * K, np.array([0.1])
+    pads = Pads(dof=np.array([0]), k=np.array([1.0]), mu=0.5, N0=np.array([0.3]), cN=np.array([[0.0]]))
+    model, _ = models.jenkins(M, C, K, f, 0, pads, "jenkins-1dof")
+    law = engine.contact_law(model, mu=pads.mu)
+    rc = relative_coordinates(model)
+    c = condensed(rc, omega, 15)
+    hb = HBProblem(c.Zr, c.Fr, law, 15, 128)
+    pr = engine.solve_point(hb, [hb.x0()], solver="newton-powell", tol=1e-10, maxiter=100)
+    st = engine.hill_stability(model, hb, pr.result.x, omega, rc=rc, nh_check=None)
+    ref, _ = floquet.jenkins_monodromy(M, C, K, f, omega, pads)
+    return {"floquet_vs_shooting": abs(st.floquet_max - ref.floquet_max), "engine": st.floquet_max,
+            "shooting": ref.floquet_max, "omega": omega}
