@@ -83,6 +83,7 @@ def test_flank_wear_map_is_written_and_not_blank(tmp_path):
     assert not list(tmp_path.glob(".*"))  # atomic write left no temporary file
 
 
+@pytest.mark.slow  # ~6 s of pyvista renders: make test-slow (the flank wear map test stays)
 def test_sector_and_mode_figures(tmp_path):
     cells, types_, pts, body = sector()
     p1 = render.render_sector(cells, types_, pts, body, surfaces(), tmp_path / "sector.png", width=1800)
