@@ -162,12 +162,11 @@ def with_nh_limit(check: dict) -> dict:
     return {**check, "order": NH_ORDER, "estimated_error": worst}
 
 
-def limit_scale(check: dict | None, label: str, frequency_hz: float | None = None) -> float | None:
-    """A∞ / A(Nh) of the Nh-check row of run ``label`` (at ``frequency_hz`` if given): the factor
-    that carries a result of that run at its peak to its Nh → ∞ estimate; None without one."""
+def limit_scale(check: dict | None, label: str) -> float | None:
+    """A∞ / A(Nh) of the Nh-check row of run ``label``: the factor that carries a result of that
+    run at its peak to its Nh → ∞ estimate; None without one."""
     for row in (check or {}).get("runs", ()):
-        if row["label"] == label and row.get("nh_limit_m") is not None and row.get("amplitude_m") and \
-                (frequency_hz is None or row["frequency_hz"] == frequency_hz):
+        if row["label"] == label and row.get("nh_limit_m") is not None and row.get("amplitude_m"):
             return row["nh_limit_m"] / row["amplitude_m"]
     return None
 

@@ -13,6 +13,7 @@ import numpy as np
 #: at the peak, at a tenth of its cost (workflow/bench/stability.py)
 RITZ_FACTOR = 6.0
 
+
 def sweep_stability(model, rc, law, static, sweep, *, nit: int | None = None) -> dict:
     """Per point of ``sweep`` (:class:`~workflow.engine.studies.frf.SweepResult`): ``stable``
     (True / False; None where the point did not converge or the check could not run),
