@@ -71,6 +71,7 @@ def _constrained_by_hand(b):
                                observe=col[L.observe]), coords=None, path=None)
 
 
+@pytest.mark.slow  # 4–6 s: make test-slow, to keep make test within 3 minutes on 2 cores
 def test_eliminating_ties_after_craig_bampton_is_the_reduction_of_the_constrained_model(linear_bundle):
     """Same fixed-interface modes, constraint modes Ψ_a + ½ΣΨ_dep: equal reduced models to round-off."""
     from reduction.condense import condense, relative_coordinates
@@ -84,6 +85,7 @@ def test_eliminating_ties_after_craig_bampton_is_the_reduction_of_the_constraine
         np.testing.assert_allclose(ca.Fr, cb.Fr, rtol=1e-7, atol=1e-7 * np.abs(cb.Fr).max())
 
 
+@pytest.mark.slow  # 4–6 s: make test-slow, to keep make test within 3 minutes on 2 cores
 def test_the_basis_carries_the_ties_to_the_full_displacement(linear_bundle):
     """Any reduced state expands to a full field whose midside DOFs are their edges' means."""
     model, basis = reduce_with_basis(linear_bundle, 12)

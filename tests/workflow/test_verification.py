@@ -341,6 +341,7 @@ def test_stop_regime_point_without_neighbours_converges_by_continuation_in_nh():
     assert ref.stops and abs(run.amplitude[0] - ref.amplitude) / ref.amplitude < 0.15
 
 
+@pytest.mark.slow  # 4–6 s: make test-slow, to keep make test within 3 minutes on 2 cores
 def test_a_point_lost_upwards_is_found_downwards_from_its_upper_neighbour(monkeypatch):
     """The sweep's second pass. Coulomb oscillator, μN/F0 = 0.7, ζ = 0.02, ε = 10⁴k, Nh = 15:
     with Newton allowed to creep on Levenberg–Marquardt steps to the end of its budget (the
@@ -391,6 +392,7 @@ def _coulomb_sweep(r, zeta, nh, nit, betas):
                       options=opt).runs[0], spec
 
 
+@pytest.mark.slow  # 4–6 s: make test-slow, to keep make test within 3 minutes on 2 cores
 def test_a_point_lost_both_ways_is_approached_in_frequency_steps(monkeypatch):
     """The sweep's last pass (:func:`workflow.engine.studies.frf._approach`). Coulomb oscillator,
     μN/F0 = 0.7, ζ = 0, Nh = 5, nit = 64: the first point (β = 0.5, the mass sticking twice a
