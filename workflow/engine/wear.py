@@ -335,6 +335,13 @@ PERSISTENT_GROWTH = 0.5
 PERSISTENT = ": persistent slip, no worn steady state"
 #: How a pseudo-time march that lost the vibration says so (:func:`_resolve_vibration`).
 UNSOLVABLE = "vibration not solvable at the reached wear"
+#: How a march stopped by its ``max_cycles`` or ``max_increment`` says so: one stage of a march
+#: whose frequency changes between stages (:mod:`workflow.engine.studies.operating`: the
+#: resonance dwell), not a verdict on the wear.
+STAGE_END = "end of stage"
+#: A stage's wear budget counts as spent when less than this fraction of it is left (the last
+#: steps are shortened to land on it, :func:`_stage_end`).
+STAGE_SLACK = 0.05
 
 
 # ------------------------------------------------------------------ history
@@ -462,7 +469,7 @@ def _close(hist: WearHistory, steady: bool, reason: str) -> None:
     steady state (steps or blocks spent) says how its wear was still growing
     (:func:`_trend`) and is flagged ``persistent_slip`` if it grew as under persistent slip."""
     hist.steady, hist.reason = steady, reason
-    if not (steady or hist.persistent_slip):
+    if not (steady or hist.persistent_slip or reason.startswith(STAGE_END)):
         hist.persistent_slip, text = _trend(hist)
         hist.reason = "; ".join(filter(None, (reason, text)))
 
@@ -501,7 +508,8 @@ def _wscale(W, pen) -> float:
 
 def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per_block: float = 1e5,
                     max_blocks: int = 400, steady_tol: float = 1e-3, tol: float = 1e-9,
-                    track: int = 1, newton_w_iterations: int = 8, block_tol: float = 0.0) -> WearHistory:
+                    track: int = 1, newton_w_iterations: int = 8, block_tol: float = 0.0,
+                    max_cycles: float = math.inf, max_increment: float = math.inf) -> WearHistory:
     """Wear marched in physical time by blocks of N cycles (refs. 5, 7).
 
     explicit: ``W_{k+1} = W_k + N·rate(x_k, W_k)``;
@@ -519,7 +527,9 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     (:func:`_reference_block`): paper-wear's worn steady state is set by such
     jumps, and block_tol = 0.01 and 0.0025 agree to 6.4e-7. Stops at the steady state
     (:func:`_steady_or_persistent`: the wear still to come within ``steady_tol`` of max W) or after
-    ``max_blocks``.
+    ``max_blocks`` — or, not steady, after ``max_cycles`` cycles or once the deepest pair has worn
+    ``max_increment`` [m] more than at the start (the last blocks shortened to land there: one
+    stage of a march whose frequency changes, :func:`_stage_end`).
     """
     if scheme not in ("explicit", "implicit"):
         raise ValueError(f"wear reference scheme {scheme!r}: explicit or implicit")
@@ -552,6 +562,10 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
         N = Nref
         if block_tol > 0:
             N = block_tol * _wscale(W, pen) / max(float(st.rate.max()), 1e-300)
+        N, end = _stage_end(N, cyc, W - hist.W_history[0], st.rate, max_cycles, max_increment)
+        if end:
+            reason = end
+            break
         # A block that crosses a contact-state change can leave the HB solver at
         # a kink: halve the block (a smaller wear step) before giving up.
         for halving in range(MAX_BLOCK_HALVINGS + 1):
@@ -579,6 +593,20 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     _close(hist, steady, reason)
     hist.seconds = time.perf_counter() - t0
     return hist
+
+
+def _stage_end(h: float, t: float, dW, rate, max_cycles: float, max_increment: float) -> tuple[float, str]:
+    """(step or block h [cycles] shortened to land on the stage's end, "" or why the stage ends
+    here): at ``t`` cycles into the stage with the deepest pair ``max(dW)`` [m] deeper than at its
+    start, the stage ends at ``max_cycles`` or, within :data:`STAGE_SLACK`, at ``max_increment``;
+    a step wears about h·max rate, so h ≤ (what is left) / max rate lands near it."""
+    if t >= max_cycles * (1.0 - 1e-12):
+        return h, f"{STAGE_END} ({max_cycles:.4g} cycles)"
+    left = max_increment - (float(np.max(dW)) if np.size(dW) else 0.0)
+    if math.isfinite(max_increment) and left <= STAGE_SLACK * max_increment:
+        return h, f"{STAGE_END} (wear +{max_increment:.3g} m)"
+    top = float(np.max(rate)) if np.size(rate) else 0.0
+    return min(h, max_cycles - t, left / top if top > 0 else math.inf), ""
 
 
 def _hb_ok(wp, res, tol) -> bool:
@@ -636,7 +664,8 @@ def _w_solved(F, Wn) -> bool:
 def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
                      steady_tol: float = 1e-3, tol: float = 1e-9, max_steps: int = 400,
                      rtol: float = 1e-3, track: int = 1, x_tol: float = 1e-3, x_corrections: int = 3,
-                     dt_max_blocks: float = 0.0, order: int = 2) -> WearHistory:
+                     dt_max_blocks: float = 0.0, order: int = 2, max_cycles: float = math.inf,
+                     max_increment: float = math.inf) -> WearHistory:
     """Integrate the augmented system (eq. 22a–b) along the wear trajectory to zero wear rates.
 
     Unknowns ``z = [x; W]``. The vibration is the fast part of the dual
@@ -661,7 +690,10 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     separates — and the profile reached is the end of the path). Stops at
     the steady state of :func:`march_reference` after a final HB solve to ``tol`` at the
     reached W. The one integrator of the wear system (``pseudotime.scheme = "ser"``);
-    ``dt_max_blocks`` > 0 caps h at that many ``cycles_per_block``.
+    ``dt_max_blocks`` > 0 caps h at that many ``cycles_per_block``. ``max_cycles``,
+    ``max_increment`` [m]: stop, not steady, at that pseudo-time (cycles) or once the deepest pair
+    has worn that much more than at the start (one stage of a march whose frequency changes,
+    :func:`_stage_end`).
     """
     t0 = time.perf_counter()
     N = float(cycles_per_block)
@@ -688,6 +720,10 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             (x, st, why), failed = _resolve_vibration(wp, x, st, W, tol, count), 0
         if why:
             reason, hist.persistent_slip, hist.vibration_lost = why, why.endswith(PERSISTENT), why.startswith(UNSOLVABLE)
+            break
+        h, end = _stage_end(h, t, W - hist.W_history[0], st.rate, max_cycles, max_increment)
+        if end:
+            reason = end
             break
         xn, Wn, stn, ok = _wear_step(wp, x, W, st, h, x_tol, x_corrections, count)
         err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))

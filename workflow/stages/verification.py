@@ -59,8 +59,8 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
 
 def wear_references(cases) -> list[dict]:
     """Rows (case, quantity, value, exact, error) of the wear references named in ``cases``."""
-    from workflow.verification import wear_runner
+    from workflow.verification import wear_mdr, wear_runner
 
     make = {"jenkins": wear_runner.jenkins_rows, "punch": wear_runner.punch_rows,
-            "oscillator": wear_runner.oscillator_rows}
+            "oscillator": wear_runner.oscillator_rows, "mdr": wear_mdr.mdr_rows}
     return [r for c in cases for r in make[c]()]

@@ -44,7 +44,9 @@ def options(scene):
                        steady_tol=w.steady_tol, reference_check=w.reference_check, max_steps=pt.max_steps,
                        rtol=pt.wear_rtol, dt_max_blocks=pt.wear_dt_max, eps_check_factor=ct.eps_check,
                        nh_check=hb.nh_check, operating_point=w.operating_point, detuning=w.detuning,
-                       measure_length_m=w.measure_length_m, resonance_shift=w.resonance_shift, length_m=w.length_m)
+                       measure_length_m=w.measure_length_m, resonance_shift=w.resonance_shift, length_m=w.length_m,
+                       mission=tuple(tuple(float(v) for v in point) for point in w.mission), dwell_tol=w.dwell_tol,
+                       dwell_step=w.dwell_step, dwell_stages=w.dwell_stages)
 
 
 def run_wear(model, scene, out: Path, log) -> dict:
