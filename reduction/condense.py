@@ -399,9 +399,12 @@ def condense(rc, omega: float, nh: int, derivative: bool = False) -> Condensed:
     """Condense onto relative DOFs for harmonics 0…nh at ω [rad/s] (eq. 3).
 
     ``rc``: :class:`RelativeCoordinates`, or :class:`CyclicRelativeCoordinates`
-    (harmonic j on its own ND). One LU of ``D'_yy`` per harmonic serves Z_r,
-    F_r and their ω-derivatives.
+    (harmonic j on its own ND), or a whole disk's
+    :class:`reduction.mistuned.WholeDiskCoordinates`, which condenses itself. One LU of
+    ``D'_yy`` per harmonic serves Z_r, F_r and their ω-derivatives.
     """
+    if getattr(rc, "is_whole_disk", False):
+        return rc.condense(omega, nh, derivative)
     r = rc.harmonic(0).n_rel
     if not derivative and isinstance(rc, RelativeCoordinates):
         out = _condense_all(rc, omega, nh)
@@ -566,8 +569,10 @@ def recover(rc, omega: float, Ur: np.ndarray) -> np.ndarray:
 
     Solves the tied remainder ``D'_yy y = f'_y − D'_yr u_r`` per harmonic (on
     its own ND for a cyclic ``rc``: sector 0's complex amplitudes) and maps
-    ``z = [u_r; y]`` to the observed DOFs.
+    ``z = [u_r; y]`` to the observed DOFs; a whole disk recovers itself (every blade's).
     """
+    if getattr(rc, "is_whole_disk", False):
+        return rc.recover(omega, Ur)
     if isinstance(rc, RelativeCoordinates):
         tm = tied_basis(rc)
         out = None if tm is None else _recover_modal(rc, tm, omega, np.asarray(Ur), range(Ur.shape[0]))

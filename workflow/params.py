@@ -15,7 +15,7 @@ from workflow.schema import param
 
 PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report",
             "scaling", "verification", "contact_convergence", "interface_scaling", "cyclic_modes",
-            "nonlinear_modes")
+            "nonlinear_modes", "mistuning")
 
 
 @dataclass
@@ -224,11 +224,27 @@ class Wear:
     frequency_hz: float = param(0.0, "Hz", "excitation frequency of the wear study with operating_point = "
                                             "\"frequency\" (0: first tied resonance)", min=0.0)
     operating_point: str = param("frequency", "", "where the wear study vibrates: \"frequency\" (frequency_hz, the "
-                                                  "paper's §5.2 setting) or \"detuning\" (detuning × the model's own "
-                                                  "friction-damped resonance, found by an FRF search; docs/wear.md)",
-                                 choices=("frequency", "detuning"))
+                                                  "paper's §5.2 setting), \"detuning\" (detuning × the model's own "
+                                                  "friction-damped resonance, found by an FRF search), \"resonance\" "
+                                                  "(a dwell: the excitation follows the peak of the wearing system) "
+                                                  "or \"mission\" (a duty cycle of detunings, wear.mission); "
+                                                  "docs/wear.md",
+                                 choices=("frequency", "detuning", "resonance", "mission"))
     detuning: float = param(1.0, "", "f / f_r with operating_point = \"detuning\" (1: at the friction-damped peak)",
                             min=0.5, max=2.0)
+    mission: list = param([], "", "the duty cycle with operating_point = \"mission\": [[f / f_r, share of the "
+                                  "cycles], …], f_r the new model's friction-damped resonance, f / f_r within 0.5–2, "
+                                  "shares ≥ 0 summing to 1; their share-weighted wear rates drive one worn steady "
+                                  "state (e.g. [[1.0, 0.1], [0.98, 0.9]])")
+    dwell_tol: float = param(1e-5, "", "operating_point = \"resonance\": the dwell ends when a stage reaches its worn "
+                                       "steady state and the peak of the worn system lies within this fraction of "
+                                       "the stage's frequency", min=0.0, min_exclusive=True)
+    dwell_step: float = param(3e-4, "", "operating_point = \"resonance\": the move of the peak (fraction of the "
+                                        "frequency) a stage of the dwell aims at before the peak is found again; "
+                                        "smaller follows the peak more closely (docs/wear.md)",
+                              min=0.0, min_exclusive=True)
+    dwell_stages: int = param(100, "", "operating_point = \"resonance\": stages of the dwell at most (each one march "
+                                       "and one FRF search for the peak)", min=1)
     measure_length_m: float = param(2e-3, "m", "ℓ of the filtered worn profile among the wear measures (volume, "
                                                "scar, RMS depth)", min=0.0)
     length_m: float = param(0.0, "m", "length scale of the wear law: the frictional power per unit area averaged "
@@ -239,6 +255,30 @@ class Wear:
                                              "[]: none (one pseudo-time march a point)", min=0.5, max=2.0)
     resonance_shift: bool = param(True, "", "find the friction-damped resonance of the worn and the new model "
                                             "(worn − new shift in summary.json; two FRF searches)")
+
+    def check(self):
+        if self.operating_point != "mission":
+            if self.mission:
+                raise SceneError(f"wear.mission is set but wear.operating_point = {self.operating_point!r}: set "
+                                 "wear.operating_point = \"mission\" to wear under the duty cycle, or drop wear.mission")
+            return
+        if not self.mission:
+            raise SceneError("wear.mission is empty: wear.operating_point = \"mission\" needs the duty cycle, e.g. "
+                             "wear.mission = [[1.0, 0.1], [0.98, 0.9]] ([f / f_r, share of the cycles] each)")
+        for k, item in enumerate(self.mission):
+            numbers = isinstance(item, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                     and math.isfinite(v) for v in item)
+            if not numbers or len(item) != 2:
+                raise SceneError(f"wear.mission[{k}] = {item!r}: each point is [f / f_r, share of the cycles], "
+                                 "two finite numbers")
+            if not 0.5 <= item[0] <= 2.0:
+                raise SceneError(f"wear.mission[{k}]: f / f_r = {item[0]!r} is outside 0.5–2")
+            if item[1] < 0:
+                raise SceneError(f"wear.mission[{k}]: share {item[1]!r} must be ≥ 0 (a fraction of the cycles)")
+        total = math.fsum(item[1] for item in self.mission)
+        if abs(total - 1.0) > 1e-9:
+            raise SceneError(f"wear.mission: the shares sum to {total:.12g}, not 1 (within 1e-9): they are the "
+                             "fractions of the cycles spent at each point")
 
 
 @dataclass
@@ -326,13 +366,15 @@ class Verification:
                               min=0)
     penalty_factor: float = param(0.0, "", "ε_N = ε_T = this × the case's stiffness (k, or the stiffest pad); "
                                            "0: the project's default penalty", min=0.0)
-    wear_cases: list = param(["jenkins", "punch"], "", "wear references (workflow/verification/wear_exact.py): "
-                                                      "jenkins (one Jenkins element whose wear relieves its load, "
-                                                      "closed form), punch (a rigid punch on three contacts with "
-                                                      "an edge gap, closed form), oscillator (a dynamic Jenkins "
-                                                      "oscillator by event-driven integration with cycle jumps, "
-                                                      "≈ 2 min)",
-                             item_choices=("jenkins", "punch", "oscillator"))
+    wear_cases: list = param(["jenkins", "punch", "mdr"], "", "wear references (workflow/verification/wear_exact.py, "
+                                                      "wear_mdr.py): jenkins (one Jenkins element whose wear relieves "
+                                                      "its load, closed form), punch (a rigid punch on three contacts "
+                                                      "with an edge gap, closed form), mdr (the partial-slip worn "
+                                                      "steady state of a Hertzian contact, closed form by the method "
+                                                      "of dimensionality reduction, against a cycle-by-cycle march; "
+                                                      "≈ 1.5 s), oscillator (a dynamic Jenkins oscillator by "
+                                                      "event-driven integration with cycle jumps, ≈ 2 min)",
+                             item_choices=("jenkins", "punch", "oscillator", "mdr"))
 
     def check(self):
         for nh in self.harmonics:
@@ -447,10 +489,40 @@ class Cyclic:
             raise SceneError("cyclic.campbell_speeds_rpm needs at least 2 speeds for a Campbell diagram (or [])")
 
 
+@dataclass
+class Mistuning:
+    stiffness: list = param([], "", "each blade's stiffness deviation δ_s (K_s = (1 + δ_s) K; one per blade, "
+                                    "sector-major) — []: drawn from std and seed", min=-0.9, min_items=0)
+    mass: list = param([], "", "each blade's mass deviation γ_s (M_s = (1 + γ_s) M; []: none)", min=-0.9,
+                       min_items=0)
+    std: float = param(0.02, "", "standard deviation of the drawn stiffness deviations (mistuning.stiffness = [])",
+                       min=0.0, max=0.5)
+    seed: int = param(1, "", "seed of the drawn pattern (the Monte Carlo's patterns use seed + 1 …)", min=0)
+    blade_modes: int = param(10, "", "fixed-interface modes of the blade substructure", min=1)
+    disk_modes: int = param(10, "", "fixed-interface modes of the disk per nodal diameter", min=1)
+    harmonics: int = param(3, "", "Nh of the whole disk's HB", min=1)
+    time_samples: int = param(0, "", "nit (0: the smallest multiple of N/gcd(N, EO) at or above the engine's "
+                                     "default, so that every sector's delay is whole samples)", min=0)
+    band: float = param(0.03, "", "half-width of the band around the tuned friction-damped peak (relative)",
+                        min=0.0, min_exclusive=True, max=0.5)
+    points: int = param(7, "", "frequencies of the whole disk's grid (its largest blade peak refined between "
+                               "them)", min=3)
+    samples: int = param(0, "", "Monte Carlo patterns at mistuning.std (0: none; shared over MPI ranks)", min=0)
+    checks: bool = param(True, "", "tuned whole disk against the cyclic sector, tied response against the "
+                                   "assembled whole-disk model, lumped references (Whitehead, two blades)")
+
+    def check(self):
+        for key in ("stiffness", "mass"):
+            for v in getattr(self, key):
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise SceneError(f"mistuning.{key} contains {v!r}; its items must be numbers")
+
+
 SECTIONS = {
     "run": Run, "model": Model, "material": Material, "rotation": Rotation, "damping": Damping,
     "excitation": Excitation, "modes": Modes, "reduction": Reduction, "contact": Contact, "hb": HB,
     "sweep": Sweep, "pseudotime": PseudoTime, "wear": Wear, "remap": Remap, "extreme": Extreme,
     "scaling": Scaling, "verification": Verification, "contact_convergence": ContactConvergence,
     "interface_scaling": InterfaceScaling, "cyclic": Cyclic, "nonlinear_modes": NonlinearModes,
+    "mistuning": Mistuning,
 }

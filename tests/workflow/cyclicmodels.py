@@ -112,15 +112,20 @@ def sector_bundle(n_sectors: int, seed: int = 0, amplitude: float = 1.0, **kw) -
                                             n_sectors=n_sectors))
 
 
-def full_disk(n_sectors: int, engine_order: int, seed: int = 0, amplitude: float = 1.0, **kw) -> ReducedModel:
+def full_disk(n_sectors: int, engine_order: int, seed: int = 0, amplitude: float = 1.0, blade_stiffness=None,
+              **kw) -> ReducedModel:
     """The whole disk as an ordinary (physical-coordinate) ReducedModel.
 
     Sector s owns nodes 7s … 7s+6 (c, w, d1, d2, b1, b2, t); its c' is node
     7(s+1 mod N). Pairs sector-major (sector 0's first, as in the sector
     model); observed: every tip, sector-major; ``f_harmonic`` complex, the
-    EO wave.
+    EO wave. ``blade_stiffness``: (N,) deviations δ_s — sector s's blade springs (nodes b1, b2,
+    t) × (1 + δ_s), its damping the same Rayleigh law on them (a mistuned disk).
     """
     M0, K0, C0, frames, fs0, pos = sector_matrices(n_sectors, seed, **kw)
+    ra, rb = kw.get("damping", (0.02, 2e-4))
+    blade = np.concatenate([_dofs(i) for i in (4, 5, 6)])
+    dev = np.zeros(n_sectors) if blade_stiffness is None else np.asarray(blade_stiffness, float)
     N, own = n_sectors, NODES - 1
     n = 3 * own * N
     M, K, C = (np.zeros((n, n)) for _ in range(3))
@@ -132,7 +137,9 @@ def full_disk(n_sectors: int, engine_order: int, seed: int = 0, amplitude: float
         Rb = np.kron(np.eye(NODES), Rs)
         nodes = [own * s + i for i in range(own)] + [own * ((s + 1) % N)]
         d = np.concatenate([_dofs(i) for i in nodes])
-        for A, A0 in ((M, M0), (K, K0), (C, C0)):
+        Ks = K0.copy()
+        Ks[np.ix_(blade, blade)] *= 1 + dev[s]   # the blade's springs touch its own nodes only
+        for A, A0 in ((M, M0), (K, Ks), (C, ra * M0 + rb * Ks)):
             A[np.ix_(d, d)] += Rb @ A0 @ Rb.T
         fs[d] += Rb @ fs0
         fh[_dofs(nodes[TIP])] += Rs @ tip_force(amplitude) * np.exp(2j * np.pi * s * engine_order / N)

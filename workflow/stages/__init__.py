@@ -43,6 +43,7 @@ PRODUCERS: dict[str, str] = {
     "interface_scaling": "interface_scaling",
     "cyclic_modes": "cyclic_modes",
     "nonlinear_modes": "nonlinear_modes",
+    "mistuning": "mistuning",
 }
 
 #: stage name → module path. Tests and plug-ins may register others here.

@@ -1,0 +1,168 @@
+"""The mistuned whole disk from one sector (reduction.mistuned, engine.studies.mistuning).
+
+References this code did not make: the lumped disk assembled sector by sector in physical
+coordinates (tests/workflow/cyclicmodels.full_disk, blades scaled there), and the tuned disk on
+its cyclic sector through the engine's cyclic path. The lumped sector's interiors are small, so
+the substructures keep every mode: the reduction is exact, and the comparisons hold to round-off
+(linear) or to the Newton tolerance (HB).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cyclicmodels import full_disk, sector_bundle
+from reduction.condense import condense, recover, relative_coordinates
+from reduction.mistuned import Substructures, WholeDiskCoordinates, cyclic_model, substructures, whole_disk
+from workflow import engine
+from workflow.engine.studies import mistuning as ms
+from workflow.errors import BundleError
+
+N, EO = 5, 2
+DEV = np.array([0.04, -0.03, 0.01, 0.05, -0.02])
+
+
+@pytest.fixture(scope="module")
+def sub():
+    # every interior mode kept (50 > the interiors): the substructures are exact
+    return substructures(sector_bundle(N, amplitude=0.1), EO, blade_modes=50, disk_modes=50)
+
+
+def _rel(a, b):
+    return np.abs(a - b).max() / np.abs(b).max()
+
+
+@pytest.mark.parametrize("omega", [0.7, 2.3])
+def test_whole_disk_is_the_disk_assembled_sector_by_sector(sub, omega):
+    """Z_r and F_r of every harmonic (0: the preload, 1: the EO wave) of the mistuned disk, from
+    the DFT-assembled model and from the substructure condensation, against the lumped disk
+    assembled in physical coordinates with the same blades scaled: round-off."""
+    ref = condense(relative_coordinates(full_disk(N, EO, amplitude=0.1, blade_stiffness=DEV)), omega, 2)
+    for c in (condense(relative_coordinates(whole_disk(sub, DEV)), omega, 2),
+              condense(WholeDiskCoordinates(sub, DEV), omega, 2)):
+        assert _rel(c.Zr, ref.Zr) < 1e-12
+        assert _rel(c.Fr, ref.Fr) < 1e-12
+
+
+def test_recovered_tips_and_tied_response_equal_the_assembled_disk(sub):
+    """Every blade's observed harmonics (norms: the full disk observes in the global frame) from
+    relative harmonics, and the tied response, against the assembled disk."""
+    omega = 1.9
+    rc = WholeDiskCoordinates(sub, DEV)
+    full = relative_coordinates(full_disk(N, EO, amplitude=0.1, blade_stiffness=DEV))
+    U = 1e-3 * np.random.default_rng(0).standard_normal((3, rc.n_rel)) + 0j
+    norms = lambda o: np.linalg.norm(o.reshape(o.shape[0], N, 3), axis=2)  # noqa: E731
+    assert _rel(norms(recover(rc, omega, U)), norms(recover(full, omega, U))) < 1e-12
+    tied = np.linalg.norm(rc.tied_response(omega).reshape(N, 3), axis=1)
+    assert _rel(tied, norms(recover(full, omega, np.zeros((2, rc.n_rel), complex)))[1]) < 1e-12
+
+
+def test_tuned_whole_disk_hb_is_the_cyclic_sector(sub):
+    """Friction-damped HB of the tuned whole disk (every pair of every blade) against the cyclic
+    sector (harmonic j on ND j·EO): equal blade amplitudes to the Newton tolerance, on the time
+    grid of :func:`ms.time_samples` (every sector's delay whole samples)."""
+    cyc = cyclic_model(sub, [0, 1, 2, 3, 4])
+    from workflow.engine.linear import first_excited_mode
+
+    law = engine.contact_law(cyc, mu=0.3)
+    # on the resonance's flanks: at its top this lumped disk's Newton needs more than the default
+    # iterations on the sector too (separating pairs)
+    freqs = first_excited_mode(relative_coordinates(cyc))[0] * np.array([0.96, 1.04])
+    nit = ms.time_samples(3, N, EO)
+    assert nit % N == 0 and nit >= 64
+    v = engine.Variant("hbm", 3, nit)
+    ref = engine.frf(cyc, law, [v], freqs_hz=freqs,
+                     options=engine.FRFOptions(eps_check_factor=0.0, nh_check=False, reference_check=False,
+                                               branch_check=False, time_check=False, refine_peak=False)).runs[0]
+    assert ref.converged.all()
+    seeds = [ms.travelling_wave(U, N, EO) for U in ref.Ur]
+    r = ms.forced_response(WholeDiskCoordinates(sub), ms.tiled_law(law, N), v, freqs, seeds=seeds, refine=False)
+    assert r.converged.all()
+    # tol = 1e-8 of ‖F‖ on both: the amplitudes agree to a few times that
+    assert np.abs(r.amplitude / ref.amplitude[:, None] - 1).max() < 1e-6
+    # the tuned disk's amplification factor is 1 (every blade alike)
+    assert abs(ms.amplification(r.amplitude.max(), ref.amplitude.max()) - 1) < 1e-6
+
+
+def test_mistuning_localises_the_tied_response_and_stays_under_whitehead(sub):
+    """Tied (linear) response: the tuned disk's blades are equal; a mistuned disk's are not, its
+    largest blade peak lies above the tuned one here and never above Whitehead's bound."""
+    cyc = cyclic_model(sub, [0, 2])
+    rcc = relative_coordinates(cyc)
+    from workflow.engine.linear import first_excited_mode
+
+    f0 = first_excited_mode(rcc)[0]
+    freqs = f0 * np.linspace(0.9, 1.1, 41)
+    _, tuned_pk, tuned_blades = ms.tied_response(WholeDiskCoordinates(sub), freqs)
+    assert np.ptp(tuned_blades) < 1e-9 * tuned_blades.max()
+    _, pk, blades = ms.tied_response(WholeDiskCoordinates(sub, DEV), freqs)
+    assert np.ptp(blades) > 1e-3 * blades.max()
+    af = ms.amplification(pk["amplitude_m"], tuned_pk["amplitude_m"])
+    assert 1.0 < af <= ms.whitehead_bound(N)
+
+
+def test_patterns_are_seeded_and_bounded():
+    a, b = ms.pattern(47, 0.03, 7), ms.pattern(47, 0.03, 7)
+    assert np.array_equal(a, b) and not np.array_equal(a, ms.pattern(47, 0.03, 8))
+    assert abs(np.std(ms.pattern(4000, 0.03, 1)) - 0.03) < 3 * 0.03 / np.sqrt(2 * 4000)
+    assert np.abs(ms.pattern(10, 10.0, 1)).max() <= ms.MAX_DEVIATION
+
+
+def test_time_samples_make_every_delay_whole():
+    for n, eo in ((47, 3), (24, 4), (5, 2), (12, 0)):
+        nit = ms.time_samples(3, n, eo)
+        assert nit >= 28 and (nit * eo) % n == 0
+
+
+def test_substructures_round_trip_and_a_damaged_file_is_refused(sub, tmp_path):
+    path = sub.save(tmp_path / "sub.npz")
+    back = Substructures.load(path)
+    c0 = condense(WholeDiskCoordinates(sub, DEV), 1.1, 1)
+    c1 = condense(WholeDiskCoordinates(back, DEV), 1.1, 1)
+    assert np.array_equal(c0.Zr, c1.Zr)
+    path.write_bytes(path.read_bytes()[:200])
+    with pytest.raises(BundleError, match="cannot be read"):
+        Substructures.load(path)
+
+
+def test_a_wrong_pattern_length_is_a_clear_error(sub):
+    with pytest.raises(ValueError, match="stiffness mistuning"):
+        WholeDiskCoordinates(sub, np.zeros(N + 1))
+
+
+@pytest.mark.slow  # 60–180 s: the lumped Monte Carlo and the two-blade time integrations of the checks
+def test_stage_on_a_lumped_disk(tmp_path):
+    """The mistuning stage end to end on the lumped 5-sector bundle: files, amplification
+    factors, checks (tuned = cyclic, substructures = assembled disk, Whitehead, two blades)."""
+    import json
+
+    from reduction.bundle import write_bundle
+    from workflow import params
+    from workflow.stages import mistuning as stage
+
+    b = sector_bundle(N, amplitude=0.05)
+    c = b.contact       # a bundle on disk needs orthonormal pair frames (t1 made normal to n)
+    t1 = c.t1 - np.sum(c.t1 * c.normal, axis=1, keepdims=True) * c.normal
+    c.t1 = t1 / np.linalg.norm(t1, axis=1, keepdims=True)
+    c.t2 = np.cross(c.normal, c.t1)
+    write_bundle(b, tmp_path / "bundle")
+    scene = {k: getattr(params, c)() for k, c in (("contact", "Contact"), ("hb", "HB"), ("cyclic", "Cyclic"),
+                                                    ("mistuning", "Mistuning"))}
+    scene["contact"].mu = 0.3
+    scene["cyclic"].engine_order = EO
+    m = scene["mistuning"]
+    m.stiffness, m.blade_modes, m.disk_modes, m.points, m.band = DEV.tolist(), 50, 50, 7, 0.08
+
+    class Log:
+        def info(self, msg):
+            pass
+
+    s = stage.run(scene, {"bundle": tmp_path / "bundle"}, tmp_path / "out", Log())
+    json.dumps(s)
+    c = s["checks"]
+    assert c["tuned_vs_cyclic"] < 1e-6 and c["linear_vs_full_disk"] < 1e-9
+    assert c["whitehead_bound_ok"] and c["two_blade_within_budget"]
+    assert 1.0 < s["amplification"]["tied"] <= s["whitehead_bound"]
+    assert len(s["blade_peaks_m"]) == N and s["amplification"]["friction"] > 0
+    for f in ("blades.csv", "blade_frf.csv", "blade_frf.png", "localisation.png"):
+        assert (tmp_path / "out" / f).stat().st_size > 100
