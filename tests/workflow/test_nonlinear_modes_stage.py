@@ -54,6 +54,6 @@ def test_stage_backbone_synthesis_and_checks(tmp_path):
         assert lv["frequency_error"] < 1e-5 and lv["amplitude_error"] < 1e-4, lv
     c = s["checks"]
     assert c["jenkins_frequency_error"] < 1e-3 and c["jenkins_damping_error"] < 5e-3   # test_nlmodes' bounds
-    assert c["floquet_vs_shooting"] < 2e-3          # test_stability's bound (the switching instants)
+    assert c["floquet_vs_shooting"] < 1e-3          # test_stability's bound (switches located between samples)
     for f in ("backbone.csv", "synthesis.csv", "backbone.png", "synthesis.png"):
         assert (tmp_path / "nm" / f).stat().st_size > 100

@@ -45,9 +45,19 @@ multiplier 1.58–1.64: an *unstable* orbit that is stable.
 Two ways to the multipliers
 ---------------------------
 * ``method="monodromy"`` (default): the monodromy matrix of the linearised system,
-  integrated over one period on the tangent's samples (:func:`monodromy`). Measured
-  against event-driven shooting on Jenkins oscillators: 5e-4…1.3e-3 on the largest
-  multiplier at nit = 2048, the error set by the switching instants (known to a sample).
+  integrated over one period on the tangent's pieces (:func:`monodromy`): the DLFT's nit
+  samples, with each stick/slip/separation switch located inside its sample interval
+  (:func:`_switch_pieces`). Located to the sample only, a switch was up to T/nit off, and
+  the largest multiplier with it, by an amount that does not fall as 1/nit but jumps with
+  where the switches fall between samples (Jenkins, ω = 1.3: 1.25e-3, 1.26e-3, 4.7e-4,
+  7.9e-5 at nit = 1024, 2048, 4096, 8192). Measured against event-driven shooting
+  (2026-11-28, :mod:`workflow.verification.floquet`; the 1-DOF Jenkins oscillator of
+  tests/workflow/test_stability.py, HB Nh = 15, nit = 128): 7.7e-5 at ω = 1.3 and 3.7e-4 at
+  ω = 1.2 (normal load varying) at the defaults, against 1.26e-3 and 4.9e-4 with the switches
+  at the samples. What is left is not the monodromy's: ε of the tangent (:data:`EPS_FACTOR`;
+  10⁴ → 10⁶ moves it by 7e-5 on both) and, at ω = 1.2, the HB orbit itself (its AFT on 128
+  samples: with 1024 and Nh = 31 the error is 8.8e-5, ε's part); the monodromy's own part,
+  nit = 1024…8192 and refine = 64…256 against 8192 and 256, is below 5.5e-5.
 * ``method="hill"``: Hill's method below. It is exact for a smooth periodic system (Duffing:
   1e-9 against shooting at 10 harmonics) and for a constant tangent (all stuck), but the
   stick/slip switches make the anchor rows switch between differential and algebraic:
@@ -126,12 +136,22 @@ DENSE_MAX = 1500
 SHIFT = 0.05
 #: exponents (with their copies) asked of ARPACK by default
 N_EXP = 40
-#: samples per period of the monodromy's tangent (the switching instants are known to T/nit)
+#: samples per period of the monodromy's tangent. The switching instants are located inside
+#: the sample intervals (:data:`SWITCH_REFINE`); what nit still sets is the integration of the
+#: smoothly varying tangent, O(1/nit²): on the quick sector (HBM-3, 200–214 Hz) the largest
+#: multiplier moves by 4.6e-4, 1.2e-4, 2.9e-5, 6.9e-6 at nit = 256, 512, 1024, 2048 against 8192
 MONODROMY_NIT = 2048
 #: relative change of a pair's stick reference λ_x^T (of max|λ|) above which its anchor moves
 ANCHOR_TOL = 1e-9
 #: backward-Euler steps a sample interval in :func:`monodromy` (Richardson-extrapolated)
 SUBSTEPS = 2
+#: sub-intervals a sample interval with a switch is cut into (:func:`_switch_pieces`): the
+#: monodromy knows the switching instants to ±T/(2·nit·SWITCH_REFINE). Jenkins oscillators at
+#: nit = 2048 (2026-11-28): the largest multiplier within 2.6e-5 of its value at nit = 8192,
+#: refine = 256 (1.2e-4 at refine = 16). Its cost is the DLFT on 3·(refine − 1) extra samples
+#: a switch and one monodromy step more a switch: quick sector at 212 Hz (22 switches),
+#: 0.04 s of 0.45 s
+SWITCH_REFINE = 64
 
 
 @dataclass
@@ -327,19 +347,47 @@ def hill_exponents(M, C, K, Kt_samples, Ct_samples, omega: float, nh: int, *, B=
 
 
 # ------------------------------------------------------------------ the DLFT tangent
+def _moved(lam, lam_x_T, prev) -> np.ndarray:
+    """(nit, p) bool: the DLFT moved the pair's stick reference at the sample (from ``prev``,
+    the reference before it, N), by more than :data:`ANCHOR_TOL` of max|λ|."""
+    return np.linalg.norm(lam_x_T - prev, axis=2) > ANCHOR_TOL * max(float(np.abs(lam).max()), 1e-300)
+
+
+def _tangent_state(state, lam_x_T, prev) -> np.ndarray:
+    """The contact state the tangent takes (nit, p): the DLFT's, except that a sample it
+    labels slip while keeping the anchor (``touch``: stuck within 1e-7 of the cone, the
+    reference kept bit for bit, :func:`workflow.engine.contact.dlft_pass`) is stick. The DLFT
+    labels them slip for the HB Jacobian of a pair that shook down onto the cone; at a genuine
+    slip → stick reversal they are the first instants of stick (the force leaves the cone
+    quadratically: on the Jenkins oscillator at ω = 1.3 they lengthened each slip phase by
+    6.8e-5 T, and the largest multiplier stayed 2.8e-4 off the shooting's at nit = 16384…65536,
+    7.9e-5 without them). Told by the anchor kept exactly, not by a threshold on its move: near
+    a reversal a slipping pair's move per sample falls below any, the finer the samples the
+    earlier."""
+    kept = np.all(lam_x_T == prev, axis=2)
+    return np.where((state == SLIP) & kept, STICK, state).astype(state.dtype)
+
+
 def contact_tangent(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, memory: bool = True,
-                    eps_dlft_t=None):
+                    eps_dlft_t=None, prev=None, dt=None):
     """The linearised DLFT law along the period (module docstring) from a
     :class:`~workflow.engine.contact.DLFTResult`'s samples: state (nit, p), λ (nit, p, 3) N,
     λ_x^T (nit, p, 2) N, its start reference ref_T (p, 2) N; ε_N, ε_T (p,) N/m of the
     tangent; μ (p,); ω rad/s; ``eps_dlft_t`` (p,) N/m the DLFT's own ε_T (λ_x^T = ε_DLFT·w;
-    default ``eps_t``).
+    default ``eps_t``). ``prev`` (nit, p, 2) N: the stick reference before each sample, and
+    ``dt`` (nit,) s: the time since that reference (the slip rate's backward difference);
+    default the uniform grid τ_k = 2πk/nit (``prev`` the previous sample's, ref_T before the
+    first; dt = T/nit). With memory the tangent takes :func:`_tangent_state`.
 
     Returns a dict of sample arrays on δu (3p) and the anchor states (2 per pair that
     slips or separates at some instant, ``active`` (p,) bool): ``Ku`` (nit, 3p, 3p),
     ``Kw`` (nit, 3p, na), ``Ew``, ``Aw`` (nit, na, na), ``Au`` (nit, na, 3p); without
     ``memory`` only ``Ku`` (the memoryless tangent)."""
     nit, p = state.shape
+    if prev is None:
+        prev = np.concatenate([ref_T[None], lam_x_T[:-1]], axis=0)
+    if memory:
+        state = _tangent_state(state, lam_x_T, prev)
     contact = state != SEPARATION
     stick = state == STICK
     slip = state == SLIP
@@ -352,7 +400,6 @@ def contact_tangent(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, 
     I2 = np.eye(2)
     if not memory:
         # λ_pre = λ^k + λ_x^k − λ_x^{k−1}: fac = ‖λ_T‖/‖λ_pre^T‖ (1 when touching the cone)
-        prev = np.concatenate([ref_T[None], lam_x_T[:-1]], axis=0)
         pre = lamT + lam_x_T - prev
         fac = nT / np.maximum(np.linalg.norm(pre, axis=2), 1e-300)
         tt = np.einsum("kia,kib->kiab", t, t)
@@ -365,15 +412,14 @@ def contact_tangent(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, 
     # a pair's anchor is a state only if the law moves it during the period (slip or separation);
     # stuck all period, or only touching the cone (shakedown: the DLFT keeps the anchor), it is a
     # parameter of a family of periodic solutions — a neutral multiplier 1, left out
-    prev = np.concatenate([ref_T[None], lam_x_T[:-1]], axis=0)
-    moved = np.linalg.norm(lam_x_T - prev, axis=2) > ANCHOR_TOL * max(float(np.abs(lam).max()), 1e-300)
+    moved = _moved(lam, lam_x_T, prev)
     active = np.any(moved | ~contact, axis=0)
     idx = np.flatnonzero(active)
     pa = len(idx)
     Ku[:, :, 1:, 1:] = np.where(contact[:, :, None, None], eps_t[None, :, None, None] * I2, 0.0)
     # slip rate |ẇ| = |Δλ_x^T|/(ε_DLFT Δt) (backward difference): κ = |ẇ| ε_T / (μ|λ_N|)
-    dt = 2 * np.pi / omega / nit
-    wdot = np.linalg.norm(lam_x_T - prev, axis=2) / dt / (eps_t if eps_dlft_t is None else eps_dlft_t)[None, :]
+    dt = np.full(nit, 2 * np.pi / omega / nit) if dt is None else np.asarray(dt, dtype=float)
+    wdot = np.linalg.norm(lam_x_T - prev, axis=2) / dt[:, None] / (eps_t if eps_dlft_t is None else eps_dlft_t)[None, :]
     # κ only matters while a pair slips (μ|λ_N| > 0); elsewhere 0, not an overflow the masks then drop
     cone = mu[None, :] * np.abs(lam[:, :, 0])
     kappa = np.divide(wdot * eps_t[None, :], cone, out=np.zeros_like(cone), where=cone > 0)
@@ -411,25 +457,29 @@ def _pair_blockdiag(Kp: np.ndarray) -> np.ndarray:
 
 
 
-def monodromy(M, C, K, B, tan: dict, omega: float, *, substeps: int = 2, richardson: bool = True) -> np.ndarray:
+def monodromy(M, C, K, B, tan: dict, omega: float, *, substeps: int = 2, richardson: bool = True,
+              h=None) -> np.ndarray:
     """Monodromy matrix (dimensionless) of the linearised periodic system of the module
     docstring, ``E(t) ż = A(t) z`` with z = [δq, δv, δw], by time integration over one period
-    on the tangent's own samples (:func:`contact_tangent`, coefficients constant on each of
-    the nit intervals): backward Euler, ``substeps`` a sample interval, extrapolated
-    (Richardson, 2·Z(h/2) − Z(h)) unless ``richardson`` is False. Backward Euler is the
-    one-step method that handles the algebraic slip rows (E singular, index 1): the step
-    that enters slip projects δw onto the cone's constraint — the saltation of the exact
-    law. Its error: O(h²) after extrapolation, and O(T/nit) from the switching instants,
-    known only to a sample (the DLFT's own resolution). Dense; M, C, K (m, m), B (3p, m)."""
+    with the tangent's coefficients (:func:`contact_tangent`) constant on each of its pieces:
+    ``h`` (n,) s the pieces' durations in order (sum T; default the nit uniform intervals
+    T/nit). Backward Euler, ``substeps`` a piece, extrapolated (Richardson, 2·Z(h/2) − Z(h))
+    unless ``richardson`` is False. Backward Euler is the one-step method that handles the
+    algebraic slip rows (E singular, index 1): the step that enters slip projects δw onto
+    the cone's constraint — the saltation of the exact law. Its error: O(h²) after
+    extrapolation, and that of the switching instants, which the pieces carry
+    (:func:`_switch_pieces`: to T/(nit·refine)). Dense; M, C, K (m, m), B (3p, m)."""
     m = M.shape[0]
     na = tan["Kw"].shape[2] if "Kw" in tan else 0
     n = 2 * m + na
     nit = tan["Ku"].shape[0]
     Bd = np.asarray(B.toarray() if sp.issparse(B) else B, dtype=float)
     T = 2 * np.pi / omega
+    h = np.full(nit, T / nit) if h is None else np.asarray(h, dtype=float)
+    if h.shape != (nit,):
+        raise ValueError(f"monodromy: {h.shape} durations for {nit} tangent pieces")
 
     def run(sub):
-        h = T / nit / sub
         Z = np.eye(n)
         A = np.zeros((n, n))
         E = np.zeros((n, n))
@@ -444,7 +494,7 @@ def monodromy(M, C, K, B, tan: dict, omega: float, *, substeps: int = 2, richard
                 A[2 * m:, :m] = tan["Au"][k] @ Bd
                 A[2 * m:, 2 * m:] = tan["Aw"][k]
                 E[2 * m:, 2 * m:] = tan["Ew"][k]
-            lu = sla.lu_factor(E - h * A, check_finite=False)
+            lu = sla.lu_factor(E - (h[k] / sub) * A, check_finite=False)
             for _ in range(sub):
                 Z = sla.lu_solve(lu, E @ Z, check_finite=False)
         return Z
@@ -452,21 +502,110 @@ def monodromy(M, C, K, B, tan: dict, omega: float, *, substeps: int = 2, richard
     Z = run(substeps)
     return 2 * run(2 * substeps) - Z if richardson else Z
 
+
 # ------------------------------------------------------------------ on a reduced model
-def _dlft_samples(hb, x, nit: int):
-    """The DLFT of the HB solution x of ``hb`` (:class:`~workflow.engine.hb.HBProblem`) on nit
-    samples: the solution's own when nit = hb.nit, else the same harmonics of U_r through the
-    same law and anchor on a finer grid (HBM)."""
+def _dlft_problem(hb, x, nit: int, hbm: bool = False):
+    """(problem, unknowns) of the HB solution x of ``hb`` (:class:`~workflow.engine.hb.HBProblem`)
+    on nit samples: ``hb`` itself when nit = hb.nit (and, with ``hbm``, its predictor is a
+    Fourier series: HBM), else the same harmonics of U_r through the same law and anchor on
+    a finer grid (HBM)."""
     from workflow.engine.hb import HBProblem
 
-    if nit == hb.nit:
-        prob, xx = hb, x
-    else:
-        prob = HBProblem(hb.Zr, hb.Fr, hb.law, hb.nh, nit, "hbm", max_passes=max(hb.max_passes, 50),
-                         pass_tol=hb.pass_tol, stick_anchor=hb.stick_anchor, static=hb.static)
-        xx = prob.unknowns_from_harmonics(hb.harmonics(x))
+    if nit == hb.nit and (hb.method == "hbm" or not hbm):
+        return hb, x
+    prob = HBProblem(hb.Zr, hb.Fr, hb.law, hb.nh, nit, "hbm", max_passes=max(hb.max_passes, 50),
+                     pass_tol=hb.pass_tol, stick_anchor=hb.stick_anchor, static=hb.static)
+    return prob, prob.unknowns_from_harmonics(hb.harmonics(x))
+
+
+def _dlft_samples(hb, x, nit: int):
+    """The DLFT (:class:`~workflow.engine.contact.DLFTResult`) of the HB solution x of ``hb`` on
+    nit uniform samples (:func:`_dlft_problem`)."""
+    prob, xx = _dlft_problem(hb, x, nit)
     prob.contact_time(xx)
     return prob.last_dlft
+
+
+@dataclass
+class _Pieces:
+    """The contact law along the period on the monodromy's pieces (:func:`_switch_pieces`):
+    per piece the DLFT sample it takes its tangent from — ``state`` (n, p) (already
+    :func:`_tangent_state`), ``lam`` (n, p, 3) N, ``lam_x_T`` and ``prev`` (n, p, 2) N, ``dt``
+    (n,) s (the slip rate's backward difference) — and ``h`` (n,) s its duration (sum T);
+    ``ref_T`` (p, 2) N; ``switches`` the sample intervals refined; ``samples`` the DLFT's."""
+
+    state: np.ndarray
+    lam: np.ndarray
+    lam_x_T: np.ndarray
+    prev: np.ndarray
+    dt: np.ndarray
+    h: np.ndarray
+    ref_T: np.ndarray
+    switches: int
+    samples: int
+
+
+def _signature(ts, lam, lam_x_T, prev) -> np.ndarray:
+    """The states whose changes are switches of the tangent (nit, p): :func:`_tangent_state` for
+    a pair with an anchor state (:func:`contact_tangent`'s ``active``), contact or separation
+    for the others (their tangent is stick in contact: a pair that shook down onto the cone and
+    slips by round-off now and then has no switch to locate)."""
+    contact = ts != SEPARATION
+    active = np.any(_moved(lam, lam_x_T, prev) | ~contact, axis=0)
+    return np.where(active[None, :], ts, np.where(contact, STICK, SEPARATION)).astype(ts.dtype)
+
+
+def _switch_pieces(hb, x, nit: int, omega: float, refine: int) -> _Pieces:
+    """The contact law along the period of the HB solution x of ``hb`` for :func:`monodromy`,
+    with the switching instants located inside the sample intervals.
+
+    The DLFT on nit uniform samples knows a stick/slip/separation switch to an interval
+    (τ_{k−1}, τ_k]. Each interval where some pair's :func:`_tangent_state` changes is cut into
+    ``refine`` sub-intervals, the DLFT predictor λ_u (a Fourier series: its harmonics
+    evaluated at any instant) is sampled there too, and the DLFT runs again on the
+    non-uniform grid (same law, same passes, from the uniform one's reference). Each sample
+    stands for its cell (midway to its neighbours), so a switch sits midway between the two
+    sub-samples it falls between: to ±T/(2·nit·refine), without bias, and a smooth
+    coefficient is taken at the middle of its cell. Consecutive sub-samples of one interval
+    in the same state are merged into one piece (the first one's tangent): the monodromy
+    pays one step per switch more than per sample, not ``refine``. ``refine`` ≤ 1: the
+    uniform samples, a piece each (a switch then known to T/nit)."""
+    from workflow.engine import fourier
+    from workflow.engine.contact import dlft_pass
+
+    prob, xx = _dlft_problem(hb, x, nit, hbm=True)
+    a = prob._predictor(xx)                                   # real Fourier coefficients of λ_u (N)
+    res = prob._dlft(a, jacobian=False)
+    T = 2 * np.pi / omega
+    tau = 2 * np.pi * np.arange(nit) / nit
+    prev = np.concatenate([res.ref_T[None], res.lam_x_T[:-1]], axis=0)
+    ts = _tangent_state(res.state, res.lam_x_T, prev)
+    sig = _signature(ts, res.lam, res.lam_x_T, prev)
+    sw = np.flatnonzero(np.any(sig != np.roll(sig, 1, axis=0), axis=1))     # a switch in (τ_{k−1}, τ_k]
+    if refine <= 1 or sw.size == 0:
+        return _Pieces(ts, res.lam, res.lam_x_T, prev, np.full(nit, T / nit), np.full(nit, T / nit), res.ref_T,
+                       0, nit)
+    step = 2 * np.pi / nit
+    # the intervals before and after too: the DLFT sees a slip → stick reversal by the sign of the
+    # predictor's increment over a sample interval, up to a sample late (the reversal may lie in
+    # (τ_{k−2}, τ_{k−1}]), and the refined anchors may move a switch across a sample
+    ivl = np.unique((sw[:, None] + np.arange(-2, 1)[None, :]) % nit)                # interval (τ_i, τ_{i+1}]
+    extra = (ivl * step)[:, None] + step * np.arange(1, refine)[None, :] / refine
+    tau_f = np.concatenate([tau, extra.ravel()])
+    order = np.argsort(tau_f, kind="stable")
+    tau_f = tau_f[order]
+    coarse = order < nit
+    lam_u = (fourier.trig_matrix(prob.nh, tau_f) @ a).reshape(len(tau_f), prob.p, 3)
+    fine = dlft_pass(lam_u, prob.law.mu, res.ref_T, periodic=True, max_passes=prob.max_passes, tol=prob.pass_tol)
+    prev_f = np.concatenate([fine.ref_T[None], fine.lam_x_T[:-1]], axis=0)
+    ts_f = _tangent_state(fine.state, fine.lam_x_T, prev_f)
+    sig = _signature(ts_f, fine.lam, fine.lam_x_T, prev_f)
+    back = np.diff(np.concatenate([[tau_f[-1] - 2 * np.pi], tau_f]))          # rad, to the previous sample
+    cell = 0.5 * (back + np.roll(back, -1))                                     # rad, the sample's cell
+    start = np.flatnonzero(coarse | np.any(sig != np.roll(sig, 1, axis=0), axis=1))
+    h = np.add.reduceat(cell, start) / omega
+    return _Pieces(ts_f[start], fine.lam[start], fine.lam_x_T[start], prev_f[start], back[start] / omega, h,
+                   fine.ref_T, int(sw.size), len(tau_f))
 
 
 def _ritz(rcM, rcK, nr: int, eps: np.ndarray, omega: float, modes):
@@ -502,7 +641,7 @@ def _structure(rc, nr: int, en, et, omega: float, modes):
 def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_hill: int | None = None,
                    nh_check: int | None = 0, memory: bool = True, eps_factor: float = EPS_FACTOR,
                    nit: int | None = None, dense: bool | None = None, n_exp: int | None = None, modes=None,
-                   rc=None, substeps: int = SUBSTEPS) -> Stability:
+                   rc=None, substeps: int = SUBSTEPS, refine: int = SWITCH_REFINE) -> Stability:
     """Floquet stability of the HB solution ``x`` of ``hb`` (:class:`~workflow.engine.hb.HBProblem`)
     at ω (rad/s) on ``model`` (:class:`~reduction.reduced.ReducedModel`).
 
@@ -514,10 +653,12 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
     full one, not the condensed Zr (which is not polynomial in s).
 
     method    "monodromy" (default): the monodromy of the linearisation by time integration
-              (:func:`monodromy`, nit default max(hb.nit, :data:`MONODROMY_NIT`)), the check
-              at 2·nit; "hill": Hill's method (:func:`hill_descriptor`) at ``nh_hill``
-              harmonics (default max(2·Nh, 8)), the check at ``nh_check`` (0: ⌈1.5·nh_hill⌉),
-              the DLFT on nit ≥ 4·nh+1 samples. ``nh_check`` None: no check, half the cost.
+              (:func:`monodromy`, nit default max(hb.nit, :data:`MONODROMY_NIT`), the
+              switching instants located to T/(nit·``refine``) by :func:`_switch_pieces`,
+              ``refine`` 1: to the sample), the check at 2·nit; "hill": Hill's method
+              (:func:`hill_descriptor`) at ``nh_hill`` harmonics (default max(2·Nh, 8)), the
+              check at ``nh_check`` (0: ⌈1.5·nh_hill⌉), the DLFT on nit ≥ 4·nh+1 samples.
+              ``nh_check`` None: no check, half the cost.
     memory    anchors as states (exact, default) or the memoryless tangent
     eps_factor ε of the tangent / static stiffness per pair and direction
     modes     None: the full δq; a float: a Ritz basis of the modes with the pairs stuck
@@ -546,12 +687,19 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
         nit = max(hb.nit, MONODROMY_NIT) if nit is None else int(nit)
 
         def solve(n_samples):
-            res, tan = tangent(n_samples)
-            mult = np.linalg.eigvals(monodromy(M, C, K, B, tan, omega, substeps=substeps))
+            if memory:      # the switching instants located inside the sample intervals
+                pc = _switch_pieces(hb, x, int(n_samples), omega, refine)
+                tan = contact_tangent(pc.state, pc.lam, pc.lam_x_T, pc.ref_T, en, et, hb.law.mu, omega, memory,
+                                      eps_dlft_t=hb.law.eps_t, prev=pc.prev, dt=pc.dt)
+                h = pc.h
+            else:           # the memoryless tangent has no anchor to switch: the DLFT's own samples
+                pc, tan = tangent(n_samples)
+                h = None
+            mult = np.linalg.eigvals(monodromy(M, C, K, B, tan, omega, substeps=substeps, h=h))
             mult = mult[np.argsort(-np.abs(mult))]
             with np.errstate(divide="ignore", invalid="ignore"):   # a multiplier 0: s = −∞ (a slaved anchor)
                 s = np.log(mult.astype(complex)) / T
-            return float(np.abs(mult[0])), s, res, tan, "monodromy", float("inf"), 2 * M.shape[0]
+            return float(np.abs(mult[0])), s, pc, tan, "monodromy", float("inf"), 2 * M.shape[0]
         first = solve(nit)
         check = solve(2 * nit) if nh_check is not None else None
         nh_hill, nh_check = 0, None
@@ -576,8 +724,11 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
         check = solve(nh_check) if nh_check else None
     fm, s, res, tan, how, radius, size = first
     s = s[np.argsort(-s.real)]
+    detail = {"size": size, "nit": int(nit), "states": np.bincount(res.state.ravel(), minlength=3)}
+    if isinstance(res, _Pieces):
+        detail.update(pieces=len(res.h), switches=res.switches, samples=res.samples)
     return Stability(stable=bool(fm <= 1 + STABLE_TOL), floquet_max=fm, exponents=s,
                      truncation_change=None if check is None else abs(check[0] - fm), method=how + tag,
                      seconds=time.perf_counter() - t0, nh_hill=nh_hill, nh_check=nh_check,
                      eps_factor=eps_factor, memory=memory, radius=radius, anchors=int(tan["active"].sum()),
-                     detail={"size": size, "nit": int(nit), "states": np.bincount(res.state.ravel(), minlength=3)})
+                     detail=detail)
