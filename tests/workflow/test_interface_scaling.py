@@ -170,5 +170,8 @@ def test_structured_split_accounts_for_the_linear_solves(tmp_path):
     assert row["factorizations"] == seq.count("F") >= 1
     assert row["gmres_iterations"] == sum(int(s) for s in seq if s != "F")
     assert row["solves"] == len(seq) - seq.count("F")
-    assert 0 < row["factor_s"] + row["gmres_s"] <= row["seconds"]
+    # the parts and the sweep are timed by separate clock reads, and the sweep's seconds exclude
+    # its grid's condensation, timed apart: on a loaded 2-core machine the parts of a 30 ms sweep
+    # measured 1.4 ms above it (2026-11-28), so the containment holds to a few ms, not exactly
+    assert 0 < row["factor_s"] + row["gmres_s"] <= 1.1 * row["seconds"] + 0.005
     assert row["s_per_iteration"] == pytest.approx(row["seconds"] / row["iterations"])
