@@ -61,11 +61,13 @@ def _full_disk_tied(sub, dev, mass, omega: float) -> np.ndarray:
     from workflow.engine.studies.mistuning import blade_amplitudes
 
     wd = whole_disk(sub, dev, mass)
-    D = wd.K - omega ** 2 * wd.M + 1j * omega * wd.C
     r, m = wd.B.shape
-    A = np.zeros((m + r, m + r), complex)
-    A[:m, :m], A[:m, m:], A[m:, :m] = D, wd.B.T, wd.B
-    q = sla.solve(A, np.concatenate([wd.f_harmonic, np.zeros(r)]), check_finite=False)[:m]
+    A = np.zeros((m + r, m + r), complex)      # 1 GB at 752 pairs: built in place, factored in place
+    A[:m, :m] = wd.K
+    A[:m, :m] -= omega ** 2 * wd.M
+    A[:m, :m] += 1j * omega * wd.C
+    A[:m, m:], A[m:, :m] = wd.B.T, wd.B
+    q = sla.solve(A, np.concatenate([wd.f_harmonic, np.zeros(r)]), overwrite_a=True, check_finite=False)[:m]
     obs = wd.O @ q
     return blade_amplitudes(np.stack([np.zeros_like(obs), obs]), sub.n_sectors)
 
