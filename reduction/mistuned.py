@@ -483,7 +483,6 @@ class WholeDiskCoordinates:
         #: ω [rad/s] → the last observed harmonics recovered there (every blade's: a sweep's
         #: point records the norm over all blades; the study reads each blade's from here)
         self.observed_at: dict = {}
-        self.O = np.zeros((N * b.O.shape[0], 1))  # only its row count is read (observed DOFs)
 
     # -- the substructures at one harmonic --------------------------------------------------
     def _blade(self, j: int, omega: float):
