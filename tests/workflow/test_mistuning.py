@@ -130,7 +130,7 @@ def test_a_wrong_pattern_length_is_a_clear_error(sub):
         WholeDiskCoordinates(sub, np.zeros(N + 1))
 
 
-@pytest.mark.slow  # 60–180 s: the lumped Monte Carlo and the two-blade time integrations of the checks
+@pytest.mark.slow  # 25 s alone (180 s on a loaded machine): the lumped Monte Carlo and the two-blade time integrations of the checks
 def test_stage_on_a_lumped_disk(tmp_path):
     """The mistuning stage end to end on the lumped 5-sector bundle: files, amplification
     factors, checks (tuned = cyclic, substructures = assembled disk, Whitehead, two blades)."""

@@ -34,14 +34,19 @@ def _frf_options(hb):
                              time_check=False)
 
 
+def _tied_amplitude(rc, f: float) -> float:
+    """The tuned sector's tied (u_r = 0) first-harmonic tip amplitude [m] at f [Hz]."""
+    from reduction.condense import recover
+
+    return float(np.linalg.norm(recover(rc, 2 * np.pi * f, np.zeros((2, rc.n_rel), complex))[1]))
+
+
 def _tied_peak(rc, f_lo: float, f_hi: float) -> tuple[float, float]:
     """The tuned sector's tied (linear) peak (Hz, m) between f_lo and f_hi, refined to 1e-7."""
     from scipy.optimize import minimize_scalar
 
-    from reduction.condense import recover
-
     def minus(f):
-        return -float(np.linalg.norm(recover(rc, 2 * np.pi * f, np.zeros((2, rc.n_rel), complex))[1]))
+        return -_tied_amplitude(rc, f)
 
     grid = np.linspace(f_lo, f_hi, 41)
     a = [-minus(f) for f in grid]
@@ -155,7 +160,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                                            for f, a, c in zip(resp.freqs_hz, resp.amplitude, resp.converged)])
         figures = [plot_blade_frf(out / "blade_frf.png", resp, ref.freqs_hz, np.where(ref.converged, ref.amplitude,
                                                                                         np.nan),
-                                  np.array([np.linalg.norm(x) for x in _tuned_tied(rcc, ref.freqs_hz)])),
+                                  np.array([_tied_amplitude(rcc, f) for f in ref.freqs_hz])),
                    plot_localisation(out / "localisation.png", dev, resp.blade_peaks_m, resp.tied_blade_peaks_m,
                                      a_t, a_tied)]
         if mc_rows:
@@ -179,12 +184,6 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                   "files": {"blades": "blades.csv", "blade_frf": "blade_frf.csv",
                             "figures": [Path(f).name for f in figures]},
                   "seconds": round(time.perf_counter() - t0, 3)})
-
-
-def _tuned_tied(rcc, freqs):
-    from reduction.condense import recover
-
-    return [recover(rcc, 2 * np.pi * f, np.zeros((2, rcc.n_rel), complex))[1] for f in freqs]
 
 
 def _checks(sub, law_w, v, ref, freqs, seeds, dev, mass, resp, af, hb, log) -> dict:
