@@ -509,7 +509,11 @@ class Mistuning:
                                "them)", min=3)
     samples: int = param(0, "", "Monte Carlo patterns at mistuning.std (0: none; shared over MPI ranks)", min=0)
     checks: bool = param(True, "", "tuned whole disk against the cyclic sector, tied response against the "
-                                   "assembled whole-disk model, lumped references (Whitehead, two blades)")
+                                   "assembled whole-disk model, lumped references (Whitehead, two blades); with "
+                                   "mistuning.wear the tuned whole disk's worn state against the sector's")
+    wear: bool = param(False, "", "the worn steady state of every blade's dovetail at the largest blade's "
+                                  "friction-damped peak (the sector's wear law and march: [wear] k_w, "
+                                  "blade_share, steady_tol; [pseudotime] max_steps, wear_rtol)")
 
     def check(self):
         for key in ("stiffness", "mass"):

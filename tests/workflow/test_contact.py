@@ -240,12 +240,32 @@ def test_loop_pass_matches_numpy_pass(jacobian):
     """The loop kernel (what numba compiles), run as plain Python, against the NumPy pass."""
     from workflow.engine import contact
 
+    rng = np.random.default_rng(3)
     for E, lam_u, mu, ref in _pass_cases():
-        a = contact._one_pass_numpy(lam_u, mu, ref, _dlu(E, jacobian))
-        b = contact._one_pass_loops(lam_u, mu, ref, _dlu(E, jacobian))
-        assert np.array_equal(a[2], b[2])
-        for x, y in zip(a, b):
-            assert np.allclose(x, y, rtol=1e-13, atol=1e-13 * np.abs(lam_u).max())
+        nit, p = lam_u.shape[:2]
+        for start in (np.zeros(p, np.int64), rng.integers(0, nit, p)):
+            a = contact._one_pass_numpy(lam_u, mu, ref, _dlu(E, jacobian), start)
+            b = contact._one_pass_loops(lam_u, mu, ref, _dlu(E, jacobian), start)
+            assert np.array_equal(a[2], b[2])
+            for x, y in zip(a, b):
+                assert np.allclose(x, y, rtol=1e-13, atol=1e-13 * np.abs(lam_u).max())
+
+
+def test_pass_started_later_is_the_pass_of_the_shifted_predictor():
+    """A pass begun at instant s of λ_u is the pass begun at 0 of λ_u advanced by s samples,
+    read back s samples later (what a whole disk's sectors rely on: ContactLaw.phase). Equal to
+    round-off: the same operations in the same order."""
+    for E, lam_u, mu, ref in _pass_cases():
+        nit, p = lam_u.shape[:2]
+        for s in (1, nit // 3, nit - 1):
+            late = dlft_pass(lam_u, mu, ref, basis=E, jacobian=True, max_passes=40, tol=1e-12,
+                             start=np.full(p, s))
+            early = dlft_pass(np.roll(lam_u, -s, axis=0), mu, ref, basis=np.roll(E, -s, axis=0), jacobian=True,
+                              max_passes=40, tol=1e-12)
+            scale = np.abs(lam_u).max()
+            assert np.abs(np.roll(early.lam, s, axis=0) - late.lam).max() <= 1e-12 * scale
+            assert np.array_equal(np.roll(early.state, s, axis=0), late.state)
+            assert np.abs(np.roll(early.dlam, s, axis=0) - late.dlam).max() <= 1e-12 * max(np.abs(early.dlam).max(), 1.0)
 
 
 @pytest.mark.parametrize("jacobian", [False, True])

@@ -96,6 +96,11 @@ class ContactLaw:
     eps_t: np.ndarray
     gap: np.ndarray
     wear: np.ndarray = field(default=None)
+    #: (p,) fraction of the period [0, 1) at which each pair's DLFT pass begins from its stick
+    #: anchor (default 0): where a pair shakes down onto the cone depends on the instant its
+    #: passes start, so a whole disk's sector s starts at its engine-order delay — the same
+    #: instant of its own excitation as the cyclic sector's (:func:`start_samples`)
+    phase: np.ndarray = field(default=None)
 
     def __post_init__(self):
         # p comes from the first per-pair array among gap, mu, wear
@@ -113,6 +118,8 @@ class ContactLaw:
         set_("eps_t", _per_pair(self.eps_t, p, "contact.eps_t", positive=True))
         w = np.zeros(p) if self.wear is None else self.wear
         set_("wear", _per_pair(w, p, "contact.wear", nonnegative=True))
+        ph = np.zeros(p) if self.phase is None else np.mod(_per_pair(self.phase, p, "contact.phase"), 1.0)
+        set_("phase", ph)
 
     @property
     def p(self) -> int:
@@ -179,8 +186,9 @@ def _inv2(A: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return inv
 
 
-def _one_pass_numpy(lam_u, mu, ref, dlu):
-    """One sequential pass over the period from reference ``ref`` (p, 2).
+def _one_pass_numpy(lam_u, mu, ref, dlu, start):
+    """One sequential pass over the period from reference ``ref`` (p, 2), pair i from
+    instant ``start[i]`` on (outputs in time order).
 
     ``dlu`` (nit, 3, ncol) is the sensitivity of λ_u^k (same for every pair)
     with respect to the caller's columns, the last two being the reference;
@@ -208,40 +216,44 @@ def _one_pass_numpy(lam_u, mu, ref, dlu):
     S[:, 0, ncol - 2] = 1.0  # d ref / d ref = I
     S[:, 1, ncol - 1] = 1.0
     mu_col = mu[:, None]
-    for k in range(nit):
-        preT = luT[k] - lxT
+    ip = np.arange(p)
+    for j in range(nit):
+        k = (j + start) % nit                 # (p,): each pair's instant at step j
+        luTk = luT[k, ip]
+        dluk = dlu[k]                          # (p, 3, ncol)
+        preT = luTk - lxT
         nT = np.sqrt(preT[:, 0] * preT[:, 0] + preT[:, 1] * preT[:, 1])
-        sep = sep_all[k]
-        lim = limit_all[k]
+        sep = sep_all[k, ip]
+        lim = limit_all[k, ip]
         slip = (nT >= lim) & ~sep
         stick = ~(slip | sep)
         # A pair that slipped while the periods settled ends *on* the cone
         # (shakedown): its forces are those of stick to O(δ), but its reference
         # follows the touching instant, so it takes the slip derivative.
         touch = stick & (nT >= lim * (1.0 - _TOUCH))
-        state[k] = np.where(sep, SEPARATION, np.where(slip | touch, SLIP, STICK))
+        state[k, ip] = np.where(sep, SEPARATION, np.where(slip | touch, SLIP, STICK))
         inv = 1.0 / np.maximum(nT, _TINY)
         fac = np.where(stick, 1.0, np.where(slip, lim * inv, 0.0))
         lamT = fac[:, None] * preT
-        lam[k, :, 1:] = lamT
+        lam[k, ip, 1:] = lamT
         # stick keeps the anchor bit-for-bit so a pair stuck all period is an exact fixed point
-        lxT = np.where(stick[:, None], lxT, luT[k] - lamT)
-        lxT_all[k] = lxT
+        lxT = np.where(stick[:, None], lxT, luTk - lamT)
+        lxT_all[k, ip] = lxT
         # sensitivities: dλ^T = f dλ_pre^T + λ_pre^T ⊗ df, with, in slip,
         # df = −(μ dλ_pre^N + f t·dλ_pre^T)/‖λ_pre^T‖  (|λ_pre^N| = −λ_pre^N, t = λ_pre^T/‖λ_pre^T‖)
-        dpreT = dlu[k, 1:][None] - S
+        dpreT = dluk[:, 1:] - S
         dT = fac[:, None, None] * dpreT
         if slip.any() or touch.any():
             that = preT * inv[:, None]
             tdp = that[:, 0, None] * dpreT[:, 0] + that[:, 1, None] * dpreT[:, 1]
-            dfac = -(mu_col * dlu[k, 0][None] + fac[:, None] * tdp) * (inv * (slip | touch))[:, None]
+            dfac = -(mu_col * dluk[:, 0] + fac[:, None] * tdp) * (inv * (slip | touch))[:, None]
             dT += preT[:, :, None] * dfac[:, None, :]
-        dlam[k, :, 1:] = dT
-        S = dlu[k, 1:][None] - dT
+        dlam[k, ip, 1:] = dT
+        S = dluk[:, 1:] - dT
     return lam, lxT_all, state, dlam, S
 
 
-def _one_pass_loops(lam_u, mu, ref, dlu):
+def _one_pass_loops(lam_u, mu, ref, dlu, start):
     """:func:`_one_pass_numpy` written as explicit loops over time and pairs
     (same branches, same sensitivities, same outputs), for numba to compile.
 
@@ -267,7 +279,8 @@ def _one_pass_loops(lam_u, mu, ref, dlu):
         mui = mu[i]
         l0 = ref[i, 0]
         l1 = ref[i, 1]
-        for k in range(nit):
+        for j in range(nit):
+            k = (j + start[i]) % nit
             luN = lam_u[k, i, 0]
             sep = luN >= 0.0
             lim = -mui * luN
@@ -337,12 +350,18 @@ if os.environ.get("BLADEWEAR_NUMBA", "1") != "0":
         _one_pass_numba = _numba.njit(cache=True)(_one_pass_loops)
 
 
-def _one_pass(lam_u, mu, ref, dlu):
+def _one_pass(lam_u, mu, ref, dlu, start):
     """One sequential pass: compiled loops when numba is importable, else NumPy."""
     if _one_pass_numba is not None:
         return _one_pass_numba(np.ascontiguousarray(lam_u, dtype=float), np.ascontiguousarray(mu, dtype=float),
-                               np.ascontiguousarray(ref, dtype=float), np.ascontiguousarray(dlu, dtype=float))
-    return _one_pass_numpy(lam_u, mu, ref, dlu)
+                               np.ascontiguousarray(ref, dtype=float), np.ascontiguousarray(dlu, dtype=float),
+                               np.ascontiguousarray(start, dtype=np.int64))
+    return _one_pass_numpy(lam_u, mu, ref, dlu, start)
+
+
+def start_samples(law: ContactLaw, nit: int) -> np.ndarray:
+    """(p,) the instant each pair's DLFT pass begins (:attr:`ContactLaw.phase` on nit samples)."""
+    return np.rint(law.phase * nit).astype(np.int64) % max(int(nit), 1)
 
 
 def _predictor_columns(basis, nit: int, jacobian: bool) -> np.ndarray:
@@ -415,7 +434,8 @@ def _periodic_jacobian(dlam, S, state, Dr, ncol: int, periodic: bool, rows=None)
 
 def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray | None = None,
               periodic: bool = True, max_passes: int = 20, tol: float = 1e-10,
-              accelerate: bool = True, jacobian: bool = False, rows: np.ndarray | None = None) -> DLFTResult:
+              accelerate: bool = True, jacobian: bool = False, rows: np.ndarray | None = None,
+              start: np.ndarray | None = None) -> DLFTResult:
     """DLFT correction in the time domain (eqs. 13–17), repeated to a periodic state.
 
     Parameters
@@ -445,6 +465,8 @@ def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray 
     jacobian : also return ``dlam``.
     rows : (r, nit), optional: ``dlam`` as ``rows · dλ/da`` (r, p, 3, 3m), e.g. HBM's projection Q,
         applied before the periodic correction (:func:`_periodic_jacobian`).
+    start : (p,) int, optional: the instant each pair's pass begins (default 0); ``lam_x0_T`` and
+        ``ref_T`` are the references just before it (:func:`start_samples`).
 
     Jacobian: the sensitivities of λ_x^T (per pair, 2 × (3m + 2)) are carried
     through the pass, with two extra columns for the start reference. For the
@@ -477,17 +499,20 @@ def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray 
     # d(start reference)/da along the passes made (the start anchor is a parameter):
     # the derivative where the fixed point is not isolated (docstring, Jacobian)
     Dr = np.zeros((p, 2, ncol)) if (jacobian and periodic) else None
+    start = np.zeros(p, np.int64) if start is None else np.asarray(start, np.int64) % nit
+    last = (start - 1) % nit, np.arange(p)       # each pair's last instant of its pass
     while True:
-        lam, lxT, state, dlam, S = _one_pass(lam_u, mu, ref, dlu)
+        lam, lxT, state, dlam, S = _one_pass(lam_u, mu, ref, dlu, start)
         passes += 1
         if not periodic:
             break
-        d = lxT[-1] - ref
+        end = lxT[last]
+        d = end - ref
         change = float(np.abs(d).max())
         converged = change <= tol * scale
         if converged or passes >= max_passes:
             break
-        ref, Dr = _next_reference(ref, lxT[-1], d, S, np.all(state == STICK, axis=0), Dr, ncol,
+        ref, Dr = _next_reference(ref, end, d, S, np.all(state == STICK, axis=0), Dr, ncol,
                                   accelerate and passes >= 2 and change < prev_change)
         prev_change = change
     out_dlam = _periodic_jacobian(dlam, S, state, Dr, ncol, periodic, rows) if jacobian else None
@@ -503,4 +528,6 @@ def dlft(law: ContactLaw, lam_u: np.ndarray, anchor_T: np.ndarray, **kw) -> DLFT
     independent of ε_T.
     """
     ref = law.eps_t[:, None] * np.asarray(anchor_T, dtype=float).reshape(law.p, 2)
+    if np.any(law.phase) and "start" not in kw:
+        kw["start"] = start_samples(law, np.shape(lam_u)[0])
     return dlft_pass(lam_u, law.mu, ref, **kw)

@@ -153,6 +153,20 @@ REFRESH_ITERS = 25
 FACTOR_ITERS = (384.0, 6.0, 0.93)
 
 
+def drop_negligible(B, dtype):
+    """B with the entries below ε(dtype)²·√(rᵢ cⱼ) set to zero in place (rᵢ, cⱼ the largest
+    magnitude in row i and column j): they cannot change a factorisation carried in
+    ``dtype``, and their products are subnormal numbers that the BLAS kernels process
+    ~100× slower. The whole-disk blocks carry round-off of ~1e-30 relative from the
+    FFT of the disk's circulant interface; measured on the 752-pair disk (2256², two
+    cores) a complex64 LU took 60 s with them and 0.8 s without, the solve unchanged
+    to 1e-7."""
+    a = np.abs(B)
+    tol = np.finfo(np.dtype(dtype)).eps ** 2
+    B[a < tol * np.sqrt(np.multiply.outer(a.max(axis=1), a.max(axis=0)))] = 0
+    return B
+
+
 def zb_apply(Zr, y, conj_transpose: bool = False):
     """``Zb y`` for real coefficients y (nc, nr[, k]) → same shape (N if y in m).
 
@@ -444,7 +458,7 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
             B = np.matmul((np.eye(3) - Gp).astype(t), Zh.astype(t).reshape(p, 3, nr))
             for d in range(3):
                 B[ip, :, 3 * ip + d] += Gp[:, :, d] * self.eps[3 * ip + d, None]
-            yield idx, B.reshape(nr, nr)
+            yield idx, drop_negligible(B.reshape(nr, nr), dtype)
 
     def harmonic_blocks(self, dtype=np.float64):
         """Yields (idx, K_hh), the exact harmonic-diagonal blocks of K, (s·nr)² each, formed in

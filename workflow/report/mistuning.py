@@ -72,3 +72,23 @@ def plot_amplification(path: Path, rows, bound: float) -> Path:
     ax.axvline(bound, color="k", ls="--", lw=1, label=f"Whitehead (1 + √N)/2 = {bound:.2f}")
     finish_axes(ax, "amplification factor", "patterns", f"{len(rows)} mistuning patterns")
     return write_figure(fig, path)
+
+
+def plot_wear_map(path: Path, W, flank, position, tuned_W=None) -> Path:
+    """The disk wear map: worn depth [µm] of every pair (flank by flank, each by its radial
+    position [m]) on every blade, and each blade's deepest point against the tuned sector's."""
+    plt = _plt()
+    W = np.asarray(W, float)
+    pos = np.asarray(position, float).reshape(W.shape[1], -1)
+    radius = np.hypot(pos[:, 1], pos[:, 2]) if pos.shape[1] == 3 else pos[:, 0]   # the disk turns about x
+    order = np.lexsort((radius, np.asarray(flank)))
+    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11.0, 4.4), gridspec_kw={"width_ratios": [1.6, 1.0]})
+    im = a0.imshow(1e6 * W[:, order].T, aspect="auto", origin="lower", cmap="magma",
+                   extent=(-0.5, W.shape[0] - 0.5, -0.5, W.shape[1] - 0.5))
+    fig.colorbar(im, ax=a0, label="worn depth (µm)")
+    finish_axes(a0, "blade", "pair (flank by flank, by radius)", "worn steady state around the disk")
+    a1.bar(np.arange(W.shape[0]), 1e6 * W.max(axis=1), color="0.45", label="mistuned disk")
+    if tuned_W is not None:
+        a1.axhline(1e6 * float(np.max(tuned_W)), color="C0", ls="--", lw=1.2, label="tuned sector")
+    finish_axes(a1, "blade", "deepest point (µm)", "each blade's deepest wear")
+    return write_figure(fig, path)

@@ -34,4 +34,5 @@ def finish_axes(ax, xlabel: str, ylabel: str, title: str = "", title_size: float
     if title:
         ax.set_title(title, **({"fontsize": title_size} if title_size else {}))
     ax.grid(True, which=which, alpha=0.3)
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[1]:      # an image or a bar chart may have nothing to name
+        ax.legend(fontsize=8)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 NAME = "mistuning"
-SECTIONS = ("mistuning", "cyclic", "contact", "hb")
+SECTIONS = ("mistuning", "cyclic", "contact", "hb", "wear", "pseudotime")
 NEEDS = ("bundle",)
 VIA_BUNDLE = ("excitation",)
 PRODUCES = ("mistuning",)
@@ -87,7 +87,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from workflow.errors import SceneError
     from workflow.io import write_rows
     from workflow.mpi import rank, world
-    from workflow.report.mistuning import plot_amplification, plot_blade_frf, plot_localisation
+    from workflow.report.mistuning import plot_amplification, plot_blade_frf, plot_localisation, plot_wear_map
     from workflow.stages.assembly import bundle_folder
     from workflow.stages.hb import clean, law_of
 
@@ -125,10 +125,11 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     freqs = f_t * np.linspace(1 - band, 1 + band, int(mt.points))
     ref = engine.frf(cyc, law, [v], freqs_hz=freqs, options=opt).runs[0]
     seeds = [ms.travelling_wave(U, N, eo) if ok else None for U, ok in zip(ref.Ur, ref.converged)]
-    law_w = ms.tiled_law(law, N)
+    law_w = ms.tiled_law(law, N, eo)
 
     rc = WholeDiskCoordinates(sub, dev, mass)
-    resp = ms.forced_response(rc, law_w, v, freqs, seeds=seeds, tol=hb.tol, maxiter=hb.max_iterations)
+    resp = ms.forced_response(rc, law_w, v, freqs, seeds=seeds, tol=hb.tol, maxiter=hb.max_iterations,
+                              progress=getattr(log, "progress", None))
     af = {"friction": ms.amplification(resp.peak["amplitude_m"], a_t),
           "tied": ms.amplification(resp.tied_peak["amplitude_m"], a_tied)}
     log.info(f"mistuned disk ({3 * sub.n_pairs * N} relative DOFs, Nh = {nh}, nit = {nit}): largest blade peak "
@@ -139,6 +140,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     checks = {}
     if mt.checks:
         checks = _checks(sub, law_w, v, ref, freqs, seeds, dev, mass, resp, af, hb, log)
+    worn = _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t, tuned, log, checks) if mt.wear else None
     mc_rows = []
     if mt.samples:
         mc_rows = ms.monte_carlo(lambda d: WholeDiskCoordinates(sub, d, mass), law_w, v, freqs, n_sectors=N,
@@ -163,10 +165,20 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                                   np.array([_tied_amplitude(rcc, f) for f in ref.freqs_hz])),
                    plot_localisation(out / "localisation.png", dev, resp.blade_peaks_m, resp.tied_blade_peaks_m,
                                      a_t, a_tied)]
+        if worn is not None:
+            p = sub.n_pairs
+            write_rows(out / "wear_blades.csv", [{"blade": b, "pair": i, "flank": int(sub.pairs["flank"][i]),
+                                                  "worn_depth_m": float(worn["disk"].W[b, i])}
+                                                 for b in range(N) for i in range(p)])
+            figures.append(plot_wear_map(out / "wear_map.png", worn["disk"].W, sub.pairs["flank"],
+                                         sub.pairs["position"], worn["sector"].W))
         if mc_rows:
             write_rows(out / "monte_carlo.csv", mc_rows)
             figures.append(plot_amplification(out / "amplification.png", mc_rows, bound))
     warnings = []
+    if worn is not None and not worn["disk"].history.steady:
+        warnings.append(f"mistuning: the whole disk's wear march stopped before its worn steady state "
+                        f"({worn['disk'].history.reason})")
     if not resp.converged.all():
         warnings.append(f"mistuning: {int((~resp.converged).sum())} of {len(resp.converged)} whole-disk "
                         "frequencies did not converge")
@@ -180,10 +192,58 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                   "n_sectors": N, "pairs": int(sub.n_pairs * N), "harmonics": nh, "time_samples": nit,
                   "seconds_per_point": resp.seconds_per_point, "points_solved": resp.evaluations,
                   "substructures": sub.info, "checks": checks, "monte_carlo": mc_rows or None,
+                  "wear": None if worn is None else worn["summary"],
                   "warnings": warnings, "unconverged": [] if resp.converged.all() else ["mistuning"],
                   "files": {"blades": "blades.csv", "blade_frf": "blade_frf.csv",
                             "figures": [Path(f).name for f in figures]},
                   "seconds": round(time.perf_counter() - t0, 3)})
+
+
+def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, tuned, log, checks: dict) -> dict | None:
+    """The worn steady state of every blade at the largest blade's friction-damped peak, the
+    tuned sector's at its own peak (what the wear amplification divides by) and, with the
+    checks, the tuned whole disk's against the sector's (``checks["worn_tuned_vs_cyclic"]``)."""
+    from dataclasses import replace
+
+    from reduction.mistuned import WholeDiskCoordinates
+    from workflow.engine.studies import mistuning as ms
+    from workflow.errors import SceneError
+    from workflow.stages.wear import options
+
+    if resp.peak["hz"] is None:
+        raise SceneError("mistuning.wear: the whole disk's forced response has no converged point to wear at")
+    opt = replace(options(scene), method="hbm", nh=v.nh, nit=v.nit)
+    N, area = sub.n_sectors, sub.pairs["area"]
+    note = log.info
+    sector = ms.worn_blades(rcc, law, v, 2 * np.pi * f_t, area, opt, n_sectors=1,
+                            U0=_sector_solution(tuned, f_t), log=note)
+    disk = ms.worn_blades(rc, law_w, v, 2 * np.pi * resp.peak["hz"], area, opt, n_sectors=N, U0=resp.peak_U,
+                          log=note)
+    w_t = float(sector.W.max())
+    log.info(f"wear: deepest point per blade {disk.blade_max_m.min():.3e} … {disk.blade_max_m.max():.3e} m "
+             f"(blade {int(np.argmax(disk.blade_max_m))}), tuned sector {w_t:.3e} m; march "
+             f"{'steady' if disk.history.steady else 'NOT steady'} after {disk.history.iterations} steps, "
+             f"{disk.history.seconds:.1f} s")
+    if checks:
+        U0 = ms.travelling_wave(_sector_solution(tuned, f_t), N, int(scene["cyclic"].engine_order))
+        tw = ms.worn_blades(WholeDiskCoordinates(sub), law_w, v, 2 * np.pi * f_t, area, opt, n_sectors=N, U0=U0,
+                            log=note)
+        checks["worn_tuned_vs_cyclic"] = float(np.abs(tw.W - sector.W).max() / max(w_t, 1e-300))
+        log.info(f"check: tuned whole disk's worn state against the sector's {checks['worn_tuned_vs_cyclic']:.1e}")
+    summary = {"hz": float(resp.peak["hz"]), "blade_max_m": disk.blade_max_m.tolist(),
+               "blade_volume_m3": disk.blade_volume_m3.tolist(), "tuned_max_m": w_t,
+               "amplification": float(disk.blade_max_m.max()) / w_t if w_t > 0 else None,
+               "disk": disk.history.summary(), "sector": sector.history.summary(),
+               "law": {"k_w": opt.k_w, "blade_share": opt.blade_share, "steady_tol": opt.steady_tol,
+                       "rtol": opt.rtol}}
+    return {"disk": disk, "sector": sector, "summary": summary}
+
+
+def _sector_solution(tuned, f: float):
+    """The tuned sector's relative harmonics at f [Hz] (its converged FRF point nearest f)."""
+    run = tuned.runs[0]
+    ok = np.flatnonzero(run.converged)
+    return run.Ur[int(ok[np.argmin(np.abs(np.asarray(run.freqs_hz)[ok] - f))])]
 
 
 def _checks(sub, law_w, v, ref, freqs, seeds, dev, mass, resp, af, hb, log) -> dict:

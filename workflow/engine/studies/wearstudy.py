@@ -289,7 +289,7 @@ def unworn_solvers(hb, x0, *, tol: float, max_steps: int, eps_path=()) -> dict:
             "time_ratio_pseudo_over_newton": tp / max(tn, 1e-12)}
 
 
-def _unworn_point(hb, omega: float, opt: WearOptions, eps_path):
+def unworn_point(hb, omega: float, opt: WearOptions, eps_path):
     """The unworn HB solution through the cascade, from the stuck guess."""
     from workflow.engine.cascade import solve_point
 
@@ -301,7 +301,7 @@ def _unworn_point(hb, omega: float, opt: WearOptions, eps_path):
     return pr.result
 
 
-def _march(wp, x, method: str, opt: WearOptions, track: int, block_tol: float, W0=None,
+def march(wp, x, method: str, opt: WearOptions, track: int, block_tol: float, W0=None,
            max_cycles: float = math.inf, max_increment: float = math.inf):
     """One march of ``wp`` by ``method`` from x and the wear W0 [m] (None: unworn), to the worn
     steady state — or, a stage, to ``max_cycles`` cycles or ``max_increment`` [m] more wear."""
@@ -344,7 +344,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     if log is not None:
         log.info(f"wear at {omega / 2 / np.pi:.3f} Hz, {hb.p} pairs, Nh = {hb.nh}, nit = {hb.nit}, {hb.method}; "
                  f"{penalty.describe(law)}")
-    base = _unworn_point(hb, omega, opt, eps_path)
+    base = unworn_point(hb, omega, opt, eps_path)
     # the paper's comparison at the unworn point: Newton and pseudo-time from the same start
     unworn = unworn_solvers(hb, hb.x0(), tol=opt.tol, max_steps=min(opt.max_steps, 400), eps_path=eps_path) \
         if opt.compare_unworn else {}
@@ -364,7 +364,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
         point["frequency_hz"] = schedule[-1][0] / 2 / np.pi
     for m in opt.methods:
         if m not in histories:
-            histories[m] = _march(wp, base.x, m, opt, track, opt.block_tol) if schedule is None else \
+            histories[m] = march(wp, base.x, m, opt, track, opt.block_tol) if schedule is None else \
                 _replay(wp, base.x, m, opt, track, opt.block_tol, rc, schedule)
         h = histories[m]
         if log is not None:
@@ -391,7 +391,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
         study.profile_max_rel_diff = profile_rel_diff(histories[ref].W, histories["pseudo-time"].W)
         study.cpu_ratio_pseudo_over_reference = histories["pseudo-time"].seconds / max(histories[ref].seconds, 1e-12)
     if ref is not None and opt.reference_check and opt.block_tol > 0:
-        coarse = _march(wp, base.x, ref, opt, track, 4 * opt.block_tol) if schedule is None else \
+        coarse = march(wp, base.x, ref, opt, track, 4 * opt.block_tol) if schedule is None else \
             _replay(wp, base.x, ref, opt, track, 4 * opt.block_tol, rc, schedule)
         study.reference_check = reference_check(histories, ref, coarse, opt.block_tol)
     wp.set_wear(np.zeros(wp.p))     # the unworn point: the marches left the worn W in wp
@@ -472,7 +472,7 @@ def _dwell(model, law, wp, rc, omega: float, x, method: str, opt: WearOptions, t
     q, f, stages, rows, schedule, done, t_peak = wp, omega / (2 * np.pi), [], [], [], False, 0.0
     stopped = f"after {opt.dwell_stages} stages (wear.dwell_stages)"
     for k in range(opt.dwell_stages):
-        h = _march(q, x, method, opt, track, opt.block_tol, W0=W, max_increment=budget)
+        h = march(q, x, method, opt, track, opt.block_tol, W0=W, max_increment=budget)
         stages.append(h)
         row = {"stage": k, "frequency_hz": f, "cycles": float(h.cycles[-1]), "max_wear_m": float(np.max(h.W)),
                "steady": bool(h.steady)}
@@ -528,7 +528,7 @@ def _replay(wp, x, method: str, opt: WearOptions, track: int, block_tol: float, 
     stages, W = [], None
     for k, (omega, cycles) in enumerate(schedule):
         q = wp if k == 0 else _stage_problem(wp, rc, omega)
-        h = _march(q, x, method, opt, track, block_tol, W0=W, max_cycles=cycles)
+        h = march(q, x, method, opt, track, block_tol, W0=W, max_cycles=cycles)
         stages.append(h)
         if not (h.steady or h.reason.startswith(STAGE_END)):
             break
@@ -587,7 +587,7 @@ def _mission(rc, wp, base, point: dict, opt: WearOptions, eps_path, log):
         else:
             om = 2 * np.pi * pt["frequency_hz"]
             q = _stage_problem(wp, rc, om)
-            b = _unworn_point(q.hb, om, opt, eps_path)
+            b = unworn_point(q.hb, om, opt, eps_path)
         members.append(q)
         bases.append(b)
         omegas.append(om)
@@ -751,7 +751,7 @@ def _changes(rate0, wp2, x2, opt: WearOptions, worn, track: int, where: str, rc=
     if worn is None:
         return {"measure": "unworn wear rates", "max_rel_change": rates, "unworn_rate_change": rates}
     check = replace(opt, rtol=opt.rtol * CHECK_RTOL, max_steps=opt.max_steps * CHECK_STEPS)
-    h = _march(wp2, x2, "pseudo-time", check, track, opt.block_tol) if schedule is None else \
+    h = march(wp2, x2, "pseudo-time", check, track, opt.block_tol) if schedule is None else \
         _replay(wp2, x2, "pseudo-time", check, track, opt.block_tol, rc, schedule)
     wp2.set_wear(np.zeros(wp2.p))
     out = {"measure": "worn profile", "unworn_rate_change": rates, "seconds": h.seconds, "steady": bool(h.steady)}
