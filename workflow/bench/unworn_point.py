@@ -16,8 +16,6 @@ residual evaluations, the ratio, the difference of the two roots).
 from __future__ import annotations
 
 import argparse
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -51,6 +49,7 @@ def measure(hb, repeat: int, threads: int, eps_path=()) -> dict:
 
 def main(argv=None) -> int:
     from reduction.reduced import ReducedModel
+    from workflow.bench import run_to
     from workflow.io import write_json
     from workflow.engine import penalty
     from workflow.engine.studies.wearstudy import build_problem
@@ -64,8 +63,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=Path("results/bench"))
     a = ap.parse_args(argv)
     run_dir = a.out / f"{a.scene}-model"
-    subprocess.run([str(Path(sys.executable).parent / "bladewear"), "run", a.scene, "--set", 'run.outputs=["reduced"]',
-                    "--out", str(run_dir), "--quiet"], check=True)
+    run_to(a.scene, "reduced", run_dir)
     model = ReducedModel.load(run_dir / "reduction" / "reduced.npz")
     scene = load_scene(a.scene)
     hb, _, omega = build_problem(model, law_of(scene, model), options(scene))

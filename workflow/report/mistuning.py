@@ -20,7 +20,8 @@ def _plt():
 
 def plot_blade_frf(path: Path, resp, tuned_freqs, tuned_amp, tuned_tied) -> Path:
     """Every blade's friction-damped first-harmonic tip amplitude (m) against frequency (Hz),
-    the tuned disk's (friction-damped and tied) for reference."""
+    the tuned disk's for reference (friction-damped on ``tuned_freqs``, tied on the response's
+    tied grid)."""
     plt = _plt()
     fig, axs = plt.subplots(1, 2, figsize=(12.0, 4.2))
     ax = axs[0]
@@ -34,8 +35,8 @@ def plot_blade_frf(path: Path, resp, tuned_freqs, tuned_amp, tuned_tied) -> Path
     finish_axes(ax, "frequency (Hz)", "tip amplitude (m)", f"friction-damped, HBM Nh = {resp.nh}")
     ax = axs[1]
     for b in range(resp.tied.shape[1]):
-        ax.semilogy(resp.freqs_hz, resp.tied[:, b], "-", lw=0.7, color="0.55")
-    ax.semilogy(tuned_freqs, tuned_tied, "k-", lw=1.8, label="tuned")
+        ax.semilogy(resp.tied_freqs_hz, resp.tied[:, b], "-", lw=0.7, color="0.55")
+    ax.semilogy(resp.tied_freqs_hz, tuned_tied, "k-", lw=1.8, label="tuned")
     finish_axes(ax, "frequency (Hz)", "tip amplitude (m)", "interface tied (linear)")
     return write_figure(fig, path)
 

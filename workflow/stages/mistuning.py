@@ -140,7 +140,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     checks = {}
     if mt.checks:
         checks = _checks(sub, law_w, v, ref, freqs, seeds, dev, mass, resp, af, hb, log)
-    worn = _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t, tuned, log, checks) if mt.wear else None
+    worn = _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t, ref, log, checks) if mt.wear else None
     mc_rows = []
     if mt.samples:
         mc_rows = ms.monte_carlo(lambda d: WholeDiskCoordinates(sub, d, mass), law_w, v, freqs, n_sectors=N,
@@ -162,7 +162,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                                            for f, a, c in zip(resp.freqs_hz, resp.amplitude, resp.converged)])
         figures = [plot_blade_frf(out / "blade_frf.png", resp, ref.freqs_hz, np.where(ref.converged, ref.amplitude,
                                                                                         np.nan),
-                                  np.array([_tied_amplitude(rcc, f) for f in ref.freqs_hz])),
+                                  np.array([_tied_amplitude(rcc, f) for f in resp.tied_freqs_hz])),
                    plot_localisation(out / "localisation.png", dev, resp.blade_peaks_m, resp.tied_blade_peaks_m,
                                      a_t, a_tied)]
         if worn is not None:
@@ -193,13 +193,15 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                   "seconds_per_point": resp.seconds_per_point, "points_solved": resp.evaluations,
                   "substructures": sub.info, "checks": checks, "monte_carlo": mc_rows or None,
                   "wear": None if worn is None else worn["summary"],
-                  "warnings": warnings, "unconverged": [] if resp.converged.all() else ["mistuning"],
+                  "warnings": warnings,
+                  "unconverged": ([] if resp.converged.all() else ["mistuning"])
+                  + ([] if worn is None or worn["disk"].history.steady else ["mistuning.wear"]),
                   "files": {"blades": "blades.csv", "blade_frf": "blade_frf.csv",
                             "figures": [Path(f).name for f in figures]},
                   "seconds": round(time.perf_counter() - t0, 3)})
 
 
-def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, tuned, log, checks: dict) -> dict | None:
+def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, ref, log, checks: dict) -> dict | None:
     """The worn steady state of every blade at the largest blade's friction-damped peak, the
     tuned sector's at its own peak (what the wear amplification divides by) and, with the
     checks, the tuned whole disk's against the sector's (``checks["worn_tuned_vs_cyclic"]``)."""
@@ -216,7 +218,7 @@ def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, tuned, log, chec
     N, area = sub.n_sectors, sub.pairs["area"]
     note = log.info
     sector = ms.worn_blades(rcc, law, v, 2 * np.pi * f_t, area, opt, n_sectors=1,
-                            U0=_sector_solution(tuned, f_t), log=note)
+                            U0=_sector_solution(ref, f_t), log=note)
     disk = ms.worn_blades(rc, law_w, v, 2 * np.pi * resp.peak["hz"], area, opt, n_sectors=N, U0=resp.peak_U,
                           log=note)
     w_t = float(sector.W.max())
@@ -225,7 +227,7 @@ def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, tuned, log, chec
              f"{'steady' if disk.history.steady else 'NOT steady'} after {disk.history.iterations} steps, "
              f"{disk.history.seconds:.1f} s")
     if checks:
-        U0 = ms.travelling_wave(_sector_solution(tuned, f_t), N, int(scene["cyclic"].engine_order))
+        U0 = ms.travelling_wave(_sector_solution(ref, f_t), N, int(scene["cyclic"].engine_order))
         tw = ms.worn_blades(WholeDiskCoordinates(sub), law_w, v, 2 * np.pi * f_t, area, opt, n_sectors=N, U0=U0,
                             log=note)
         checks["worn_tuned_vs_cyclic"] = float(np.abs(tw.W - sector.W).max() / max(w_t, 1e-300))
@@ -239,9 +241,9 @@ def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, tuned, log, chec
     return {"disk": disk, "sector": sector, "summary": summary}
 
 
-def _sector_solution(tuned, f: float):
-    """The tuned sector's relative harmonics at f [Hz] (its converged FRF point nearest f)."""
-    run = tuned.runs[0]
+def _sector_solution(run, f: float):
+    """The tuned sector's relative harmonics at f [Hz]: those of the band's converged point nearest
+    f (the band is centred on the tuned peak, so with an odd ``points`` they are f's own)."""
     ok = np.flatnonzero(run.converged)
     return run.Ur[int(ok[np.argmin(np.abs(np.asarray(run.freqs_hz)[ok] - f))])]
 
