@@ -175,8 +175,9 @@ def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "ne
         return -float(np.max(a[0]))
 
     if refine and solved:
-        best = np.nanmax(np.where(conv[:, None], amp, np.nan), axis=1)
-        i = int(np.nanargmax(best))
+        best = np.full(len(freqs), -np.inf)
+        best[conv] = amp[conv].max(axis=1)
+        i = int(np.argmax(best))
         lo, hi = freqs[max(i - 1, 0)], freqs[min(i + 1, len(freqs) - 1)]
         if hi > lo:
             minimize_scalar(minus_peak, bounds=(lo, hi), method="bounded",
