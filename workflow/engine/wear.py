@@ -661,12 +661,18 @@ def _w_solved(F, Wn) -> bool:
 
 # ------------------------------------------------------------------ pseudo-time
 
+#: :func:`pseudo_time_wear` reports its progress every this many accepted steps
+REPORT_STEPS = 20
+
+
 def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
                      steady_tol: float = 1e-3, tol: float = 1e-9, max_steps: int = 400,
                      rtol: float = 1e-3, track: int = 1, x_tol: float = 1e-3, x_corrections: int = 3,
                      dt_max_blocks: float = 0.0, order: int = 2, max_cycles: float = math.inf,
-                     max_increment: float = math.inf) -> WearHistory:
+                     max_increment: float = math.inf, report=None) -> WearHistory:
     """Integrate the augmented system (eq. 22a–b) along the wear trajectory to zero wear rates.
+    ``report(message)``, if given, hears the march's progress every :data:`REPORT_STEPS`
+    accepted steps (a whole disk's march runs for minutes).
 
     Unknowns ``z = [x; W]``. The vibration is the fast part of the dual
     time scales (pseudo-time mass θ J → 0: it is slaved to W), the wear
@@ -740,6 +746,9 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             steps += 1
             _record(hist, wp, t, x, W, st.rate, track)
             h = min(h * min(4.0, max(0.3, fac)), hmax)
+            if report is not None and steps % REPORT_STEPS == 0:
+                report(f"wear march: {steps} steps ({rejected} rejected), {t:.3g} cycles, max W {np.max(W):.3e} m, "
+                       f"max rate {np.max(st.rate):.2e} m/cycle, {time.perf_counter() - t0:.0f} s")
         else:
             rejected += 1
             h *= min(0.5, max(0.1, fac)) if ok else 0.25

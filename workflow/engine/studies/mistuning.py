@@ -328,7 +328,7 @@ def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0
     if log is not None:
         log(f"wear of {N} blades × {blade_area.size} pairs at {omega / 2 / np.pi:.3f} Hz (Nh = {variant.nh}, "
             f"nit = {variant.nit}): pseudo-time march")
-    h = march(wp, x, "pseudo-time", opt, track, opt.block_tol)
+    h = march(wp, x, "pseudo-time", opt, track, opt.block_tol, report=log)
     W = np.asarray(h.W, float).reshape(N, -1)
     return WornDisk(W=W, blade_max_m=W.max(axis=1), blade_volume_m3=W @ blade_area, omega=float(omega),
                     history=h, unworn_x=x)
