@@ -55,12 +55,12 @@ def main(argv=None) -> int:
     opt = replace(options(scene), method="hbm", nh=v.nh, nit=v.nit)
     area, w = sub.pairs["area"], 2 * np.pi * f
     t = time.perf_counter()
-    sector = ms.worn_blades(relative_coordinates(cyc), law, v, w, area, opt, n_sectors=1, U0=ref.Ur[0])
+    sector = ms.worn_blades(relative_coordinates(cyc), law, v, w, area, opt, n_sectors=1, U0=ref.Ur[0], log=print)
     t_sector = time.perf_counter() - t
     dev = ms.pattern(N, a.std, mt.seed) if a.std else None
     t = time.perf_counter()
     disk = ms.worn_blades(WholeDiskCoordinates(sub, dev), ms.tiled_law(law, N, eo), v, w, area, opt, n_sectors=N,
-                          U0=ms.travelling_wave(ref.Ur[0], N, eo))
+                          U0=ms.travelling_wave(ref.Ur[0], N, eo), log=lambda m: print(m, flush=True))
     t_disk = time.perf_counter() - t
     out = {"scene": a.scene, "frequency_hz": f, "std": a.std, "pairs": int(N * sub.n_pairs), "nh": v.nh, "nit": v.nit,
            "sector": {**sector.history.summary(), "wall_s": t_sector, "max_m": float(sector.W.max())},
