@@ -153,29 +153,21 @@ def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "ne
     from scipy.optimize import minimize_scalar
 
     from reduction.condense import condense
-    from workflow.engine.cascade import linear_solver
-    from workflow.engine.linsolve import StructuredSolve
-    from workflow.engine.studies.peak import search_seed
     from workflow.engine.studies.study import static_state
 
     t0 = time.perf_counter()
     freqs = np.asarray(freqs_hz, float)
     c0 = condense(rc, 2 * np.pi * freqs[0], 0)
     static = static_state(c0.Zr, c0.Fr, law)
-    # one structured linear solve for every point: its lagged blocks precondition the next point
-    # (refine_peak's measure on a 512-pair sector: 55.1 → 39.7 s for 16 points)
-    shared = StructuredSolve() if linear_solver((2 * variant.nh + 1) * rc.n_rel) == "structured" else None
-    kw = dict(solver=solver, tol=tol, maxiter=maxiter, linsolver=shared)
+    kw = dict(solver=solver, tol=tol, maxiter=maxiter)
     conv, amp, Ur, secs = _solve_at(rc, law, static, variant, freqs, seeds, progress=progress, **kw)
     solved = {float(f): (a, U) for f, a, U, ok in zip(freqs, amp, Ur, conv) if ok}
     n_points, t_points = len(freqs), secs
 
-    step = float(np.min(np.diff(freqs))) if len(freqs) > 1 else 0.0
-
     def minus_peak(f):
         nonlocal n_points, t_points
-        guess = search_seed({g: v[1] for g, v in solved.items()}, f, step)
-        ok, a, U, s = _solve_at(rc, law, static, variant, [f], [guess], **kw)
+        near = min(solved, key=lambda g: abs(g - f))
+        ok, a, U, s = _solve_at(rc, law, static, variant, [f], [solved[near][1]], **kw)
         n_points, t_points = n_points + 1, t_points + s
         if not ok[0]:
             return 0.0

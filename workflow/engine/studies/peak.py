@@ -29,22 +29,6 @@ class Peak:
 SEED_SPAN = 0.1
 
 
-def search_seed(solved: dict, f: float, step: float):
-    """The guess of a peak search's point at f [Hz] from ``solved`` {f [Hz]: relative harmonics}:
-    the nearest solved harmonics, or, once solved points on either side of f are within
-    :data:`SEED_SPAN` grid steps ``step`` [Hz] of each other, the linear interpolation between
-    them. Measured on paper-frf's reference (HBM-25 nit = 128): the search's later points took
-    1–2 Newton iterations from the interpolation where they took 2–4 from the nearest point;
-    across a whole grid step near the resonance the interpolation is worse (one point fell to
-    Powell, 157 iterations)."""
-    below = max((g for g in solved if g <= f), default=None)
-    above = min((g for g in solved if g >= f), default=None)
-    if below is None or above is None or not 0.0 < above - below <= SEED_SPAN * step:
-        return solved[min(solved, key=lambda g: abs(g - f))]
-    w = (f - below) / (above - below)
-    return (1.0 - w) * solved[below] + w * solved[above]
-
-
 def refine_peak(rc, sweep, law, static, variant, xtol_hz: float, **kw) -> Peak | None:
     """The friction-damped peak of a grid ``sweep`` refined by a bounded scalar search
     (Brent, :func:`scipy.optimize.minimize_scalar`, to ``xtol_hz`` [Hz]) between the
@@ -73,9 +57,23 @@ def refine_peak(rc, sweep, law, static, variant, xtol_hz: float, **kw) -> Peak |
     n = (2 * variant.nh + 1) * 3 * law.p                   # unknowns of one point
     shared = StructuredSolve() if linear_solver(n) == "structured" else None
 
+    def seed(f):
+        """The nearest solved harmonics, or, once solved points on either side of f are within
+        :data:`SEED_SPAN` grid steps of each other, the linear interpolation between them.
+        Measured on paper-frf's reference (HBM-25 nit = 128): the search's later points took
+        1–2 Newton iterations from the interpolation where they took 2–4 from the nearest
+        point; across a whole grid step near the resonance the interpolation is worse
+        (one point fell to Powell, 157 iterations)."""
+        below = max((g for g in solved if g <= f), default=None)
+        above = min((g for g in solved if g >= f), default=None)
+        if below is None or above is None or not 0.0 < above - below <= SEED_SPAN * step:
+            return solved[min(solved, key=lambda g: abs(g - f))][1]
+        w = (f - below) / (above - below)
+        return (1.0 - w) * solved[below][1] + w * solved[above][1]
+
     def minus_amplitude(f):
         c = condensed(rc, 2 * np.pi * f, variant.nh)
-        seed_ = search_seed({g: v[1] for g, v in solved.items()}, f, step)
+        seed_ = seed(f)
         r = sweep_variant(rc, [c], law, static, variant, seeds=[seed_], linsolver=shared, **kw)
         if not r.converged[0]:
             return 0.0  # an unconverged point cannot be the peak
