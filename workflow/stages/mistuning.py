@@ -71,7 +71,10 @@ def _full_disk_tied(sub, dev, mass, omega: float) -> np.ndarray:
     A[:m, :m] = wd.K
     A[:m, :m] -= omega ** 2 * wd.M
     A[:m, :m] += 1j * omega * wd.C
-    A[:m, m:], A[m:, :m] = wd.B.T, wd.B
+    # constraint rows in the stiffness's units: unscaled, B (entries ~1) against K (~1e8 N/m) made
+    # LAPACK's condition estimate 3e-21 and its warning, with the same solution
+    s = float(np.abs(wd.K).max()) / max(float(np.abs(wd.B).max()), 1e-300)
+    A[:m, m:], A[m:, :m] = s * wd.B.T, s * wd.B
     q = sla.solve(A, np.concatenate([wd.f_harmonic, np.zeros(r)]), overwrite_a=True, check_finite=False)[:m]
     obs = wd.O @ q
     return blade_amplitudes(np.stack([np.zeros_like(obs), obs]), sub.n_sectors)
