@@ -432,6 +432,20 @@ def _periodic_jacobian(dlam, S, state, Dr, ncol: int, periodic: bool, rows=None)
     return dl + np.einsum("kicr,irn->kicn", dlam[..., ncol:], dr)
 
 
+def _pass_inputs(lam_u, mu, lam_x0_T, max_passes: int, start):
+    """:func:`dlft_pass`'s inputs checked and shaped: λ_u (nit, p, 3), μ (p,), the start
+    reference (p, 2) and each pair's start instant (p,) in [0, nit)."""
+    lam_u = np.asarray(lam_u, dtype=float)
+    if lam_u.ndim != 3 or lam_u.shape[2] != 3:
+        raise ValueError(f"lam_u must be (nit, p, 3), got {lam_u.shape}")
+    if max_passes < 1:
+        raise ValueError("max_passes must be ≥ 1")
+    nit, p, _ = lam_u.shape
+    start = np.zeros(p, np.int64) if start is None else np.asarray(start, np.int64) % nit
+    return (lam_u, np.broadcast_to(np.asarray(mu, dtype=float), (p,)), np.array(lam_x0_T, dtype=float).reshape(p, 2),
+            start)
+
+
 def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray | None = None,
               periodic: bool = True, max_passes: int = 20, tol: float = 1e-10,
               accelerate: bool = True, jacobian: bool = False, rows: np.ndarray | None = None,
@@ -484,14 +498,8 @@ def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray 
     1230 iterations; with the carried derivative, 206. Pairs stuck all period
     keep ``dr/da = 0``: their reference is an external parameter.
     """
-    lam_u = np.asarray(lam_u, dtype=float)
-    if lam_u.ndim != 3 or lam_u.shape[2] != 3:
-        raise ValueError(f"lam_u must be (nit, p, 3), got {lam_u.shape}")
+    lam_u, mu, ref, start = _pass_inputs(lam_u, mu, lam_x0_T, max_passes, start)
     nit, p, _ = lam_u.shape
-    mu = np.broadcast_to(np.asarray(mu, dtype=float), (p,))
-    ref = np.array(lam_x0_T, dtype=float).reshape(p, 2)
-    if max_passes < 1:
-        raise ValueError("max_passes must be ≥ 1")
     dlu = _predictor_columns(basis, nit, jacobian)
     ncol = dlu.shape[2] - 2
     scale = max(float(np.abs(lam_u).max()), _TINY)
@@ -499,7 +507,6 @@ def dlft_pass(lam_u: np.ndarray, mu, lam_x0_T: np.ndarray, *, basis: np.ndarray 
     # d(start reference)/da along the passes made (the start anchor is a parameter):
     # the derivative where the fixed point is not isolated (docstring, Jacobian)
     Dr = np.zeros((p, 2, ncol)) if (jacobian and periodic) else None
-    start = np.zeros(p, np.int64) if start is None else np.asarray(start, np.int64) % nit
     last = (start - 1) % nit, np.arange(p)       # each pair's last instant of its pass
     while True:
         lam, lxT, state, dlam, S = _one_pass(lam_u, mu, ref, dlu, start)
