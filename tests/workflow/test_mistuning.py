@@ -205,3 +205,17 @@ def test_stage_on_a_lumped_disk(tmp_path):
     # 1e-3), their vibrations converged to hb.tol each: they agree to the march's global error
     # (1.4e-3 measured here, where the pairs slip grossly and the march stops at persistent slip)
     assert c["worn_tuned_vs_cyclic"] <= 5 * scene["pseudotime"].wear_rtol
+
+
+def test_whole_disk_wear_refuses_a_length_scale(sub):
+    """The whole disk's wear takes the node-wise law: wear.length_m > 0 is one clear error naming
+    the key, before anything is solved."""
+    from workflow.engine.studies.wearstudy import WearOptions
+
+    cyc = cyclic_model(sub, [0, 1, 2, 3, 4])
+    law = engine.contact_law(cyc, mu=0.3)
+    from workflow.engine.errors import SceneError
+
+    with pytest.raises(SceneError, match="wear.length_m"):
+        ms.worn_blades(WholeDiskCoordinates(sub), ms.tiled_law(law, N, EO), engine.Variant("hbm", 1, 10), 1.0,
+                       sub.pairs["area"], WearOptions(length_m=1e-3), n_sectors=N)

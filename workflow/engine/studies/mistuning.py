@@ -295,17 +295,21 @@ def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0
     ``opt`` a :class:`~workflow.engine.studies.wearstudy.WearOptions` (``k_w``, ``blade_share``,
     ``tol``, the march's ``steady_tol``, ``rtol``, ``max_steps``, ``cycles_per_block``);
     ``U0`` (Nh+1, n_rel) relative harmonics [m] of a converged vibration at ω to start from
-    (the forced response's); if absent or not converged here the unworn state is solved from
-    the stuck guess."""
+    (the forced response's); if it is not converged here the solver cascade starts from it and
+    from the stuck guess. The node-wise law only: a length scale (``opt.length_m`` > 0) couples
+    the pairs, and the march would form the whole disk's J."""
     from workflow.engine import penalty
+    from workflow.engine.cascade import solve_point
+    from workflow.engine.errors import SolverError
     from workflow.engine.hb import HBProblem
     from workflow.engine.linear import condensed
     from workflow.engine.studies.study import static_state
-    from workflow.engine.cascade import solve_point
-    from workflow.engine.errors import SolverError
     from workflow.engine.studies.wearstudy import march, unworn_point
     from workflow.engine.wear import WearProblem
 
+    if opt.length_m > 0:
+        raise SceneError(f"wear.length_m = {opt.length_m:g}: the whole disk's wear takes the node-wise law "
+                         "(wear.length_m = 0); a length scale couples its pairs into one dense Jacobian")
     N = int(n_sectors)
     cond = condensed(rc, omega, variant.nh)
     st = static_state(cond.Zr, cond.Fr, law, opt.max_passes)
