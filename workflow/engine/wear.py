@@ -671,8 +671,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
                      dt_max_blocks: float = 0.0, order: int = 2, max_cycles: float = math.inf,
                      max_increment: float = math.inf, report=None) -> WearHistory:
     """Integrate the augmented system (eq. 22a–b) along the wear trajectory to zero wear rates.
-    ``report(message)``, if given, hears the march's progress every :data:`REPORT_STEPS`
-    accepted steps (a whole disk's march runs for minutes).
+    ``report(message)``: the march's progress every :data:`REPORT_STEPS` accepted steps.
 
     Unknowns ``z = [x; W]``. The vibration is the fast part of the dual
     time scales (pseudo-time mass θ J → 0: it is slaved to W), the wear
@@ -703,20 +702,11 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     """
     t0 = time.perf_counter()
     N = float(cycles_per_block)
-    W = wp.W
-    res0, st = wp.solve_hb(x0, W, tol=tol)
-    x = res0.x
-    pen = penetration_scale(wp, st)
-    hist = WearHistory(method="pseudo-time-ser", W=W, x=x, steady=False, seconds=0.0, iterations=0,
-                       hb_solves=1, jacobian_evaluations=res0.jacobian_evaluations + 1)
-    _record(hist, wp, 0.0, x, W, st.rate, track)
-    rmax = float(st.rate.max())
-    if rmax == 0.0:
-        hist.steady, hist.reason, hist.final_rate = True, "steady (no wear at W0)", st.rate
-        hist.seconds = time.perf_counter() - t0
-        return hist
+    x, W, st, pen, hist = _march_start(wp, x0, tol, track)
+    if float(st.rate.max()) == 0.0:
+        return _steady_at_start(hist, st, t0)
     hmax = dt_max_blocks * N if dt_max_blocks else np.inf
-    h = min(math.sqrt(rtol) * _wscale(W, pen) / rmax, hmax)
+    h = min(math.sqrt(rtol) * _wscale(W, pen) / float(st.rate.max()), hmax)
     t, steps, rejected, count = 0.0, 0, 0, {"nje": 0, "corrections": 0, "reanchored": 0}
     steady, reason = False, f"max steps ({max_steps})"
     failed = 0          # consecutive steps refused by the vibration (not by the wear error)
@@ -732,9 +722,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             reason = end
             break
         xn, Wn, stn, ok = _wear_step(wp, x, W, st, h, x_tol, x_corrections, count)
-        err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))
-        ws = _wscale(Wn, pen)
-        fac = 0.9 * math.sqrt(rtol * ws / err) if err > 0 else 4.0
+        err, ws, fac = _local_error(h, st, stn, _wscale(Wn, pen), rtol)
         failed = 0 if ok else failed + 1
         if ok and err <= rtol * ws:
             if order == 2:
@@ -747,8 +735,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             _record(hist, wp, t, x, W, st.rate, track)
             h = min(h * min(4.0, max(0.3, fac)), hmax)
             if report is not None and steps % REPORT_STEPS == 0:
-                report(f"wear march: {steps} steps ({rejected} rejected), {t:.3g} cycles, max W {np.max(W):.3e} m, "
-                       f"max rate {np.max(st.rate):.2e} m/cycle, {time.perf_counter() - t0:.0f} s")
+                report(_progress(hist, steps, rejected, time.perf_counter() - t0))
         else:
             rejected += 1
             h *= min(0.5, max(0.1, fac)) if ok else 0.25
@@ -758,6 +745,36 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     hist.iterations = steps
     hist.seconds = time.perf_counter() - t0
     return hist
+
+
+def _march_start(wp: WearProblem, x0, tol: float, track: int):
+    """(x, W, state, penetration scale [m], history) of :func:`pseudo_time_wear` at its start:
+    the vibration solved at the current W, recorded as the history's first point."""
+    W = wp.W
+    res0, st = wp.solve_hb(x0, W, tol=tol)
+    hist = WearHistory(method="pseudo-time-ser", W=W, x=res0.x, steady=False, seconds=0.0, iterations=0,
+                       hb_solves=1, jacobian_evaluations=res0.jacobian_evaluations + 1)
+    _record(hist, wp, 0.0, res0.x, W, st.rate, track)
+    return res0.x, W, st, penetration_scale(wp, st), hist
+
+
+def _steady_at_start(hist: WearHistory, st: WearState, t0: float) -> WearHistory:
+    """``hist`` closed as steady: nothing wears at the start (every rate zero)."""
+    hist.steady, hist.reason, hist.final_rate = True, "steady (no wear at W0)", st.rate
+    hist.seconds = time.perf_counter() - t0
+    return hist
+
+
+def _local_error(h: float, st: WearState, stn: WearState, ws: float, rtol: float) -> tuple[float, float, float]:
+    """(error ½h‖rate(z⁺) − rate(z)‖∞ [m], its scale ``ws`` [m], the step factor) of one step."""
+    err = 0.5 * h * float(np.max(np.abs(stn.rate - st.rate)))
+    return err, ws, (0.9 * math.sqrt(rtol * ws / err) if err > 0 else 4.0)
+
+
+def _progress(hist: WearHistory, steps: int, rejected: int, seconds: float) -> str:
+    """One line on a march's progress from its last recorded point."""
+    return (f"wear march: {steps} steps ({rejected} rejected), {hist.cycles[-1]:.3g} cycles, max W "
+            f"{hist.max_wear[-1]:.3e} m, max rate {hist.max_rate[-1]:.2e} m/cycle, {seconds:.0f} s")
 
 
 def _finish(hist: WearHistory, wp: WearProblem, x, W, st: WearState, steady: bool, reason: str, count: dict,
