@@ -13,6 +13,12 @@
    point; per point the solve's seconds and the stability's (full δq, and on the Ritz basis
    of the modes below 6ω), the largest multiplier and its change nit → 2·nit.
 3. A 128-pair sector (``--big``, a reduced.npz) the same, if given.
+4. An FRF with stability (``--frf``, a reduced.npz, e.g. the 128-pair sector): ``engine.frf`` of
+   ``--frf-points`` points through the first tied resonance (HBM-3, nit = 64, no checks), then
+   :func:`workflow.engine.studies.sweepstability.sweep_stability` on its points, both timed in
+   the same run: the sweep's seconds, the stability's, their ratio (issue #49: ≤ 25 %) and per
+   point |μ|max; with ``--frf-compare`` also |μ|max at 2048 samples, switches cut into 64,
+   2 substeps, one Richardson halving (the settings before 2026-11-29) and at nit = 8192.
 
 Output: ``stability.json`` (every row) and ``stability.md`` (the summary). One BLAS thread.
 """
@@ -110,6 +116,62 @@ def sector_rows(path: Path, points: int, label: str, full: bool = True, nit: int
     return rows
 
 
+def frf_rows(path: Path, points: int, compare: bool = False) -> list:
+    """The sweep and its stability on the model at ``path``, timed in one run (module docstring, 4)."""
+    from reduction.condense import relative_coordinates
+    from reduction.reduced import ReducedModel
+    from workflow import engine
+    from workflow.engine.hb import HBProblem
+    from workflow.engine.linear import condensed
+    from workflow.engine.stability import hill_stability
+    from workflow.engine.studies.sweepstability import RITZ_FACTOR, sweep_stability
+
+    model = ReducedModel.load(path)
+    law = engine.contact_law(model, mu=0.5)
+    opt = engine.FRFOptions(eps_check_factor=0.0, nh_check=False, branch_check=False, time_check=False,
+                            refine_peak=False)
+    study = engine.frf(model, law, [engine.Variant("hbm", 3, 64)], points=points, options=opt)
+    r = study.runs[0]
+    rc = relative_coordinates(model)
+    st = sweep_stability(model, rc, study.law, study.static, r)
+    row = dict(case="frf", pairs=int(model.n_pairs), m=int(model.size), points=points,
+               converged=int(r.converged.sum()), sweep_s=float(r.total_seconds), stability_s=st["seconds"],
+               ratio=st["seconds"] / float(r.total_seconds), f_hz=r.freqs_hz.tolist(),
+               floquet_max=st["floquet_max"].tolist(), stable=st["stable"])
+    if compare:
+        old = dict(nit=2048, refine=64, substeps=2, levels=1)
+        for name, kw in (("before", old), ("nit8192", dict(nit=8192))):
+            fm, secs, cache = [], [], {}
+            for i in np.flatnonzero(r.converged):
+                w = 2 * np.pi * float(r.freqs_hz[i])
+                c = condensed(rc, w, 3)
+                hb = HBProblem(c.Zr, c.Fr, study.law, 3, 64, "hbm", static=study.static)
+                s = hill_stability(model, hb, hb.unknowns_from_harmonics(r.Ur[i]), w, rc=rc, modes=RITZ_FACTOR,
+                                   nh_check=None, cache=cache, **kw)
+                fm.append(s.floquet_max)
+                secs.append(s.seconds)
+            row[f"floquet_max_{name}"], row[f"seconds_{name}"] = fm, sum(secs)
+    return [row]
+
+
+def frf_summary(r: dict) -> list:
+    out = ["", f"## FRF with stability: {r['pairs']} pairs, m = {r['m']}, {r['points']} points "
+           f"({r['converged']} converged), HBM-3 nit = 64", "",
+           f"sweep {r['sweep_s']:.2f} s, stability {r['stability_s']:.2f} s: {100 * r['ratio']:.0f} % of the sweep", "",
+           "| f (Hz) | |μ|max | " + " | ".join(k[12:] for k in r if k.startswith("floquet_max_")) + " |",
+           "|---|---|" + "---|" * sum(k.startswith("floquet_max_") for k in r)]
+    extra = [k for k in r if k.startswith("floquet_max_")]
+    conv = [i for i, f in enumerate(r["floquet_max"]) if np.isfinite(f)]
+    for j, i in enumerate(conv):
+        out.append(f"| {r['f_hz'][i]:.2f} | {r['floquet_max'][i]:.8f} | "
+                   + " | ".join(f"{r[k][j]:.8f}" for k in extra) + " |")
+    for k in extra:
+        name = k[12:]
+        d = max(abs(r[k][j] - r["floquet_max"][i]) for j, i in enumerate(conv))
+        out.append(f"\n{name}: {r['seconds_' + name]:.1f} s; max |Δ|μ|max| from the defaults {d:.1e}")
+    return out
+
+
 def summary(rows: list) -> str:
     out = ["# Floquet stability bench", "", "## Jenkins oscillators vs event-driven shooting", "",
            "| case | variant | setting | largest multiplier | shooting | error | s |", "|---|---|---|---|---|---|---|"]
@@ -118,7 +180,10 @@ def summary(rows: list) -> str:
             setting = ", ".join(f"{k}={r[k]}" for k in ("nit", "eps_factor", "nh_hill", "memory") if k in r)
             out.append(f"| {r['case']} | {r['variant']} | {setting} | {r['floquet_max']:.6f} | {r['reference']:.6f} "
                        f"| {r['error']:+.2e} | {r['seconds']:.2f} |")
-    for label in sorted({r["case"] for r in rows if not r["case"].startswith("jenkins")}):
+    for r in rows:
+        if r["case"] == "frf":
+            out += frf_summary(r)
+    for label in sorted({r["case"] for r in rows if not r["case"].startswith("jenkins") and r["case"] != "frf"}):
         rs = [r for r in rows if r["case"] == label and r.get("converged")]
         if not rs:
             continue
@@ -150,16 +215,22 @@ def main(argv=None) -> int:
     ap.add_argument("--points", type=int, default=9)
     ap.add_argument("--skip-jenkins", action="store_true")
     ap.add_argument("--big-nit", type=int, default=256, help="samples of the big sector's monodromy")
+    ap.add_argument("--frf", type=Path, default=None, help="reduced.npz: an FRF and its stability, timed")
+    ap.add_argument("--frf-points", type=int, default=5)
+    ap.add_argument("--frf-compare", action="store_true", help="also |μ|max at the pre-2026-11-29 settings and nit 8192")
+    ap.add_argument("--skip-quick", action="store_true")
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
     rows = []
     with blas_threads(1):
         if not a.skip_jenkins:
             rows += jenkins_rows()
-        if a.quick and a.quick.is_file():
+        if a.quick and a.quick.is_file() and not a.skip_quick:
             rows += sector_rows(a.quick, a.points, "quick sector")
         if a.big and a.big.is_file():
             rows += sector_rows(a.big, a.points, "big sector", full=False, nit=a.big_nit)
+        if a.frf and a.frf.is_file():
+            rows += frf_rows(a.frf, a.frf_points, a.frf_compare)
     (a.out / "stability.json").write_text(json.dumps(rows, indent=1, default=float))
     text = summary(rows)
     (a.out / "stability.md").write_text(text)

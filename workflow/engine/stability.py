@@ -57,7 +57,12 @@ Two ways to the multipliers
   at the samples. What is left is not the monodromy's: ε of the tangent (:data:`EPS_FACTOR`;
   10⁴ → 10⁶ moves it by 7e-5 on both) and, at ω = 1.2, the HB orbit itself (its AFT on 128
   samples: with 1024 and Nh = 31 the error is 8.8e-5, ε's part); the monodromy's own part,
-  nit = 1024…8192 and refine = 64…256 against 8192 and 256, is below 5.5e-5.
+  nit = 1024…8192 and refine = 64…256 against 8192 and 256, is below 5.5e-5. The defaults
+  since 2026-11-29 (nit = 256, the switches cut into 8 three times, backward Euler extrapolated
+  twice: :data:`MONODROMY_NIT`, :data:`SWITCH_REFINE`, :data:`RICHARDSON`) give 7.4e-5 and
+  3.7e-4. The monodromy is integrated through its structure (the anchors' 2×2 blocks eliminated
+  pair by pair, :func:`_step_operators`) and only on the states that are not slaved at the
+  period's start (:func:`_live_multipliers`): at 128 pairs 18 columns instead of 238.
 * ``method="hill"``: Hill's method below. It is exact for a smooth periodic system (Duffing:
   1e-9 against shooting at 10 harmonics) and for a constant tangent (all stuck), but the
   stick/slip switches make the anchor rows switch between differential and algebraic:
@@ -122,7 +127,7 @@ import scipy.sparse.linalg as spla
 from workflow.engine.contact import SEPARATION, SLIP, STICK
 
 __all__ = ["Stability", "HillResult", "hill_exponents", "hill_descriptor", "hill_stability",
-           "contact_tangent", "monodromy", "EPS_FACTOR", "STABLE_TOL"]
+           "contact_tangent", "tangent_blocks", "monodromy", "EPS_FACTOR", "STABLE_TOL"]
 
 #: ε of the Hill tangent as a multiple of the static contact stiffness (the rigid limit; module docstring)
 EPS_FACTOR = 1.0e4
@@ -138,20 +143,25 @@ SHIFT = 0.05
 N_EXP = 40
 #: samples per period of the monodromy's tangent. The switching instants are located inside
 #: the sample intervals (:data:`SWITCH_REFINE`); what nit still sets is the integration of the
-#: smoothly varying tangent, O(1/nit²): on the quick sector (HBM-3, 200–214 Hz) the largest
-#: multiplier moves by 4.6e-4, 1.2e-4, 2.9e-5, 6.9e-6 at nit = 256, 512, 1024, 2048 against 8192
-MONODROMY_NIT = 2048
+#: smoothly varying tangent, with :data:`SUBSTEPS` and :data:`RICHARDSON` O(1/nit³): 128 pairs
+#: (HBM-3, 191–234 Hz, 2026-11-29) the largest multiplier within 1.4e-5 of nit = 8192 at 256,
+#: 1.7e-6 at 512, 2.1e-7 at 1024 (backward Euler extrapolated once, 2 substeps: 5.5e-4, 1.4e-4,
+#: 3.4e-5, 8.7e-6 at 256 … 2048)
+MONODROMY_NIT = 256
 #: relative change of a pair's stick reference λ_x^T (of max|λ|) above which its anchor moves
 ANCHOR_TOL = 1e-9
 #: backward-Euler steps a sample interval in :func:`monodromy` (Richardson-extrapolated)
-SUBSTEPS = 2
-#: sub-intervals a sample interval with a switch is cut into (:func:`_switch_pieces`): the
-#: monodromy knows the switching instants to ±T/(2·nit·SWITCH_REFINE). Jenkins oscillators at
-#: nit = 2048 (2026-11-28): the largest multiplier within 2.6e-5 of its value at nit = 8192,
-#: refine = 256 (1.2e-4 at refine = 16). Its cost is the DLFT on 3·(refine − 1) extra samples
-#: a switch and one monodromy step more a switch: quick sector at 212 Hz (22 switches),
-#: 0.04 s of 0.45 s
-SWITCH_REFINE = 64
+SUBSTEPS = 1
+#: Richardson's halvings of the monodromy's backward-Euler step (:func:`_extrapolated`): 2 removes
+#: the h and h² terms, 1, 2 and 4 steps a piece
+RICHARDSON = 2
+#: sub-intervals a sample interval with a switch is cut into (:func:`_switch_pieces`), level by
+#: level: the monodromy knows the switching instants to ±T/(2·nit·8·8·8), as 2048 samples cut
+#: into 64 did. Jenkins oscillators: (8, 8, 8) at nit = 256 and 512 at nit = 256 give the same
+#: multiplier (7.44e-5 and −3.68e-4 from shooting; 2.7e-4, −3.8e-4 cut into 64 only); at 128
+#: pairs 4078 DLFT samples instead of 65153 for 512. Its cost is the DLFT on the extra samples
+#: and one monodromy step more a switch
+SWITCH_REFINE = (8, 8, 8)
 
 
 @dataclass
@@ -368,139 +378,272 @@ def _tangent_state(state, lam_x_T, prev) -> np.ndarray:
     return np.where((state == SLIP) & kept, STICK, state).astype(state.dtype)
 
 
-def contact_tangent(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, memory: bool = True,
-                    eps_dlft_t=None, prev=None, dt=None):
-    """The linearised DLFT law along the period (module docstring) from a
+def tangent_blocks(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, memory: bool = True,
+                   eps_dlft_t=None, prev=None, dt=None) -> dict:
+    """The linearised DLFT law along the period (module docstring) pair by pair, from a
     :class:`~workflow.engine.contact.DLFTResult`'s samples: state (nit, p), λ (nit, p, 3) N,
-    λ_x^T (nit, p, 2) N, its start reference ref_T (p, 2) N; ε_N, ε_T (p,) N/m of the
-    tangent; μ (p,); ω rad/s; ``eps_dlft_t`` (p,) N/m the DLFT's own ε_T (λ_x^T = ε_DLFT·w;
-    default ``eps_t``). ``prev`` (nit, p, 2) N: the stick reference before each sample, and
-    ``dt`` (nit,) s: the time since that reference (the slip rate's backward difference);
-    default the uniform grid τ_k = 2πk/nit (``prev`` the previous sample's, ref_T before the
-    first; dt = T/nit). With memory the tangent takes :func:`_tangent_state`.
+    λ_x^T (nit, p, 2) N, its start reference ref_T (p, 2) N; ε_N, ε_T (p,) N/m of the tangent;
+    μ (p,); ω rad/s; ``eps_dlft_t`` (p,) N/m the DLFT's own ε_T (λ_x^T = ε_DLFT·w; default
+    ``eps_t``). ``prev`` (nit, p, 2) N: the stick reference before each sample, and ``dt``
+    (nit,) s: the time since that reference (the slip rate's backward difference); default the
+    uniform grid τ_k = 2πk/nit (``prev`` the previous sample's, ref_T before the first;
+    dt = T/nit). With memory the tangent takes :func:`_tangent_state`.
 
-    Returns a dict of sample arrays on δu (3p) and the anchor states (2 per pair that
-    slips or separates at some instant, ``active`` (p,) bool): ``Ku`` (nit, 3p, 3p),
-    ``Kw`` (nit, 3p, na), ``Ew``, ``Aw`` (nit, na, na), ``Au`` (nit, na, 3p); without
-    ``memory`` only ``Ku`` (the memoryless tangent)."""
+    The law couples nothing across pairs, so it is kept as blocks: ``Kp`` (nit, p, 3, 3) N/m on
+    each pair's δu; ``active`` (p,) bool the pairs with an anchor state (they slip or separate at
+    some instant), ``idx`` their indices (pa,); per active pair a, on its own δu and δw only,
+    ``Kw`` (nit, pa, 3, 2) N/m, ``Ew``, ``Aw`` (nit, pa, 2, 2) (Aw 1/s), ``Au`` (nit, pa, 2, 3)
+    (the anchor equations ``E_w δẇ = A_u δu + A_w δw``), ``contact`` (nit, pa) bool (not separated:
+    a separated pair's anchor is slaved, δw = δu_T). :func:`contact_tangent` assembles them."""
     nit, p = state.shape
     if prev is None:
         prev = np.concatenate([ref_T[None], lam_x_T[:-1]], axis=0)
     if memory:
         state = _tangent_state(state, lam_x_T, prev)
-    contact = state != SEPARATION
-    stick = state == STICK
-    slip = state == SLIP
+    contact, stick, slip = state != SEPARATION, state == STICK, state == SLIP
     lamT = lam[:, :, 1:]
     nT = np.linalg.norm(lamT, axis=2)
     t = lamT / np.maximum(nT, 1e-300)[:, :, None]                       # slip direction
-    nperp = np.stack([-t[:, :, 1], t[:, :, 0]], axis=2)                 # ⊥ t in the tangent plane
-    Ku = np.zeros((nit, p, 3, 3))
-    Ku[:, :, 0, 0] = np.where(contact, eps_n, 0.0)
+    tt = np.einsum("kia,kib->kiab", t, t)
     I2 = np.eye(2)
+    Kp = np.zeros((nit, p, 3, 3))
+    Kp[:, :, 0, 0] = np.where(contact, eps_n, 0.0)
     if not memory:
         # λ_pre = λ^k + λ_x^k − λ_x^{k−1}: fac = ‖λ_T‖/‖λ_pre^T‖ (1 when touching the cone)
-        pre = lamT + lam_x_T - prev
-        fac = nT / np.maximum(np.linalg.norm(pre, axis=2), 1e-300)
-        tt = np.einsum("kia,kib->kiab", t, t)
-        KT = np.where(stick[:, :, None, None], eps_t[None, :, None, None] * I2,
-                      np.where(slip[:, :, None, None],
-                               (fac * eps_t[None, :])[:, :, None, None] * (I2 - tt), 0.0))
-        Ku[:, :, 1:, 1:] = KT
-        Ku[:, :, 1:, 0] = np.where(slip[:, :, None], -(mu * eps_n)[None, :, None] * t, 0.0)
-        return {"Ku": _pair_blockdiag(Ku), "active": np.zeros(p, bool)}
+        fac = nT / np.maximum(np.linalg.norm(lamT + lam_x_T - prev, axis=2), 1e-300)
+        Kp[:, :, 1:, 1:] = np.where(stick[:, :, None, None], eps_t[None, :, None, None] * I2,
+                                    np.where(slip[:, :, None, None],
+                                             (fac * eps_t[None, :])[:, :, None, None] * (I2 - tt), 0.0))
+        Kp[:, :, 1:, 0] = np.where(slip[:, :, None], -(mu * eps_n)[None, :, None] * t, 0.0)
+        return {"Kp": Kp, "active": np.zeros(p, bool), "idx": np.zeros(0, int)}
     # a pair's anchor is a state only if the law moves it during the period (slip or separation);
     # stuck all period, or only touching the cone (shakedown: the DLFT keeps the anchor), it is a
     # parameter of a family of periodic solutions — a neutral multiplier 1, left out
-    moved = _moved(lam, lam_x_T, prev)
-    active = np.any(moved | ~contact, axis=0)
+    active = np.any(_moved(lam, lam_x_T, prev) | ~contact, axis=0)
     idx = np.flatnonzero(active)
-    pa = len(idx)
-    Ku[:, :, 1:, 1:] = np.where(contact[:, :, None, None], eps_t[None, :, None, None] * I2, 0.0)
+    Kp[:, :, 1:, 1:] = np.where(contact[:, :, None, None], eps_t[None, :, None, None] * I2, 0.0)
     # slip rate |ẇ| = |Δλ_x^T|/(ε_DLFT Δt) (backward difference): κ = |ẇ| ε_T / (μ|λ_N|)
     dt = np.full(nit, 2 * np.pi / omega / nit) if dt is None else np.asarray(dt, dtype=float)
     wdot = np.linalg.norm(lam_x_T - prev, axis=2) / dt[:, None] / (eps_t if eps_dlft_t is None else eps_dlft_t)[None, :]
     # κ only matters while a pair slips (μ|λ_N| > 0); elsewhere 0, not an overflow the masks then drop
     cone = mu[None, :] * np.abs(lam[:, :, 0])
-    kappa = np.divide(wdot * eps_t[None, :], cone, out=np.zeros_like(cone), where=cone > 0)
-    Kw = np.zeros((nit, p, 3, pa, 2))
-    Ew = np.zeros((nit, pa, 2, pa, 2))
-    Aw = np.zeros((nit, pa, 2, pa, 2))
-    Au = np.zeros((nit, pa, 2, p, 3))
-    for a, i in enumerate(idx):
-        st, sl, sep = stick[:, i], slip[:, i], ~contact[:, i]
-        Kw[:, i, 1:, a, :] = np.where(contact[:, i, None, None], -eps_t[i] * I2, 0.0)
-        ti, ni = t[:, i], nperp[:, i]
-        tt = np.einsum("ka,kb->kab", ti, ti)
-        nn = np.einsum("ka,kb->kab", ni, ni)
-        Ew[:, a, :, a, :] = np.where(st[:, None, None], I2, np.where(sl[:, None, None], nn, 0.0))
-        # slip: t-row tᵀ(δu_T − δw) + μ (ε_N/ε_T) δu_N = 0 (divided by ε_T); n-row nᵀδẇ = κ nᵀ(δu_T − δw)
-        slipAw = -(tt + kappa[:, i, None, None] * nn)
-        Aw[:, a, :, a, :] = np.where(sl[:, None, None], slipAw, np.where(sep[:, None, None], -I2, 0.0))
-        slipAu = np.zeros((nit, 2, 3))
-        slipAu[:, :, 1:] = tt + kappa[:, i, None, None] * nn
-        slipAu[:, :, 0] = ti * (mu[i] * eps_n[i] / eps_t[i])
-        sepAu = np.zeros((nit, 2, 3))
-        sepAu[:, :, 1:] = I2
-        Au[:, a, :, i, :] = np.where(sl[:, None, None], slipAu, np.where(sep[:, None, None], sepAu, 0.0))
-    return {"Ku": _pair_blockdiag(Ku), "Kw": Kw.reshape(nit, 3 * p, 2 * pa), "Ew": Ew.reshape(nit, 2 * pa, 2 * pa),
-            "Aw": Aw.reshape(nit, 2 * pa, 2 * pa), "Au": Au.reshape(nit, 2 * pa, 3 * p), "active": active}
+    kappa = np.divide(wdot * eps_t[None, :], cone, out=np.zeros_like(cone), where=cone > 0)[:, idx, None, None]
+    st, sl, sep, ct = (s[:, idx, None, None] for s in (stick, slip, ~contact, contact))
+    ti, tti = t[:, idx], tt[:, idx]
+    ni = np.stack([-ti[..., 1], ti[..., 0]], axis=-1)                    # ⊥ t in the tangent plane
+    nn = np.einsum("kia,kib->kiab", ni, ni)
+    Kw = np.zeros((nit, len(idx), 3, 2))
+    Kw[:, :, 1:, :] = np.where(ct, -eps_t[idx, None, None] * I2, 0.0)
+    Ew = np.where(st, I2, np.where(sl, nn, 0.0))
+    # slip: t-row tᵀ(δu_T − δw) + μ (ε_N/ε_T) δu_N = 0 (divided by ε_T); n-row nᵀδẇ = κ nᵀ(δu_T − δw)
+    Aw = np.where(sl, -(tti + kappa * nn), np.where(sep, -I2, 0.0))
+    slipAu = np.concatenate([(ti * (mu * eps_n / eps_t)[idx, None])[..., None], tti + kappa * nn], axis=-1)
+    sepAu = np.concatenate([np.zeros((2, 1)), I2], axis=1)
+    Au = np.where(sl, slipAu, np.where(sep, sepAu, 0.0))
+    return {"Kp": Kp, "active": active, "idx": idx, "Kw": Kw, "Ew": Ew, "Aw": Aw, "Au": Au, "contact": contact[:, idx]}
+
+
+def contact_tangent(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, memory: bool = True,
+                    eps_dlft_t=None, prev=None, dt=None):
+    """The linearised DLFT law along the period (module docstring), assembled: the arguments
+    of :func:`tangent_blocks`. Returns a dict of sample arrays on δu (3p) and the anchor states
+    (2 per pair that slips or separates at some instant, ``active`` (p,) bool): ``Ku`` (nit, 3p,
+    3p) N/m, ``Kw`` (nit, 3p, na) N/m, ``Ew``, ``Aw`` (nit, na, na), ``Au`` (nit, na, 3p);
+    without ``memory`` only ``Ku`` (the memoryless tangent). Dense: (nit, 3p, 3p) is for small
+    models (Hill's method); :func:`monodromy` takes the blocks."""
+    blk = tangent_blocks(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega, memory, eps_dlft_t, prev, dt)
+    nit, p = state.shape
+    out = {"Ku": _pair_blockdiag(blk["Kp"]), "active": blk["active"]}
+    if not memory:
+        return out
+    idx = blk["idx"]
+    own = np.arange(len(idx))
+    out["Kw"] = _scatter(blk["Kw"], idx, own, p, len(idx))
+    out["Ew"] = _scatter(blk["Ew"], own, own, len(idx), len(idx))
+    out["Aw"] = _scatter(blk["Aw"], own, own, len(idx), len(idx))
+    out["Au"] = _scatter(blk["Au"], own, idx, len(idx), p)
+    return out
+
+
+def _scatter(blocks: np.ndarray, rows, cols, nr: int, nc: int) -> np.ndarray:
+    """(nit, k, a, b) blocks → (nit, nr·a, nc·b) dense, block k at block-row rows[k], block-column cols[k]."""
+    nit, k, a, b = blocks.shape
+    out = np.zeros((nit, nr, a, nc, b))
+    out[:, rows, :, cols, :] = blocks.transpose(1, 0, 2, 3)
+    return out.reshape(nit, nr * a, nc * b)
 
 
 def _pair_blockdiag(Kp: np.ndarray) -> np.ndarray:
     """(nit, p, 3, 3) per-pair blocks → (nit, 3p, 3p) block-diagonal."""
-    nit, p = Kp.shape[:2]
-    out = np.zeros((nit, p, 3, p, 3))
-    ar = np.arange(p)
-    out[:, ar, :, ar, :] = Kp.transpose(1, 0, 2, 3)
-    return out.reshape(nit, 3 * p, 3 * p)
+    ar = np.arange(Kp.shape[1])
+    return _scatter(Kp, ar, ar, len(ar), len(ar))
 
 
-
-def monodromy(M, C, K, B, tan: dict, omega: float, *, substeps: int = 2, richardson: bool = True,
-              h=None) -> np.ndarray:
-    """Monodromy matrix (dimensionless) of the linearised periodic system of the module
-    docstring, ``E(t) ż = A(t) z`` with z = [δq, δv, δw], by time integration over one period
-    with the tangent's coefficients (:func:`contact_tangent`) constant on each of its pieces:
-    ``h`` (n,) s the pieces' durations in order (sum T; default the nit uniform intervals
-    T/nit). Backward Euler, ``substeps`` a piece, extrapolated (Richardson, 2·Z(h/2) − Z(h))
-    unless ``richardson`` is False. Backward Euler is the one-step method that handles the
-    algebraic slip rows (E singular, index 1): the step that enters slip projects δw onto
-    the cone's constraint — the saltation of the exact law. Its error: O(h²) after
+def monodromy(M, C, K, B, tan: dict, omega: float, *, substeps: int = SUBSTEPS, richardson: bool = True,
+              h=None, levels: int = RICHARDSON) -> np.ndarray:
+    """Monodromy matrix (dimensionless, (2m + na)²) of the linearised periodic system of the
+    module docstring, ``E(t) ż = A(t) z`` with z = [δq, δv, δw], by time integration over one
+    period with the tangent's coefficients (:func:`tangent_blocks`, ``tan``) constant on each of
+    its pieces: ``h`` (n,) s the pieces' durations in order (sum T; default the nit uniform
+    intervals T/nit). Backward Euler, ``substeps`` a piece, extrapolated unless ``richardson``
+    is False (Richardson, ``levels`` halvings: 2·Z(h/2) − Z(h) at 1, eliminating h and h² at 2,
+    :func:`_extrapolated`). Backward Euler is the one-step method that
+    handles the algebraic slip rows (E singular, index 1): the step that enters slip projects δw
+    onto the cone's constraint — the saltation of the exact law. Its error: O(h²) after
     extrapolation, and that of the switching instants, which the pieces carry
-    (:func:`_switch_pieces`: to T/(nit·refine)). Dense; M, C, K (m, m), B (3p, m)."""
+    (:func:`_switch_pieces`: to T/(nit·refine)). M, C, K (m, m), B (3p, m). Each step is solved
+    through its structure (:func:`_step_operators`); :func:`_live_multipliers` integrates only
+    the states that are not slaved at the start."""
     m = M.shape[0]
-    na = tan["Kw"].shape[2] if "Kw" in tan else 0
-    n = 2 * m + na
-    nit = tan["Ku"].shape[0]
-    Bd = np.asarray(B.toarray() if sp.issparse(B) else B, dtype=float)
-    T = 2 * np.pi / omega
-    h = np.full(nit, T / nit) if h is None else np.asarray(h, dtype=float)
-    if h.shape != (nit,):
-        raise ValueError(f"monodromy: {h.shape} durations for {nit} tangent pieces")
+    n = 2 * m + 2 * len(tan.get("idx", ()))
+    h = _durations(tan, omega, h)
+    cols = np.arange(n)
 
     def run(sub):
-        Z = np.eye(n)
-        A = np.zeros((n, n))
-        E = np.zeros((n, n))
-        A[:m, m:2 * m] = np.eye(m)
-        E[:m, :m] = np.eye(m)
-        E[m:2 * m, m:2 * m] = M
-        A[m:2 * m, m:2 * m] = -C
-        for k in range(nit):
-            A[m:2 * m, :m] = -K - Bd.T @ tan["Ku"][k] @ Bd
-            if na:
-                A[m:2 * m, 2 * m:] = -Bd.T @ tan["Kw"][k]
-                A[2 * m:, :m] = tan["Au"][k] @ Bd
-                A[2 * m:, 2 * m:] = tan["Aw"][k]
-                E[2 * m:, 2 * m:] = tan["Ew"][k]
-            lu = sla.lu_factor(E - (h[k] / sub) * A, check_finite=False)
-            for _ in range(sub):
-                Z = sla.lu_solve(lu, E @ Z, check_finite=False)
-        return Z
+        return _propagate(M, C, K, B, tan, h, sub, np.arange(len(h)), cols)
+    return _extrapolated(run, substeps, levels if richardson else 0)
 
-    Z = run(substeps)
-    return 2 * run(2 * substeps) - Z if richardson else Z
+
+def _extrapolated(run, substeps: int, levels: int) -> np.ndarray:
+    """Richardson's extrapolation of ``run(s)`` (backward Euler, s steps a piece) over s = substeps,
+    2·substeps, … 2^levels·substeps: Neville's table T_{j,k} = T_{j,k−1} + (T_{j,k−1} − T_{j−1,k−1})/(2^k − 1)
+    removes the h^k term of the error at column k (backward Euler's error has every power of h,
+    its step on a piece of constant coefficients being a rational function of h). Each of the
+    terms is L-stable (→ 0 for a stiff mode), and so is their combination."""
+    T = [run(substeps)]
+    for j in range(1, levels + 1):
+        row = [run(substeps * 2 ** j)]
+        for k in range(1, j + 1):
+            row.append(row[k - 1] + (row[k - 1] - T[k - 1]) / (2 ** k - 1))
+        T = row
+    return T[-1]
+
+
+def _durations(tan: dict, omega: float, h) -> np.ndarray:
+    """The pieces' durations (s): ``h``, checked, or the nit uniform intervals T/nit."""
+    nit = tan["Kp"].shape[0]
+    h = np.full(nit, 2 * np.pi / omega / nit) if h is None else np.asarray(h, dtype=float)
+    if h.shape != (nit,):
+        raise ValueError(f"monodromy: {h.shape} durations for {nit} tangent pieces")
+    return h
+
+
+def _live_multipliers(M, C, K, B, tan: dict, omega: float, *, substeps: int = SUBSTEPS, h=None,
+                      levels: int = RICHARDSON) -> np.ndarray:
+    """The nonzero Floquet multipliers of :func:`monodromy` (with as many zeros as it takes), at a
+    fraction of its cost: the period starts at the piece with the fewest pairs in contact (the
+    eigenvalues of Φ(T + t₀, t₀) = Φ(t₀, 0)Φ(T, t₀) and of Φ(T, 0) = Φ(T, t₀)Φ(t₀, 0) are the
+    same), and only the states that are not slaved there are integrated: δq, δv and the anchors
+    of the pairs in contact. A separated pair's anchor is slaved (δw = δu_T: its column of the
+    monodromy is zero), so the monodromy is block-triangular and its nonzero eigenvalues are
+    those of the live block. At 128 pairs (Ritz size 7, 112 anchors) 18 columns instead of 238."""
+    m = M.shape[0]
+    h = _durations(tan, omega, h)
+    idx = tan.get("idx", np.zeros(0, int))
+    contact = tan.get("contact", np.zeros((len(h), 0), bool))
+    k0 = int(np.argmin(contact.sum(axis=1))) if len(idx) else 0
+    order = (k0 + np.arange(len(h))) % len(h)
+    a = np.flatnonzero(contact[k0])
+    cols = np.concatenate([np.arange(2 * m), 2 * m + np.stack([2 * a, 2 * a + 1], axis=1).ravel()]).astype(int)
+    Z = _extrapolated(lambda sub: _propagate(M, C, K, B, tan, h[order], sub, order, cols), substeps, levels)
+    return np.linalg.eigvals(Z[cols])
+
+
+#: pieces whose step operators :func:`_propagate` holds at once (memory: at 128 pairs, Ritz size 7, 4 MB)
+_CHUNK = 256
+
+
+def _propagate(M, C, K, B, tan: dict, h: np.ndarray, sub: int, order: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Z (n, len(cols)): the columns ``cols`` of the identity carried over the pieces ``order`` of
+    ``tan`` (durations ``h``, s, in that order) by ``sub`` backward-Euler steps a piece
+    (:func:`_step_operators`). A separated pair's anchor rows are slaved (δw = δu_T): they are
+    not carried but set from δq when the pair touches again and at the end."""
+    m = M.shape[0]
+    Bd = np.asarray(B.toarray() if sp.issparse(B) else B, dtype=float)
+    Bp = Bd.reshape(-1, 3, m)                                   # (p, 3, m): each pair's rows of B
+    idx = tan.get("idx", np.zeros(0, int))
+    contact = tan.get("contact", np.ones((len(order), 0), bool))[order]
+    BT = Bp[idx, 1:, :]                                         # (pa, 2, m): δu_T of the anchors' pairs
+    n = 2 * m + 2 * len(idx)
+    Z = np.eye(n)[:, cols]
+    v1 = np.empty((m, len(cols)))
+    for lo in range(0, len(order), _CHUNK):     # the step operators of a chunk of pieces at a time (memory)
+        ops = _step_operators(M, C, K, Bp, tan, order[lo:lo + _CHUNK], h[lo:lo + _CHUNK] / sub)
+        for j in range(len(ops["hs"])):
+            k = lo + j
+            if k:   # the anchors of the pairs that touch again start from their slaved value
+                _slave(Z, contact[k] & ~contact[k - 1], BT, m)
+            for _ in range(sub):
+                _step(Z, v1, ops, j, m)
+    _slave(Z, ~contact[-1], BT, m)
+    return Z
+
+
+def _slave(Z, which: np.ndarray, BT: np.ndarray, m: int) -> None:
+    """The anchor rows of the pairs ``which`` (pa,) bool set to their slaved value δw = δu_T = B_T δq."""
+    a = np.flatnonzero(which)
+    if len(a):
+        rows = 2 * m + np.stack([2 * a, 2 * a + 1], axis=1).ravel()
+        Z[rows] = BT[a].reshape(2 * len(a), m) @ Z[:m]
+
+
+def _step_operators(M, C, K, Bp, tan: dict, sel: np.ndarray, hs: np.ndarray) -> dict:
+    """One backward-Euler step on the pieces ``sel`` (steps ``hs`` s), solved for the new state
+    z₁ = [q₁, v₁, w₁] from z₀ through the anchors' 2×2 blocks: E z₁ − hs A z₁ = E z₀ reads
+    q₁ = q₀ + hs v₁, and per active pair a (its δu = B_a q) ``G_a w₁ = E_w w₀ + hs A_u B_a q₁``
+    with G_a = E_w − hs A_w (2×2: I in stick, hs I when separated, (1 + hs κ) nnᵀ + hs ttᵀ in slip —
+    never singular), so w₁ = D w₀ + P q₁ with D = G⁻¹E_w, P = hs G⁻¹A_u B_a; the velocity rows are
+    then the m×m system ``S v₁ = M v₀ − hs K_eff q₀ − hs L D w₀``, S = M + hs C + hs² K_eff,
+    K_eff = K + BᵀK_u B + L P, L = BᵀK_w. Per piece: ``Av`` (m, n) with v₁ = Av z₀; ``rows``,
+    ``D`` (k, 2, 2), ``P`` (2k, m) of the k pairs in slip (a stuck pair's D = I, P = 0; a
+    separated one's rows are slaved, :func:`_propagate`); ``hs``."""
+    m = M.shape[0]
+    Kp = tan["Kp"][sel]
+    npc = Kp.shape[0]
+    Bf = Bp.reshape(-1, m)
+    Keff = K + np.matmul(Bf.T, np.matmul(Kp, Bp[None]).reshape(npc, -1, m))      # K + BᵀK_u B (npc, m, m)
+    idx = tan.get("idx", np.zeros(0, int))
+    pa = len(idx)
+    hs3 = hs[:, None, None]
+    D, P = np.zeros((npc, pa, 2, 2)), np.zeros((npc, pa, 2, m))
+    Lw = np.zeros((npc, pa, m, 2))
+    if pa:
+        Ba = Bp[idx]                                                             # (pa, 3, m)
+        Ew = tan["Ew"][sel]
+        Lw = np.matmul(Ba.transpose(0, 2, 1)[None], tan["Kw"][sel])              # BᵀK_w: the anchors' force
+        Gi = np.linalg.inv(Ew - hs[:, None, None, None] * tan["Aw"][sel])
+        D = np.matmul(Gi, Ew)
+        P = hs[:, None, None, None] * np.matmul(Gi, np.matmul(tan["Au"][sel], Ba[None]))
+        Keff = Keff + np.matmul(Lw.transpose(0, 2, 1, 3).reshape(npc, m, 2 * pa), P.reshape(npc, 2 * pa, m))
+    L = Lw.transpose(0, 2, 1, 3).reshape(npc, m, 2 * pa)
+    X = np.linalg.solve(M + hs3 * C + hs3 ** 2 * Keff,
+                        np.concatenate([Keff, np.broadcast_to(M, Keff.shape), L], axis=2))   # S⁻¹[K_eff, M, L]
+    Avw = np.matmul(X[:, :, 2 * m:].reshape(npc, m, pa, 2).transpose(0, 2, 1, 3), D)         # S⁻¹ L D, per pair
+    Av = np.concatenate([-hs3 * X[:, :, :m], X[:, :, m:2 * m], -hs3 * Avw.transpose(0, 2, 1, 3).reshape(npc, m, 2 * pa)],
+                        axis=2)
+    slip = np.any(D != np.eye(2), axis=(2, 3)) | np.any(P != 0, axis=(2, 3))
+    if pa:      # separated: D = 0, P = B_T, the rows slaved (_propagate)
+        slip &= tan["contact"][sel]
+    rows, Dm, Pm = [], [], []
+    for k in range(npc):
+        a = np.flatnonzero(slip[k])
+        rows.append(2 * m + np.stack([2 * a, 2 * a + 1], axis=1).ravel())
+        Dm.append(D[k, a])
+        Pm.append(P[k, a].reshape(2 * len(a), m))
+    return {"Av": Av, "D": Dm, "P": Pm, "rows": rows, "hs": hs}
+
+
+def _step(Z, v1, ops: dict, k: int, m: int) -> None:
+    """One backward-Euler step of piece k (:func:`_step_operators`) applied to the columns of Z, in
+    place (``v1`` (m, ncol) scratch): the rows of the anchors that slip in the piece are updated, a
+    stuck pair's stay (D = I, P = 0) and a separated one's are slaved (:func:`_propagate`)."""
+    np.matmul(ops["Av"][k], Z, out=v1)                 # from the old state
+    Z[:m] += ops["hs"][k] * v1                          # q₁
+    Z[m:2 * m] = v1
+    rows = ops["rows"][k]
+    if len(rows):
+        w0 = Z[rows]
+        Z[rows] = (ops["D"][k] @ w0.reshape(-1, 2, Z.shape[1])).reshape(len(rows), -1) + ops["P"][k] @ Z[:m]
 
 
 # ------------------------------------------------------------------ on a reduced model
@@ -555,7 +698,7 @@ def _signature(ts, lam, lam_x_T, prev) -> np.ndarray:
     return np.where(active[None, :], ts, np.where(contact, STICK, SEPARATION)).astype(ts.dtype)
 
 
-def _switch_pieces(hb, x, nit: int, omega: float, refine: int) -> _Pieces:
+def _switch_pieces(hb, x, nit: int, omega: float, refine) -> _Pieces:
     """The contact law along the period of the HB solution x of ``hb`` for :func:`monodromy`,
     with the switching instants located inside the sample intervals.
 
@@ -563,16 +706,15 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine: int) -> _Pieces:
     (τ_{k−1}, τ_k]. Each interval where some pair's :func:`_tangent_state` changes is cut into
     ``refine`` sub-intervals, the DLFT predictor λ_u (a Fourier series: its harmonics
     evaluated at any instant) is sampled there too, and the DLFT runs again on the
-    non-uniform grid (same law, same passes, from the uniform one's reference). Each sample
-    stands for its cell (midway to its neighbours), so a switch sits midway between the two
-    sub-samples it falls between: to ±T/(2·nit·refine), without bias, and a smooth
-    coefficient is taken at the middle of its cell. Consecutive sub-samples of one interval
-    in the same state are merged into one piece (the first one's tangent): the monodromy
-    pays one step per switch more than per sample, not ``refine``. ``refine`` ≤ 1: the
-    uniform samples, a piece each (a switch then known to T/nit)."""
-    from workflow.engine import fourier
-    from workflow.engine.contact import dlft_pass
-
+    non-uniform grid (same law, same passes, from the uniform one's reference); ``refine`` a
+    sequence (r₁, r₂, …): again inside the sub-intervals that hold a switch, level by level
+    (:func:`_refined`) — the same location, T/(nit·r₁·r₂…), at a fraction of the samples. Each
+    sample stands for its cell (midway to its neighbours), so a switch sits midway between the
+    two sub-samples it falls between: to ±T/(2·nit·Πr), without bias, and a smooth coefficient
+    is taken at the middle of its cell. Consecutive sub-samples of one interval in the same
+    state are merged into one piece (the first one's tangent): the monodromy pays one step per
+    switch more than per sample, not ``refine``. ``refine`` ≤ 1: the uniform samples, a piece
+    each (a switch then known to T/nit)."""
     prob, xx = _dlft_problem(hb, x, nit, hbm=True)
     a = prob._predictor(xx)                                   # real Fourier coefficients of λ_u (N)
     res = prob._dlft(a, jacobian=False)
@@ -582,24 +724,16 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine: int) -> _Pieces:
     ts = _tangent_state(res.state, res.lam_x_T, prev)
     sig = _signature(ts, res.lam, res.lam_x_T, prev)
     sw = np.flatnonzero(np.any(sig != np.roll(sig, 1, axis=0), axis=1))     # a switch in (τ_{k−1}, τ_k]
-    if refine <= 1 or sw.size == 0:
+    factors = [int(r) for r in np.atleast_1d(refine) if int(r) > 1]
+    if not factors or sw.size == 0:
         return _Pieces(ts, res.lam, res.lam_x_T, prev, np.full(nit, T / nit), np.full(nit, T / nit), res.ref_T,
                        0, nit)
-    step = 2 * np.pi / nit
-    # the intervals before and after too: the DLFT sees a slip → stick reversal by the sign of the
-    # predictor's increment over a sample interval, up to a sample late (the reversal may lie in
-    # (τ_{k−2}, τ_{k−1}]), and the refined anchors may move a switch across a sample
-    ivl = np.unique((sw[:, None] + np.arange(-2, 1)[None, :]) % nit)                # interval (τ_i, τ_{i+1}]
-    extra = (ivl * step)[:, None] + step * np.arange(1, refine)[None, :] / refine
-    tau_f = np.concatenate([tau, extra.ravel()])
-    order = np.argsort(tau_f, kind="stable")
-    tau_f = tau_f[order]
-    coarse = order < nit
-    lam_u = (fourier.trig_matrix(prob.nh, tau_f) @ a).reshape(len(tau_f), prob.p, 3)
-    fine = dlft_pass(lam_u, prob.law.mu, res.ref_T, periodic=True, max_passes=prob.max_passes, tol=prob.pass_tol)
+    grid = (tau, np.ones(nit, bool), sig, None)
+    for r in factors:
+        grid = _refined(prob, a, res.ref_T, grid, r)
+    tau_f, coarse, sig, fine = grid
     prev_f = np.concatenate([fine.ref_T[None], fine.lam_x_T[:-1]], axis=0)
     ts_f = _tangent_state(fine.state, fine.lam_x_T, prev_f)
-    sig = _signature(ts_f, fine.lam, fine.lam_x_T, prev_f)
     back = np.diff(np.concatenate([[tau_f[-1] - 2 * np.pi], tau_f]))          # rad, to the previous sample
     cell = 0.5 * (back + np.roll(back, -1))                                     # rad, the sample's cell
     start = np.flatnonzero(coarse | np.any(sig != np.roll(sig, 1, axis=0), axis=1))
@@ -608,15 +742,53 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine: int) -> _Pieces:
                    fine.ref_T, int(sw.size), len(tau_f))
 
 
-def _ritz(rcM, rcK, nr: int, eps: np.ndarray, omega: float, modes):
+def _refined(prob, a, ref_T, grid, r: int):
+    """One level of :func:`_switch_pieces`' refinement: ``grid`` (τ (n,) rad sorted in [0, 2π),
+    ``coarse`` (n,) the uniform samples, the switch signature (n, p), DLFT or None) → the same with
+    every interval (τ_{k−1}, τ_k] that holds a switch, and its two neighbours, cut into ``r``, and
+    the DLFT (λ_u's harmonics ``a``, from the reference ``ref_T``) run again on the new grid."""
+    from workflow.engine import fourier
+    from workflow.engine.contact import dlft_pass
+
+    tau, coarse, sig, _ = grid
+    n = len(tau)
+    sw = np.flatnonzero(np.any(sig != np.roll(sig, 1, axis=0), axis=1))
+    # the intervals before and after too: the DLFT sees a slip → stick reversal by the sign of the
+    # predictor's increment over a sample interval, up to a sample late (the reversal may lie in
+    # (τ_{k−2}, τ_{k−1}]), and the refined anchors may move a switch across a sample
+    ivl = np.unique((sw[:, None] + np.arange(-2, 1)[None, :]) % n)                 # interval (τ_i, τ_{i+1}]
+    lo = tau[ivl]
+    hi = np.where(ivl + 1 < n, tau[(ivl + 1) % n], 2 * np.pi)
+    extra = lo[:, None] + (hi - lo)[:, None] * np.arange(1, r)[None, :] / r
+    tau_f = np.concatenate([tau, extra.ravel()])
+    order = np.argsort(tau_f, kind="stable")
+    tau_f = tau_f[order]
+    coarse = np.concatenate([coarse, np.zeros(extra.size, bool)])[order]
+    lam_u = (fourier.trig_matrix(prob.nh, tau_f) @ a).reshape(len(tau_f), prob.p, 3)
+    fine = dlft_pass(lam_u, prob.law.mu, ref_T, periodic=True, max_passes=prob.max_passes, tol=prob.pass_tol)
+    prev_f = np.concatenate([fine.ref_T[None], fine.lam_x_T[:-1]], axis=0)
+    sig = _signature(_tangent_state(fine.state, fine.lam_x_T, prev_f), fine.lam, fine.lam_x_T, prev_f)
+    return tau_f, coarse, sig, fine
+
+
+def _ritz(rcM, rcK, nr: int, eps: np.ndarray, omega: float, modes, cache: dict | None = None):
     """A Ritz basis (m, r) for δq in relative coordinates: the modes of the structure with
     every pair stuck (ε on [n, t1, t2]) and with the pairs sliding (ε on n only) below
-    ``modes`` × ω if a float, or the ``modes`` lowest of each if an int; M-orthonormalised."""
+    ``modes`` × ω if a float, or the ``modes`` lowest of each if an int; M-orthonormalised.
+    ``cache``: a dict that keeps the two eigenproblems' solutions (they do not depend on ω) for
+    the next call on the same structure and ε — the points of a sweep (0.55 s a point at 128
+    pairs, 782 DOFs)."""
     vecs = []
-    for mask in (np.ones(3), np.array([1.0, 0.0, 0.0])):
-        Kc = rcK.copy()
-        Kc[np.arange(nr), np.arange(nr)] += eps * np.tile(mask, nr // 3)
-        lam, V = sla.eigh(Kc, rcM)
+    for j, mask in enumerate((np.ones(3), np.array([1.0, 0.0, 0.0]))):
+        key = (j, rcM.shape, eps.tobytes())
+        if cache is not None and key in cache:
+            lam, V = cache[key]
+        else:
+            Kc = rcK.copy()
+            Kc[np.arange(nr), np.arange(nr)] += eps * np.tile(mask, nr // 3)
+            lam, V = sla.eigh(Kc, rcM)
+            if cache is not None:
+                cache[key] = lam, V
         keep = (lam <= (modes * omega) ** 2) if isinstance(modes, float) else (np.arange(len(lam)) < int(modes))
         vecs.append(V[:, keep])
     V = np.concatenate(vecs, axis=1)
@@ -627,21 +799,59 @@ def _ritz(rcM, rcK, nr: int, eps: np.ndarray, omega: float, modes):
     return V @ (W[:, keep] / np.sqrt(g[keep]))
 
 
-def _structure(rc, nr: int, en, et, omega: float, modes):
+def _structure(rc, nr: int, en, et, omega: float, modes, cache: dict | None = None):
     """(M, C, K, B, tag) of the linearised structure in relative coordinates (B = [I, 0]: the
     first ``nr`` are the contact DOFs), or on the Ritz basis of ``modes`` (:func:`_ritz`, tag
     "+ritz(n)")."""
     M, K, C = (np.asarray(getattr(rc, a), dtype=float) for a in ("M", "K", "C"))
     if modes is None:
         return M, C, K, sp.hstack([sp.identity(nr), sp.csr_matrix((nr, M.shape[0] - nr))]).tocsr(), ""
-    V = _ritz(M, K, nr, np.stack([en, et, et], axis=1).ravel(), omega, modes)
+    V = _ritz(M, K, nr, np.stack([en, et, et], axis=1).ravel(), omega, modes, cache)
     return V.T @ M @ V, V.T @ C @ V, V.T @ K @ V, V[:nr], f"+ritz({V.shape[1]})"
+
+
+def _monodromy_exponents(hb, x, nit: int, omega: float, structure, eps, memory: bool, substeps: int,
+                         refine: int, levels: int = RICHARDSON):
+    """(|μ|max, exponents s (1/s, by decreasing |μ|), pieces, tangent blocks) of the monodromy
+    (:func:`monodromy`) of the HB solution x of ``hb`` on nit samples; ``structure`` (M, C, K, B)
+    of :func:`_structure`, ``eps`` (ε_N, ε_T) (p,) N/m of the tangent."""
+    M, C, K, B = structure
+    en, et = eps
+    if memory:      # the switching instants located inside the sample intervals
+        pc = _switch_pieces(hb, x, nit, omega, refine)
+        tan = tangent_blocks(pc.state, pc.lam, pc.lam_x_T, pc.ref_T, en, et, hb.law.mu, omega, memory,
+                             eps_dlft_t=hb.law.eps_t, prev=pc.prev, dt=pc.dt)
+        h = pc.h
+    else:           # the memoryless tangent has no anchor to switch: the DLFT's own samples
+        pc = _dlft_samples(hb, x, nit)
+        tan = tangent_blocks(pc.state, pc.lam, pc.lam_x_T, pc.ref_T, en, et, hb.law.mu, omega, memory,
+                             eps_dlft_t=hb.law.eps_t)
+        h = None
+    mult = _live_multipliers(M, C, K, B, tan, omega, substeps=substeps, h=h, levels=levels)
+    mult = mult[np.argsort(-np.abs(mult))]
+    with np.errstate(divide="ignore", invalid="ignore"):   # a multiplier 0: s = −∞ (a slaved anchor)
+        s = np.log(mult.astype(complex)) / (2 * np.pi / omega)
+    return float(np.abs(mult[0])), s, pc, tan
+
+
+def _hill_solve(tan: dict, res, structure, omega: float, nh: int, memory: bool, n_exp, dense):
+    """:func:`hill_stability`'s Hill branch at ``nh`` harmonics: (|μ|max, exponents (1/s), the DLFT
+    ``res``, the dense tangent ``tan`` (:func:`contact_tangent`), solver, radius (1/s), size)."""
+    M, C, K, B = structure
+    na = 2 * int(tan["active"].sum()) if memory else 0
+    kw = dict(Ku=tan["Ku"])
+    if na:
+        kw.update(Kw=tan["Kw"], Ew=tan["Ew"], Aw=tan["Aw"], Au=tan["Au"])
+    A, E = _pencil(M, C, K, omega, nh, B=B, **kw)
+    h = hill_descriptor(A, E, omega, nh, M.shape[0], na, n_exp=n_exp, dense=dense)
+    return h.floquet_max, h.exponents, res, tan, h.method, h.radius, h.size
 
 
 def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_hill: int | None = None,
                    nh_check: int | None = 0, memory: bool = True, eps_factor: float = EPS_FACTOR,
                    nit: int | None = None, dense: bool | None = None, n_exp: int | None = None, modes=None,
-                   rc=None, substeps: int = SUBSTEPS, refine: int = SWITCH_REFINE) -> Stability:
+                   rc=None, substeps: int = SUBSTEPS, refine=SWITCH_REFINE, levels: int = RICHARDSON,
+                   cache: dict | None = None) -> Stability:
     """Floquet stability of the HB solution ``x`` of ``hb`` (:class:`~workflow.engine.hb.HBProblem`)
     at ω (rad/s) on ``model`` (:class:`~reduction.reduced.ReducedModel`).
 
@@ -654,8 +864,9 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
 
     method    "monodromy" (default): the monodromy of the linearisation by time integration
               (:func:`monodromy`, nit default max(hb.nit, :data:`MONODROMY_NIT`), the
-              switching instants located to T/(nit·``refine``) by :func:`_switch_pieces`,
-              ``refine`` 1: to the sample), the check at 2·nit; "hill": Hill's method
+              switching instants located to T/(nit·Π``refine``) by :func:`_switch_pieces`,
+              ``refine`` 1: to the sample; ``substeps`` backward-Euler steps a piece, ``levels``
+              Richardson halvings), the check at 2·nit; "hill": Hill's method
               (:func:`hill_descriptor`) at ``nh_hill`` harmonics (default max(2·Nh, 8)), the
               check at ``nh_check`` (0: ⌈1.5·nh_hill⌉), the DLFT on nit ≥ 4·nh+1 samples.
               ``nh_check`` None: no check, half the cost.
@@ -664,6 +875,8 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
     modes     None: the full δq; a float: a Ritz basis of the modes with the pairs stuck
               and sliding below modes × ω; an int: that many of each (large models)
     dense, n_exp  Hill's eigensolver, see :func:`hill_descriptor`
+    cache     a dict kept across calls on one model (a sweep's points): the Ritz basis's
+              eigenproblems (:func:`_ritz`)
     """
     from reduction.condense import relative_coordinates
     from workflow.engine import penalty
@@ -675,31 +888,15 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
     rc = relative_coordinates(model) if rc is None else rc
     ks = penalty.reference_stiffness(np.real(hb.Zr[0]))
     en, et = eps_factor * ks[:, 0], eps_factor * ks[:, 1]
-    M, C, K, B, tag = _structure(rc, hb.nr, en, et, omega, modes)
-    T = 2 * np.pi / omega
-
-    def tangent(n_samples):
-        res = _dlft_samples(hb, x, int(n_samples))
-        return res, contact_tangent(res.state, res.lam, res.lam_x_T, res.ref_T, en, et, hb.law.mu, omega, memory,
-                                    eps_dlft_t=hb.law.eps_t)
+    M, C, K, B, tag = _structure(rc, hb.nr, en, et, omega, modes, cache)
 
     if method == "monodromy":
         nit = max(hb.nit, MONODROMY_NIT) if nit is None else int(nit)
 
         def solve(n_samples):
-            if memory:      # the switching instants located inside the sample intervals
-                pc = _switch_pieces(hb, x, int(n_samples), omega, refine)
-                tan = contact_tangent(pc.state, pc.lam, pc.lam_x_T, pc.ref_T, en, et, hb.law.mu, omega, memory,
-                                      eps_dlft_t=hb.law.eps_t, prev=pc.prev, dt=pc.dt)
-                h = pc.h
-            else:           # the memoryless tangent has no anchor to switch: the DLFT's own samples
-                pc, tan = tangent(n_samples)
-                h = None
-            mult = np.linalg.eigvals(monodromy(M, C, K, B, tan, omega, substeps=substeps, h=h))
-            mult = mult[np.argsort(-np.abs(mult))]
-            with np.errstate(divide="ignore", invalid="ignore"):   # a multiplier 0: s = −∞ (a slaved anchor)
-                s = np.log(mult.astype(complex)) / T
-            return float(np.abs(mult[0])), s, pc, tan, "monodromy", float("inf"), 2 * M.shape[0]
+            fm, s, pc, tan = _monodromy_exponents(hb, x, int(n_samples), omega, (M, C, K, B), (en, et), memory,
+                                                  substeps, refine, levels)
+            return fm, s, pc, tan, "monodromy", float("inf"), 2 * M.shape[0]
         first = solve(nit)
         check = solve(2 * nit) if nh_check is not None else None
         nh_hill, nh_check = 0, None
@@ -710,18 +907,11 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
         top = max(nh_hill, nh_check or 0)
         if nit is None:
             nit = hb.nit if hb.nit >= 4 * top + 1 else 8 * (top + 1)
-        res, tan = tangent(nit)
-        na = 2 * int(tan["active"].sum()) if memory else 0
-
-        def solve(nh):
-            kw = dict(Ku=tan["Ku"])
-            if na:
-                kw.update(Kw=tan["Kw"], Ew=tan["Ew"], Aw=tan["Aw"], Au=tan["Au"])
-            A, E = _pencil(M, C, K, omega, nh, B=B, **kw)
-            h = hill_descriptor(A, E, omega, nh, M.shape[0], na, n_exp=n_exp, dense=dense)
-            return h.floquet_max, h.exponents, res, tan, h.method, h.radius, h.size
-        first = solve(nh_hill)
-        check = solve(nh_check) if nh_check else None
+        res = _dlft_samples(hb, x, int(nit))
+        tan = contact_tangent(res.state, res.lam, res.lam_x_T, res.ref_T, en, et, hb.law.mu, omega, memory,
+                              eps_dlft_t=hb.law.eps_t)
+        first = _hill_solve(tan, res, (M, C, K, B), omega, nh_hill, memory, n_exp, dense)
+        check = _hill_solve(tan, res, (M, C, K, B), omega, nh_check, memory, n_exp, dense) if nh_check else None
     fm, s, res, tan, how, radius, size = first
     s = s[np.argsort(-s.real)]
     detail = {"size": size, "nit": int(nit), "states": np.bincount(res.state.ravel(), minlength=3)}

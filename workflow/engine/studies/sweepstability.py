@@ -27,6 +27,7 @@ def sweep_stability(model, rc, law, static, sweep, *, nit: int | None = None) ->
     n = len(sweep.freqs_hz)
     stable = [None] * n
     fmax = np.full(n, np.nan)
+    cache = {}          # the Ritz basis's eigenproblems, the same at every point
     t0 = time.perf_counter()
     for i in np.flatnonzero(sweep.converged):
         omega = 2 * np.pi * float(sweep.freqs_hz[i])
@@ -38,7 +39,7 @@ def sweep_stability(model, rc, law, static, sweep, *, nit: int | None = None) ->
         # nodes (the lumped verification cases) is small and takes the full δq instead
         for modes in (RITZ_FACTOR, None):
             try:
-                st = hill_stability(model, hb, x, omega, rc=rc, modes=modes, nh_check=None, nit=nit)
+                st = hill_stability(model, hb, x, omega, rc=rc, modes=modes, nh_check=None, nit=nit, cache=cache)
                 break
             except (BladewearError, np.linalg.LinAlgError, ValueError):
                 continue
