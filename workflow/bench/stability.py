@@ -15,7 +15,8 @@
 3. A 128-pair sector (``--big``, a reduced.npz) the same, if given.
 4. An FRF with stability (``--frf``, a reduced.npz, e.g. the 128-pair sector): ``engine.frf`` of
    ``--frf-points`` points through the first tied resonance (HBM-3, nit = 64, no checks), then
-   :func:`workflow.engine.studies.sweepstability.sweep_stability` on its points, both timed in
+   :func:`workflow.engine.studies.sweepstability.sweep_stability` on its points with the sweep's
+   condensations (as ``engine.frf(..., stability=True)`` hands them over), both timed in
    the same run: the sweep's seconds, the stability's, their ratio (issue #49: ≤ 25 %) and per
    point |μ|max; with ``--frf-compare`` also |μ|max at 2048 samples, switches cut into 64,
    2 substeps, one Richardson halving (the settings before 2026-11-29) and at nit = 8192.
@@ -122,7 +123,7 @@ def frf_rows(path: Path, points: int, compare: bool = False) -> list:
     from reduction.reduced import ReducedModel
     from workflow import engine
     from workflow.engine.hb import HBProblem
-    from workflow.engine.linear import condensed
+    from workflow.engine.linear import CondensedGrid, condensed
     from workflow.engine.stability import hill_stability
     from workflow.engine.studies.sweepstability import RITZ_FACTOR, sweep_stability
 
@@ -133,7 +134,11 @@ def frf_rows(path: Path, points: int, compare: bool = False) -> list:
     study = engine.frf(model, law, [engine.Variant("hbm", 3, 64)], points=points, options=opt)
     r = study.runs[0]
     rc = relative_coordinates(model)
-    st = sweep_stability(model, rc, study.law, study.static, r)
+    # the sweep's condensations, as engine.frf(stability=True) hands them to the stability
+    grid = CondensedGrid(rc, 2 * np.pi * r.freqs_hz, r.variant.nh)
+    for _ in grid:
+        pass
+    st = sweep_stability(model, rc, study.law, study.static, r, grid=grid)
     row = dict(case="frf", pairs=int(model.n_pairs), m=int(model.size), points=points,
                converged=int(r.converged.sum()), sweep_s=float(r.total_seconds), stability_s=st["seconds"],
                ratio=st["seconds"] / float(r.total_seconds), f_hz=r.freqs_hz.tolist(),

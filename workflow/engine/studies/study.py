@@ -366,9 +366,10 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
         _warm_up(cond[0], law, static)
         runs = _variants(rc, cond, freqs, law, static, variants, opt, comm, log)
         ref = _reference(rc, cond, freqs, law, static, runs, opt, comm, log) if opt.reference else None
-        # nothing after the sweeps reads the grid's condensations (302 MB a frequency at 512
-        # pairs): the checks and the peak search condense their own points
+        # only the stability reads the grid's condensations after the sweeps (302 MB a frequency
+        # at 512 pairs): the checks and the peak search condense their own points
         t_cond = cond.seconds + (first.seconds if first is not cond else 0.0)
+        grid = cond if opt.stability else None
         del cond, first
         if comm is not None and comm.Get_rank() != 0:
             return None
@@ -383,17 +384,18 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
         _check(study, rc, opt, log)
         _headline(study, model, rc, opt, refine=freqs_hz is None and len(freqs) > 1, log=log)
         if opt.stability:
-            _stability(study, model, rc, log)
+            _stability(study, model, rc, log, grid)
     study.seconds = time.perf_counter() - t0
     return study
 
 
-def _stability(study: FRFStudy, model, rc, log) -> None:
-    """Stable / unstable and the largest Floquet multiplier of every converged point, in place."""
+def _stability(study: FRFStudy, model, rc, log, grid=None) -> None:
+    """Stable / unstable and the largest Floquet multiplier of every converged point, in place;
+    ``grid``: the sweeps' condensations (read where kept)."""
     from workflow.engine.studies.sweepstability import sweep_stability
 
     for r in study.runs + ([study.reference] if study.reference is not None else []):
-        st = sweep_stability(model, rc, study.law, study.static, r)
+        st = sweep_stability(model, rc, study.law, study.static, r, grid=grid)
         r.stable, r.floquet_max = st["stable"], st["floquet_max"]
         if log is not None:
             bad = [f for f, s in zip(r.freqs_hz, st["stable"]) if s is False]

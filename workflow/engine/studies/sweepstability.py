@@ -14,10 +14,14 @@ import numpy as np
 RITZ_FACTOR = 6.0
 
 
-def sweep_stability(model, rc, law, static, sweep, *, nit: int | None = None) -> dict:
+def sweep_stability(model, rc, law, static, sweep, *, nit: int | None = None, grid=None) -> dict:
     """Per point of ``sweep`` (:class:`~workflow.engine.studies.frf.SweepResult`): ``stable``
     (True / False; None where the point did not converge or the check could not run),
-    ``floquet_max`` (largest |multiplier|, NaN where not computed), ``seconds``."""
+    ``floquet_max`` (largest |multiplier|, NaN where not computed), ``seconds``.
+
+    ``grid``: the sweep's own condensations (a kept :class:`~workflow.engine.linear.CondensedGrid`
+    at Nh ≥ the variant's), read where a point lies on it instead of condensing it again
+    (0.17 s of a 128-pair point's 0.45 s, 2026-11-29)."""
     from workflow.engine.errors import BladewearError
     from workflow.engine.hb import HBProblem
     from workflow.engine.linear import condensed
@@ -31,7 +35,7 @@ def sweep_stability(model, rc, law, static, sweep, *, nit: int | None = None) ->
     t0 = time.perf_counter()
     for i in np.flatnonzero(sweep.converged):
         omega = 2 * np.pi * float(sweep.freqs_hz[i])
-        c = condensed(rc, omega, v.nh)
+        c = _on_grid(grid, omega, v.nh) or condensed(rc, omega, v.nh)
         hb = HBProblem(c.Zr, c.Fr, law, v.nh, v.nit, v.method, static=static)
         x = hb.unknowns_from_harmonics(sweep.Ur[i])
         st = None
@@ -48,6 +52,19 @@ def sweep_stability(model, rc, law, static, sweep, *, nit: int | None = None) ->
         fmax[i] = st.floquet_max
         stable[i] = bool(st.stable)
     return {"stable": stable, "floquet_max": fmax, "seconds": time.perf_counter() - t0}
+
+
+def _on_grid(grid, omega: float, nh: int):
+    """The condensation of ``grid`` (kept whole) at ω [rad/s], harmonics 0…nh, or None."""
+    from reduction.condense import Condensed
+
+    if grid is None or not grid.keep_all or grid.nh < nh:
+        return None
+    hit = np.flatnonzero(grid.omegas == omega)
+    if not hit.size:
+        return None
+    c = grid[int(hit[0])]
+    return Condensed(omega=c.omega, Zr=c.Zr[:nh + 1], Fr=c.Fr[:nh + 1])
 
 
 def turning_points(freqs_hz, converged=None) -> list[int]:
