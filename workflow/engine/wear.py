@@ -536,11 +536,8 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     t0 = time.perf_counter()
     Nref = float(cycles_per_block)
     W = np.zeros(wp.p) if wp.W is None else wp.W
-    solves = 0
-    nje = 0
     res, st = wp.solve_hb(x0, W, tol=tol, dense=True if scheme == "implicit" else None)   # see _reference_block
-    solves += 1
-    nje += res.jacobian_evaluations + 1
+    solves, nje = 1, res.jacobian_evaluations + 1
     if not res.converged:
         raise SolverError(f"wear reference: HB solve at W = 0 failed: {res.reason}")
     pen = penetration_scale(wp, st)
@@ -566,21 +563,9 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
         if end:
             reason = end
             break
-        # A block that crosses a contact-state change can leave the HB solver at
-        # a kink: halve the block (a smaller wear step) before giving up.
-        for halving in range(MAX_BLOCK_HALVINGS + 1):
-            res, stn, Wn, used, w_solved = _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations)
-            if _hb_ok(wp, res, tol) and not w_solved and halving == MAX_BLOCK_HALVINGS:
-                # still no root in the shortest block: a jump of the rate (an event) lies within
-                # N·rate; cross it with the explicit step, as the march in physical time would
-                solves, nje = solves + used[0], nje + used[1]
-                res, stn, Wn, used, w_solved = _reference_block(wp, x, W, st, N, "explicit", tol, 0)
-            solves += used[0]
-            nje += used[1]
-            if _hb_ok(wp, res, tol) and w_solved:
-                break
-            N *= 0.5
-        else:
+        res, stn, Wn, N, used = _halved_block(wp, x, W, st, N, scheme, tol, newton_w_iterations)
+        solves, nje = solves + used[0], nje + used[1]
+        if Wn is None:
             reason, hist.vibration_lost = f"HB solve failed at block {k}, {MAX_BLOCK_HALVINGS} halvings: {res.reason}", True
             break
         W, x, st = np.maximum(Wn, W), res.x, stn
@@ -593,6 +578,26 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     _close(hist, steady, reason)
     hist.seconds = time.perf_counter() - t0
     return hist
+
+
+def _halved_block(wp: WearProblem, x, W, st: WearState, N: float, scheme: str, tol: float, newton_w_iterations: int):
+    """One block of :func:`march_reference` of N cycles, halved up to :data:`MAX_BLOCK_HALVINGS`
+    times: a block that crosses a contact-state change can leave the HB solver at a kink, and a
+    smaller wear step gets past it. (HB result, state, W⁺ or None if every halving failed, the
+    block's cycles, (HB solves, Jacobian evaluations))."""
+    solves = nje = 0
+    for halving in range(MAX_BLOCK_HALVINGS + 1):
+        res, stn, Wn, used, w_solved = _reference_block(wp, x, W, st, N, scheme, tol, newton_w_iterations)
+        if _hb_ok(wp, res, tol) and not w_solved and halving == MAX_BLOCK_HALVINGS:
+            # still no root in the shortest block: a jump of the rate (an event) lies within
+            # N·rate; cross it with the explicit step, as the march in physical time would
+            solves, nje = solves + used[0], nje + used[1]
+            res, stn, Wn, used, w_solved = _reference_block(wp, x, W, st, N, "explicit", tol, 0)
+        solves, nje = solves + used[0], nje + used[1]
+        if _hb_ok(wp, res, tol) and w_solved:
+            return res, stn, Wn, N, (solves, nje)
+        N *= 0.5
+    return res, stn, None, N, (solves, nje)
 
 
 def _stage_end(h: float, t: float, dW, rate, max_cycles: float, max_increment: float) -> tuple[float, str]:

@@ -363,21 +363,8 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
         histories[lead], schedule, dwell, last = _dwell(model, law, wp, rc, omega, base.x, lead, opt, track, log)
         point.update(dwell)
         point["frequency_hz"] = schedule[-1][0] / 2 / np.pi
-    for m in opt.methods:
-        if m not in histories:
-            histories[m] = march(wp, base.x, m, opt, track, opt.block_tol) if schedule is None else \
-                _replay(wp, base.x, m, opt, track, opt.block_tol, rc, schedule)
-        h = histories[m]
-        if log is not None:
-            log.info(f"{m}: {'steady' if h.steady else 'NOT steady'} after {h.iterations} iterations, "
-                     f"{h.seconds:.2f} s, max W = {np.max(h.W):.3e} m ({h.reason})")
-    histories = {m: histories[m] for m in opt.methods}
     w_end = omega if schedule is None else schedule[-1][0]
-    for m, h in histories.items():
-        if h.vibration_lost:
-            h.finer_nh = finer_nh_resolve(rc, w_end, wp, h, opt, eps_path)
-            if log is not None:
-                log.info(f"{m}: the vibration lost at max W = {np.max(h.W):.3e} m; {_lost_hint(h)}")
+    histories = _every_method(wp, base.x, opt, track, rc, schedule, histories, w_end, eps_path, log)
     study = WearStudy(omega=w_end, hb=wp.hb, rc=rc, base=base, unworn=unworn, histories=histories, tracked_pair=i0,
                       operating_point=point)
     if schedule is not None:
@@ -396,23 +383,52 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
             _replay(wp, base.x, ref, opt, track, 4 * opt.block_tol, rc, schedule)
         study.reference_check = reference_check(histories, ref, coarse, opt.block_tol)
     wp.set_wear(np.zeros(wp.p))     # the unworn point: the marches left the worn W in wp
+    _penalty_and_truncation_checks(study, wp, base.x, opt, track, rc, omega, schedule, eps_path, log)
+    return study
+
+
+def _every_method(wp, x0, opt: WearOptions, track: int, rc, schedule, histories: dict, w_end: float,
+                  eps_path, log) -> dict:
+    """Each of ``opt.methods``'s march from ``x0`` (``histories`` holds the ones already run: a
+    dwell's lead), along a dwell's ``schedule`` if any; a march that lost the vibration is
+    re-solved at a finer Nh at ``w_end`` [rad/s] (:func:`finer_nh_resolve`). {method: history}."""
+    for m in opt.methods:
+        if m not in histories:
+            histories[m] = march(wp, x0, m, opt, track, opt.block_tol) if schedule is None else \
+                _replay(wp, x0, m, opt, track, opt.block_tol, rc, schedule)
+        h = histories[m]
+        if log is not None:
+            log.info(f"{m}: {'steady' if h.steady else 'NOT steady'} after {h.iterations} iterations, "
+                     f"{h.seconds:.2f} s, max W = {np.max(h.W):.3e} m ({h.reason})")
+    histories = {m: histories[m] for m in opt.methods}
+    for m, h in histories.items():
+        if h.vibration_lost:
+            h.finer_nh = finer_nh_resolve(rc, w_end, wp, h, opt, eps_path)
+            if log is not None:
+                log.info(f"{m}: the vibration lost at max W = {np.max(h.W):.3e} m; {_lost_hint(h)}")
+    return histories
+
+
+def _penalty_and_truncation_checks(study: WearStudy, wp, x0, opt: WearOptions, track: int, rc, omega: float,
+                                   schedule, eps_path, log) -> None:
+    """The wear ε- and Nh-checks of ``study`` (in place), marching again from the unworn ``x0``
+    at ω [rad/s] only where the study's own march ended steady."""
     from workflow.engine.studies.epscheck import judged, log_line
 
-    worn = _steady_history(histories)      # the checks march again only where this one ended steady
+    worn = _steady_history(study.histories)
     if opt.eps_check_factor > 0:
-        study.eps_check = judged({**eps_check(wp, base.x, opt, worn=worn, track=track, rc=rc, schedule=schedule),
+        study.eps_check = judged({**eps_check(wp, x0, opt, worn=worn, track=track, rc=rc, schedule=schedule),
                                   "frequency_hz": omega / 2 / np.pi})
         if log is not None:
             log.info(log_line(f"wear ε-check (ε × {opt.eps_check_factor:g}, the penalty's sensitivity)",
                               f"the {study.eps_check['measure']}", study.eps_check))
     if opt.nh_check:
-        study.nh_check = judged({**nh_check(rc, omega, wp, base.x, opt, eps_path, worn=worn, track=track,
+        study.nh_check = judged({**nh_check(rc, omega, wp, x0, opt, eps_path, worn=worn, track=track,
                                             schedule=schedule),
                                  "frequency_hz": omega / 2 / np.pi})
         if log is not None:
             log.info(log_line("wear Nh-check (1.5×Nh, convergence)", f"the {study.nh_check['measure']}",
                               study.nh_check))
-    return study
 
 
 #: How a resonance dwell that spent ``WearOptions.dwell_stages`` says so (:func:`_dwell`).
@@ -513,11 +529,15 @@ def _dwell(model, law, wp, rc, omega: float, x, method: str, opt: WearOptions, t
         hist.steady, hist.persistent_slip = False, False
         moves = "" if last is None else f": the peak still moves by {last:+.2e} of the frequency"
         hist.reason = f"{DWELL_UNFINISHED} {stopped}{moves}; {hist.reason}"
-    record = {"dwell": {"converged": done, "stages": len(stages), "relocations": sum("peak_hz" in r for r in rows),
-                        "tol": opt.dwell_tol, "step": opt.dwell_step, "final_move_rel": rows[-1].get("move_rel"),
-                        "frequencies_hz": [r["frequency_hz"] for r in rows], "history": rows,
-                        "peak_search_seconds": t_peak, "seconds": time.perf_counter() - t0}}
-    return hist, schedule, record, q
+    return hist, schedule, _dwell_record(opt, done, stages, rows, t_peak, time.perf_counter() - t0), q
+
+
+def _dwell_record(opt: WearOptions, done: bool, stages: list, rows: list, peak_seconds: float, seconds: float) -> dict:
+    """The operating point's record of a resonance dwell (summary.json ``wear.operating_point.dwell``)."""
+    return {"dwell": {"converged": done, "stages": len(stages), "relocations": sum("peak_hz" in r for r in rows),
+                      "tol": opt.dwell_tol, "step": opt.dwell_step, "final_move_rel": rows[-1].get("move_rel"),
+                      "frequencies_hz": [r["frequency_hz"] for r in rows], "history": rows,
+                      "peak_search_seconds": peak_seconds, "seconds": seconds}}
 
 
 def _replay(wp, x, method: str, opt: WearOptions, track: int, block_tol: float, rc, schedule):
