@@ -360,7 +360,11 @@ def hill_exponents(M, C, K, Kt_samples, Ct_samples, omega: float, nh: int, *, B=
 def _moved(lam, lam_x_T, prev) -> np.ndarray:
     """(nit, p) bool: the DLFT moved the pair's stick reference at the sample (from ``prev``,
     the reference before it, N), by more than :data:`ANCHOR_TOL` of max|λ|."""
-    return np.linalg.norm(lam_x_T - prev, axis=2) > ANCHOR_TOL * max(float(np.abs(lam).max()), 1e-300)
+    d = lam_x_T - prev
+    # ‖d‖ as np.linalg.norm takes it, and max|λ| without |λ|'s copy: the same bits at a third of the
+    # time (the refined grids' signatures, 2026-11-29 round 2)
+    top = max(float(lam.max()), -float(lam.min()))
+    return np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]) > ANCHOR_TOL * max(top, 1e-300)
 
 
 def _tangent_state(state, lam_x_T, prev) -> np.ndarray:
@@ -374,7 +378,7 @@ def _tangent_state(state, lam_x_T, prev) -> np.ndarray:
     7.9e-5 without them). Told by the anchor kept exactly, not by a threshold on its move: near
     a reversal a slipping pair's move per sample falls below any, the finer the samples the
     earlier."""
-    kept = np.all(lam_x_T == prev, axis=2)
+    kept = (lam_x_T[..., 0] == prev[..., 0]) & (lam_x_T[..., 1] == prev[..., 1])
     return np.where((state == SLIP) & kept, STICK, state).astype(state.dtype)
 
 
@@ -497,22 +501,24 @@ def monodromy(M, C, K, B, tan: dict, omega: float, *, substeps: int = SUBSTEPS, 
     m = M.shape[0]
     n = 2 * m + 2 * len(tan.get("idx", ()))
     h = _durations(tan, omega, h)
-    cols = np.arange(n)
-
-    def run(sub):
-        return _propagate(M, C, K, B, tan, h, sub, np.arange(len(h)), cols)
-    return _extrapolated(run, substeps, levels if richardson else 0)
+    subs = _substeps(substeps, levels if richardson else 0)
+    return _extrapolated(_propagate(M, C, K, B, tan, h, subs, np.arange(len(h)), np.arange(n)))
 
 
-def _extrapolated(run, substeps: int, levels: int) -> np.ndarray:
-    """Richardson's extrapolation of ``run(s)`` (backward Euler, s steps a piece) over s = substeps,
-    2·substeps, … 2^levels·substeps: Neville's table T_{j,k} = T_{j,k−1} + (T_{j,k−1} − T_{j−1,k−1})/(2^k − 1)
+def _substeps(substeps: int, levels: int) -> list:
+    """Backward-Euler steps a piece of Richardson's table (:func:`_extrapolated`): substeps·2^j, j ≤ levels."""
+    return [int(substeps) * 2 ** j for j in range(int(levels) + 1)]
+
+
+def _extrapolated(Zs: list) -> np.ndarray:
+    """Richardson's extrapolation of the monodromies ``Zs`` by backward Euler at s, 2s, … 2^levels·s
+    steps a piece (:func:`_substeps`): Neville's table T_{j,k} = T_{j,k−1} + (T_{j,k−1} − T_{j−1,k−1})/(2^k − 1)
     removes the h^k term of the error at column k (backward Euler's error has every power of h,
     its step on a piece of constant coefficients being a rational function of h). Each of the
     terms is L-stable (→ 0 for a stiff mode), and so is their combination."""
-    T = [run(substeps)]
-    for j in range(1, levels + 1):
-        row = [run(substeps * 2 ** j)]
+    T = [Zs[0]]
+    for j in range(1, len(Zs)):
+        row = [Zs[j]]
         for k in range(1, j + 1):
             row.append(row[k - 1] + (row[k - 1] - T[k - 1]) / (2 ** k - 1))
         T = row
@@ -545,7 +551,7 @@ def _live_multipliers(M, C, K, B, tan: dict, omega: float, *, substeps: int = SU
     order = (k0 + np.arange(len(h))) % len(h)
     a = np.flatnonzero(contact[k0])
     cols = np.concatenate([np.arange(2 * m), 2 * m + np.stack([2 * a, 2 * a + 1], axis=1).ravel()]).astype(int)
-    Z = _extrapolated(lambda sub: _propagate(M, C, K, B, tan, h[order], sub, order, cols), substeps, levels)
+    Z = _extrapolated(_propagate(M, C, K, B, tan, h[order], _substeps(substeps, levels), order, cols))
     return np.linalg.eigvals(Z[cols])
 
 
@@ -553,11 +559,13 @@ def _live_multipliers(M, C, K, B, tan: dict, omega: float, *, substeps: int = SU
 _CHUNK = 256
 
 
-def _propagate(M, C, K, B, tan: dict, h: np.ndarray, sub: int, order: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """Z (n, len(cols)): the columns ``cols`` of the identity carried over the pieces ``order`` of
-    ``tan`` (durations ``h``, s, in that order) by ``sub`` backward-Euler steps a piece
-    (:func:`_step_operators`). A separated pair's anchor rows are slaved (δw = δu_T): they are
-    not carried but set from δq when the pair touches again and at the end."""
+def _propagate(M, C, K, B, tan: dict, h: np.ndarray, subs, order: np.ndarray, cols: np.ndarray) -> list:
+    """[Z (n, len(cols)) for s in ``subs``]: the columns ``cols`` of the identity carried over the
+    pieces ``order`` of ``tan`` (durations ``h``, s, in that order) by s backward-Euler steps a
+    piece (:func:`_step_operators`). Every s in one sweep over the pieces: the law's blocks, which
+    do not depend on the step, are prepared once a chunk for all of them (:func:`_law_blocks`). A
+    separated pair's anchor rows are slaved (δw = δu_T): they are not carried but set from δq when
+    the pair touches again (``touch``, :func:`_index_rows`) and at the end."""
     m = M.shape[0]
     Bd = np.asarray(B.toarray() if sp.issparse(B) else B, dtype=float)
     Bp = Bd.reshape(-1, 3, m)                                   # (p, 3, m): each pair's rows of B
@@ -565,18 +573,34 @@ def _propagate(M, C, K, B, tan: dict, h: np.ndarray, sub: int, order: np.ndarray
     contact = tan.get("contact", np.ones((len(order), 0), bool))[order]
     BT = Bp[idx, 1:, :]                                         # (pa, 2, m): δu_T of the anchors' pairs
     n = 2 * m + 2 * len(idx)
-    Z = np.eye(n)[:, cols]
+    touch = np.zeros_like(contact)
+    touch[1:] = contact[1:] & ~contact[:-1]                     # the pairs that touch again at the piece
+    ptr, rows, ta = _index_rows(touch, m)
+    slaved = BT[ta].reshape(-1, m)                              # their rows δw = B_T δq
+    Zs = [np.eye(n)[:, cols] for _ in subs]
     v1 = np.empty((m, len(cols)))
     for lo in range(0, len(order), _CHUNK):     # the step operators of a chunk of pieces at a time (memory)
-        ops = _step_operators(M, C, K, Bp, tan, order[lo:lo + _CHUNK], h[lo:lo + _CHUNK] / sub)
-        for j in range(len(ops["hs"])):
-            k = lo + j
-            if k:   # the anchors of the pairs that touch again start from their slaved value
-                _slave(Z, contact[k] & ~contact[k - 1], BT, m)
-            for _ in range(sub):
-                _step(Z, v1, ops, j, m)
-    _slave(Z, ~contact[-1], BT, m)
-    return Z
+        law = _law_blocks(K, Bp, tan, order[lo:lo + _CHUNK])
+        for Z, sub in zip(Zs, subs):
+            ops = _step_operators(M, C, law, h[lo:lo + _CHUNK] / sub)
+            for j in range(len(ops["hs"])):
+                k = lo + j
+                if ptr[k + 1] > ptr[k]:     # the anchors of the pairs that touch again start from their slaved value
+                    r = slice(2 * ptr[k], 2 * ptr[k + 1])
+                    Z[rows[r]] = slaved[r] @ Z[:m]
+                for _ in range(sub):
+                    _step(Z, v1, ops, j, m)
+    for Z in Zs:
+        _slave(Z, ~contact[-1], BT, m)
+    return Zs
+
+
+def _index_rows(mask: np.ndarray, m: int):
+    """(ptr (n+1,), rows (2e,), a (e,)) of the entries (k, a) of ``mask`` (n, pa) bool in order of k:
+    piece k's are e ∈ [ptr[k], ptr[k+1]), their anchors a and rows 2m + 2a, 2m + 2a + 1 of the state."""
+    k, a = np.nonzero(mask)
+    ptr = np.searchsorted(k, np.arange(mask.shape[0] + 1))
+    return ptr, 2 * m + np.stack([2 * a, 2 * a + 1], axis=1).ravel(), a
 
 
 def _slave(Z, which: np.ndarray, BT: np.ndarray, m: int) -> None:
@@ -587,50 +611,81 @@ def _slave(Z, which: np.ndarray, BT: np.ndarray, m: int) -> None:
         Z[rows] = BT[a].reshape(2 * len(a), m) @ Z[:m]
 
 
-def _step_operators(M, C, K, Bp, tan: dict, sel: np.ndarray, hs: np.ndarray) -> dict:
-    """One backward-Euler step on the pieces ``sel`` (steps ``hs`` s), solved for the new state
-    z₁ = [q₁, v₁, w₁] from z₀ through the anchors' 2×2 blocks: E z₁ − hs A z₁ = E z₀ reads
-    q₁ = q₀ + hs v₁, and per active pair a (its δu = B_a q) ``G_a w₁ = E_w w₀ + hs A_u B_a q₁``
+def _law_blocks(K, Bp, tan: dict, sel: np.ndarray) -> dict:
+    """The parts of :func:`_step_operators` on the pieces ``sel`` that do not depend on the step:
+    ``KB`` (n, m, m) N/m = K + BᵀK_u B, and of the anchors ``L`` (n, m, pa, 2) N/m = BᵀK_w per pair,
+    and the entries (piece, pair) whose 2×2 block must be solved (``ke``, ``ae``): not stuck (a stuck
+    pair's E_w = I, A_w = A_u = 0 give D = I, P = 0 exactly) and in contact or pushing (a separated
+    pair's rows are slaved, and with K_w = 0 it adds nothing: 80 % of them at 128 pairs), with their
+    ``Ew``, ``Aw`` (1/s), ``AuB`` = A_u B_a (e, 2, m), ``Le`` (e, m, 2), ``slip`` (in contact: their
+    rows are carried). Only the nonzero law is multiplied out: per pair the components of K_u that
+    are nonzero somewhere (memory: the diagonal), K_w where ≠ 0 (in contact)."""
+    m = K.shape[0]
+    Kp = tan["Kp"][sel]
+    n, p = Kp.shape[:2]
+    comp = np.flatnonzero(np.any(Kp != 0, axis=(0, 1)))          # of the 3×3 components
+    ci, cj = np.divmod(comp, 3)
+    W = (Bp[:, ci, :, None] * Bp[:, cj, None, :]).reshape(p * len(comp), m * m)     # B_iᵀ B_j per pair
+    KB = K + (Kp.reshape(n, p, 9)[:, :, comp].reshape(n, -1) @ W).reshape(n, m, m)
+    idx = tan.get("idx", np.zeros(0, int))
+    out = {"KB": KB, "pa": len(idx)}
+    if not len(idx):
+        return out
+    Ba = Bp[idx]                                                             # (pa, 3, m)
+    Kw, Ew, Aw, Au = (tan[k][sel] for k in ("Kw", "Ew", "Aw", "Au"))
+    push = np.any(Kw != 0, axis=(2, 3))
+    kf, af = np.nonzero(push)
+    L = np.zeros((n, m, len(idx), 2))
+    L[kf, :, af] = np.matmul(Ba[af].transpose(0, 2, 1), Kw[kf, af])         # the anchors' force BᵀK_w
+    stuck = np.all(Ew == np.eye(2), axis=(2, 3)) & ~np.any(Aw, axis=(2, 3)) & ~np.any(Au, axis=(2, 3))
+    contact = tan["contact"][sel]
+    ke, ae = np.nonzero(~stuck & (contact | push))
+    out.update(L=L, ke=ke, ae=ae, Ew=Ew[ke, ae], Aw=Aw[ke, ae], AuB=np.matmul(Au[ke, ae], Ba[ae]),
+               Le=L[ke, :, ae], slip=contact[ke, ae])
+    return out
+
+
+def _step_operators(M, C, law: dict, hs: np.ndarray) -> dict:
+    """One backward-Euler step on the pieces of ``law`` (:func:`_law_blocks`; steps ``hs`` s), solved
+    for the new state z₁ = [q₁, v₁, w₁] from z₀ through the anchors' 2×2 blocks: E z₁ − hs A z₁ = E z₀
+    reads q₁ = q₀ + hs v₁, and per active pair a (its δu = B_a q) ``G_a w₁ = E_w w₀ + hs A_u B_a q₁``
     with G_a = E_w − hs A_w (2×2: I in stick, hs I when separated, (1 + hs κ) nnᵀ + hs ttᵀ in slip —
     never singular), so w₁ = D w₀ + P q₁ with D = G⁻¹E_w, P = hs G⁻¹A_u B_a; the velocity rows are
     then the m×m system ``S v₁ = M v₀ − hs K_eff q₀ − hs L D w₀``, S = M + hs C + hs² K_eff,
-    K_eff = K + BᵀK_u B + L P, L = BᵀK_w. Per piece: ``Av`` (m, n) with v₁ = Av z₀; ``rows``,
-    ``D`` (k, 2, 2), ``P`` (2k, m) of the k pairs in slip (a stuck pair's D = I, P = 0; a
-    separated one's rows are slaved, :func:`_propagate`); ``hs``."""
+    K_eff = K + BᵀK_u B + L P, L = BᵀK_w. Only the pairs not stuck are solved (a stuck pair's
+    D = I, P = 0). Per piece: ``Av`` (m, n) with v₁ = Av z₀; of the pairs in slip (a separated one's
+    rows are slaved, :func:`_propagate`) ``ptr`` (n+1,), ``rows`` (2e,), ``D`` (e, 2, 2), ``P`` (2e, m),
+    piece k's entries e ∈ [ptr[k], ptr[k+1]) (:func:`_index_rows`); ``hs``."""
     m = M.shape[0]
-    Kp = tan["Kp"][sel]
-    npc = Kp.shape[0]
-    Bf = Bp.reshape(-1, m)
-    Keff = K + np.matmul(Bf.T, np.matmul(Kp, Bp[None]).reshape(npc, -1, m))      # K + BᵀK_u B (npc, m, m)
-    idx = tan.get("idx", np.zeros(0, int))
-    pa = len(idx)
+    npc = len(hs)
     hs3 = hs[:, None, None]
-    D, P = np.zeros((npc, pa, 2, 2)), np.zeros((npc, pa, 2, m))
-    Lw = np.zeros((npc, pa, m, 2))
+    Keff, pa = law["KB"], law["pa"]
+    L = np.zeros((npc, m, 0))
+    ops = {"hs": hs, "ptr": np.zeros(npc + 1, int)}
     if pa:
-        Ba = Bp[idx]                                                             # (pa, 3, m)
-        Ew = tan["Ew"][sel]
-        Lw = np.matmul(Ba.transpose(0, 2, 1)[None], tan["Kw"][sel])              # BᵀK_w: the anchors' force
-        Gi = np.linalg.inv(Ew - hs[:, None, None, None] * tan["Aw"][sel])
-        D = np.matmul(Gi, Ew)
-        P = hs[:, None, None, None] * np.matmul(Gi, np.matmul(tan["Au"][sel], Ba[None]))
-        Keff = Keff + np.matmul(Lw.transpose(0, 2, 1, 3).reshape(npc, m, 2 * pa), P.reshape(npc, 2 * pa, m))
-    L = Lw.transpose(0, 2, 1, 3).reshape(npc, m, 2 * pa)
+        ke, ae = law["ke"], law["ae"]
+        he = hs[ke, None, None]
+        Gi = np.linalg.inv(law["Ew"] - he * law["Aw"])
+        D, P = np.matmul(Gi, law["Ew"]), he * np.matmul(Gi, law["AuB"])
+        Keff = Keff.copy()
+        np.add.at(Keff, ke, np.matmul(law["Le"], P))                # + L P of the pairs solved
+        LD = law["L"].copy()
+        LD[ke, :, ae] = np.matmul(law["Le"], D)                     # L D (a stuck pair's D = I)
+        L = LD.reshape(npc, m, 2 * pa)
+        s = law["slip"]
+        ptr, rows, _ = _index_rows(_entries_mask(ke[s], ae[s], npc, pa), m)
+        ops.update(ptr=ptr, rows=rows, D=D[s], P=P[s].reshape(-1, m))
     X = np.linalg.solve(M + hs3 * C + hs3 ** 2 * Keff,
-                        np.concatenate([Keff, np.broadcast_to(M, Keff.shape), L], axis=2))   # S⁻¹[K_eff, M, L]
-    Avw = np.matmul(X[:, :, 2 * m:].reshape(npc, m, pa, 2).transpose(0, 2, 1, 3), D)         # S⁻¹ L D, per pair
-    Av = np.concatenate([-hs3 * X[:, :, :m], X[:, :, m:2 * m], -hs3 * Avw.transpose(0, 2, 1, 3).reshape(npc, m, 2 * pa)],
-                        axis=2)
-    slip = np.any(D != np.eye(2), axis=(2, 3)) | np.any(P != 0, axis=(2, 3))
-    if pa:      # separated: D = 0, P = B_T, the rows slaved (_propagate)
-        slip &= tan["contact"][sel]
-    rows, Dm, Pm = [], [], []
-    for k in range(npc):
-        a = np.flatnonzero(slip[k])
-        rows.append(2 * m + np.stack([2 * a, 2 * a + 1], axis=1).ravel())
-        Dm.append(D[k, a])
-        Pm.append(P[k, a].reshape(2 * len(a), m))
-    return {"Av": Av, "D": Dm, "P": Pm, "rows": rows, "hs": hs}
+                        np.concatenate([Keff, np.broadcast_to(M, Keff.shape), L], axis=2))   # S⁻¹[K_eff, M, L D]
+    ops["Av"] = np.concatenate([-hs3 * X[:, :, :m], X[:, :, m:2 * m], -hs3 * X[:, :, 2 * m:]], axis=2)
+    return ops
+
+
+def _entries_mask(k: np.ndarray, a: np.ndarray, n: int, pa: int) -> np.ndarray:
+    """(n, pa) bool, True at the entries (k, a)."""
+    mask = np.zeros((n, pa), bool)
+    mask[k, a] = True
+    return mask
 
 
 def _step(Z, v1, ops: dict, k: int, m: int) -> None:
@@ -640,10 +695,11 @@ def _step(Z, v1, ops: dict, k: int, m: int) -> None:
     np.matmul(ops["Av"][k], Z, out=v1)                 # from the old state
     Z[:m] += ops["hs"][k] * v1                          # q₁
     Z[m:2 * m] = v1
-    rows = ops["rows"][k]
-    if len(rows):
+    lo, hi = ops["ptr"][k], ops["ptr"][k + 1]
+    if hi > lo:
+        rows = ops["rows"][2 * lo:2 * hi]
         w0 = Z[rows]
-        Z[rows] = (ops["D"][k] @ w0.reshape(-1, 2, Z.shape[1])).reshape(len(rows), -1) + ops["P"][k] @ Z[:m]
+        Z[rows] = (ops["D"][lo:hi] @ w0.reshape(-1, 2, Z.shape[1])).reshape(len(rows), -1) + ops["P"][2 * lo:2 * hi] @ Z[:m]
 
 
 # ------------------------------------------------------------------ on a reduced model
@@ -728,12 +784,10 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine) -> _Pieces:
     if not factors or sw.size == 0:
         return _Pieces(ts, res.lam, res.lam_x_T, prev, np.full(nit, T / nit), np.full(nit, T / nit), res.ref_T,
                        0, nit)
-    grid = (tau, np.ones(nit, bool), sig, None)
+    grid = (tau, np.ones(nit, bool), sig, None, None)
     for r in factors:
         grid = _refined(prob, a, res.ref_T, grid, r)
-    tau_f, coarse, sig, fine = grid
-    prev_f = np.concatenate([fine.ref_T[None], fine.lam_x_T[:-1]], axis=0)
-    ts_f = _tangent_state(fine.state, fine.lam_x_T, prev_f)
+    tau_f, coarse, sig, fine, (ts_f, prev_f) = grid
     back = np.diff(np.concatenate([[tau_f[-1] - 2 * np.pi], tau_f]))          # rad, to the previous sample
     cell = 0.5 * (back + np.roll(back, -1))                                     # rad, the sample's cell
     start = np.flatnonzero(coarse | np.any(sig != np.roll(sig, 1, axis=0), axis=1))
@@ -744,13 +798,14 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine) -> _Pieces:
 
 def _refined(prob, a, ref_T, grid, r: int):
     """One level of :func:`_switch_pieces`' refinement: ``grid`` (τ (n,) rad sorted in [0, 2π),
-    ``coarse`` (n,) the uniform samples, the switch signature (n, p), DLFT or None) → the same with
-    every interval (τ_{k−1}, τ_k] that holds a switch, and its two neighbours, cut into ``r``, and
-    the DLFT (λ_u's harmonics ``a``, from the reference ``ref_T``) run again on the new grid."""
+    ``coarse`` (n,) the uniform samples, the switch signature (n, p), DLFT or None, its
+    (:func:`_tangent_state`, references before each sample) or None) → the same with every interval
+    (τ_{k−1}, τ_k] that holds a switch, and its two neighbours, cut into ``r``, and the DLFT (λ_u's
+    harmonics ``a``, from the reference ``ref_T``) run again on the new grid."""
     from workflow.engine import fourier
     from workflow.engine.contact import dlft_pass
 
-    tau, coarse, sig, _ = grid
+    tau, coarse, sig = grid[:3]
     n = len(tau)
     sw = np.flatnonzero(np.any(sig != np.roll(sig, 1, axis=0), axis=1))
     # the intervals before and after too: the DLFT sees a slip → stick reversal by the sign of the
@@ -767,18 +822,19 @@ def _refined(prob, a, ref_T, grid, r: int):
     lam_u = (fourier.trig_matrix(prob.nh, tau_f) @ a).reshape(len(tau_f), prob.p, 3)
     fine = dlft_pass(lam_u, prob.law.mu, ref_T, periodic=True, max_passes=prob.max_passes, tol=prob.pass_tol)
     prev_f = np.concatenate([fine.ref_T[None], fine.lam_x_T[:-1]], axis=0)
-    sig = _signature(_tangent_state(fine.state, fine.lam_x_T, prev_f), fine.lam, fine.lam_x_T, prev_f)
-    return tau_f, coarse, sig, fine
+    ts = _tangent_state(fine.state, fine.lam_x_T, prev_f)
+    return tau_f, coarse, _signature(ts, fine.lam, fine.lam_x_T, prev_f), fine, (ts, prev_f)
 
 
 def _ritz(rcM, rcK, nr: int, eps: np.ndarray, omega: float, modes, cache: dict | None = None):
-    """A Ritz basis (m, r) for δq in relative coordinates: the modes of the structure with
+    """(V, key): a Ritz basis V (m, r) for δq in relative coordinates: the modes of the structure with
     every pair stuck (ε on [n, t1, t2]) and with the pairs sliding (ε on n only) below
     ``modes`` × ω if a float, or the ``modes`` lowest of each if an int; M-orthonormalised.
     ``cache``: a dict that keeps the two eigenproblems' solutions (they do not depend on ω) for
     the next call on the same structure and ε — the points of a sweep (0.55 s a point at 128
-    pairs, 782 DOFs)."""
-    vecs = []
+    pairs, 782 DOFs) — and the basis itself under ``key`` (the modes kept: the same at neighbouring
+    points; None without a cache)."""
+    vecs, kept = [], []
     for j, mask in enumerate((np.ones(3), np.array([1.0, 0.0, 0.0]))):
         key = (j, rcM.shape, eps.tobytes())
         if cache is not None and key in cache:
@@ -791,23 +847,35 @@ def _ritz(rcM, rcK, nr: int, eps: np.ndarray, omega: float, modes, cache: dict |
                 cache[key] = lam, V
         keep = (lam <= (modes * omega) ** 2) if isinstance(modes, float) else (np.arange(len(lam)) < int(modes))
         vecs.append(V[:, keep])
+        kept.append(keep.tobytes())
+    key = None if cache is None else ("basis", rcM.shape, eps.tobytes(), *kept)
+    if key is not None and key in cache:
+        return cache[key], key
     V = np.concatenate(vecs, axis=1)
     # M-orthonormal basis of the union (drop dependent directions)
     G = V.T @ rcM @ V
     g, W = np.linalg.eigh(G)
     keep = g > 1e-10 * g.max()
-    return V @ (W[:, keep] / np.sqrt(g[keep]))
+    V = V @ (W[:, keep] / np.sqrt(g[keep]))
+    if key is not None:
+        cache[key] = V
+    return V, key
 
 
 def _structure(rc, nr: int, en, et, omega: float, modes, cache: dict | None = None):
     """(M, C, K, B, tag) of the linearised structure in relative coordinates (B = [I, 0]: the
     first ``nr`` are the contact DOFs), or on the Ritz basis of ``modes`` (:func:`_ritz`, tag
-    "+ritz(n)")."""
+    "+ritz(n)"; with ``cache`` the projection is kept with its basis: 12 ms a point at 782 DOFs)."""
     M, K, C = (np.asarray(getattr(rc, a), dtype=float) for a in ("M", "K", "C"))
     if modes is None:
         return M, C, K, sp.hstack([sp.identity(nr), sp.csr_matrix((nr, M.shape[0] - nr))]).tocsr(), ""
-    V = _ritz(M, K, nr, np.stack([en, et, et], axis=1).ravel(), omega, modes, cache)
-    return V.T @ M @ V, V.T @ C @ V, V.T @ K @ V, V[:nr], f"+ritz({V.shape[1]})"
+    V, key = _ritz(M, K, nr, np.stack([en, et, et], axis=1).ravel(), omega, modes, cache)
+    if key is not None and ("projected",) + key in cache:
+        return cache[("projected",) + key]
+    out = V.T @ M @ V, V.T @ C @ V, V.T @ K @ V, V[:nr], f"+ritz({V.shape[1]})"
+    if key is not None:
+        cache[("projected",) + key] = out
+    return out
 
 
 def _monodromy_exponents(hb, x, nit: int, omega: float, structure, eps, memory: bool, substeps: int,
