@@ -153,3 +153,34 @@ def test_quick_sector_backbone_starts_at_its_tied_mode(tmp_path):
     assert bb.frequency_hz[0] == pytest.approx(bb.tied_hz, rel=1e-7)
     assert bb.damping_ratio[0] == pytest.approx(bb.tied_damping_ratio, rel=1e-6)
     assert bb.damping_ratio[-1] > 1.2 * bb.damping_ratio[0]
+
+
+def _floating(static_load: float):
+    """The unit mass without its spring (k = 0): held only by the Jenkins element, as a
+    dovetail blade is held only by its contacts; ``static_load`` [N] pushes it along t₁."""
+    from dataclasses import replace
+
+    model, law = _jenkins(K_=0.0)
+    f = model.f_static.copy()
+    f[0] = static_load
+    model = replace(model, f_static=f)
+    return model, contact_law(model, mu=MU)
+
+
+def test_a_floating_mass_walks_from_one_sided_slip_on():
+    """A floating mass under a static tangential load F₀ < F_s on a Jenkins element: its stick
+    force F₀ + k_t x reaches F_s first on one side, at X_w = (F_s − F₀)/k_t; from there each
+    cycle slips one way more than the other and the mass's mean position drifts — no periodic
+    motion (closed form; X_w = 0.075 m here). The backbone ends within one continuation step
+    below X_w, saying why. Without the load (F₀ = 0) the slip is symmetric, the mean friction
+    force balances, and the backbone goes on into gross slip (no pair stuck)."""
+    f0 = 0.5 * FS
+    x_w = (FS - f0) / KT
+    model, law = _floating(f0)
+    bb = nlmodes.backbone(model, law, nh=7, nit=64, amplitudes=(0.2 * x_w, 5 * x_w, 10), max_steps=60)
+    step = np.log(25.0) / 9          # the longest continuation step in log a
+    assert bb.walks and "along t1" in bb.stopped
+    assert x_w * np.exp(-step) < bb.amplitude[-1] <= x_w
+    model, law = _floating(0.0)
+    bb = nlmodes.backbone(model, law, nh=7, nit=64, amplitudes=(0.2 * x_w, 5 * x_w, 10), max_steps=60)
+    assert bb.stopped == "" and not bb.walks and bb.amplitude[-1] >= 5 * x_w * (1 - 1e-9) and bb.stuck_pairs[-1] == 0

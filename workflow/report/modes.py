@@ -38,7 +38,10 @@ def plot_backbone(path: Path, bb) -> Path:
 
     for ax in axs:       # the decade labels only: minor labels of a short log axis overlap
         ax.xaxis.set_minor_formatter(NullFormatter())
-    if bb.stopped:
+    if bb.walks:
+        fig.suptitle(f"the mode ends at a = {a[-1]:.3g} m·√kg: every pair slips during the cycle and the "
+                     "mean friction force cannot balance — beyond, the blade walks", fontsize=8)
+    elif bb.stopped:
         fig.suptitle(f"backbone stopped at a = {a[-1]:.3g}: {bb.stopped}", fontsize=8)
     return write_figure(fig, path)
 

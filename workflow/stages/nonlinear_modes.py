@@ -101,7 +101,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                  f"{j['jenkins_frequency_error']:.1e}, damping {j['jenkins_damping_error']:.1e}")
     figures = [plot_backbone(out / "backbone.png", bb), plot_synthesis(out / "synthesis.png", curves)]
     warnings = []
-    if bb.stopped:
+    if bb.stopped and not bb.walks:     # a mode that ends where the blade walks is a result, not a failure
         warnings.append(f"nonlinear modes: the backbone stopped at a = {bb.amplitude[-1]:.3g} m·√kg "
                         f"({bb.amplitude[-1] / onset:.3g} × the slip onset) before the "
                         f"{nm.amplitude_range[1]:g} × asked: {bb.stopped}" if onset else
@@ -113,7 +113,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     rows = [{k: r[k] for k in ("amplitude", "frequency_hz", "damping_ratio", "energy_per_cycle_J")} for r in bb.rows()]
     return clean({"backbone": rows, "mode": int(nm.mode), "harmonics": nh, "time_samples": nit,
                   "tied_hz": bb.tied_hz, "tied_damping_ratio": bb.tied_damping_ratio, "sliding_hz": bb.sliding_hz,
-                  "slip_onset": onset, "stopped": bb.stopped or None, "backbone_seconds": bb.seconds,
+                  "slip_onset": onset, "stopped": bb.stopped or None,
+                  "walks_beyond_amplitude": float(bb.amplitude[-1]) if bb.walks else None,
+                  "backbone_seconds": bb.seconds,
                   "synthesis": levels, "checks": checks, "warnings": warnings, "unconverged": [],
                   "files": {"backbone": "backbone.csv", "synthesis": "synthesis.csv",
                             "figures": [Path(f).name for f in figures]},

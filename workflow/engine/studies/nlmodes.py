@@ -329,7 +329,9 @@ class Backbone:
     sliding_hz          the linear sliding mode (μ = 0, normal contact kept) closest to it (MAC)
     onset               modal amplitude of the first slip estimated from the tied mode
     seconds             wall time of :func:`backbone`; stopped: why it ended before the last
-                        amplitude asked for ("" if it did not)
+                        amplitude asked for ("" if it did not); walks: it ended because the
+                        mode has no periodic motion beyond (the blade walks,
+                        :func:`_unbalanced_mean_slip`) — the mode's end, not the solver's
     unknowns            (n, (2Nh+1)(3p+1) + 2) the solver's unknowns [X, ω, ξ] per point
     """
 
@@ -360,6 +362,7 @@ class Backbone:
     onset: float
     seconds: float = 0.0
     stopped: str = ""
+    walks: bool = False
     unknowns: np.ndarray | None = None
     info: dict = field(default_factory=dict)
 
@@ -478,6 +481,8 @@ def linear_limits(model, law: ContactLaw | None = None, *, mode: int = 0, static
         B = np.block([[np.eye(n), np.zeros((n, n))], [np.zeros((n, n)), m]])
         lam, vec = scipy.linalg.eig(A, B)
         ok = np.isfinite(lam) & (lam.imag > 0)
+        if not ok.any():        # nothing oscillates: the structure slides as a rigid body (a floating blade)
+            return 0.0, float("nan")
         lam, vec = lam[ok], vec[:n, ok]
         full = np.zeros((K.shape[0], vec.shape[1]), complex)
         full[keep] = vec
@@ -501,45 +506,49 @@ def _states(res) -> tuple[int, int, int]:
 
 
 # ---------------------------------------------------------------- the backbone
-#: amplitude factors tried by :func:`_switch`
-SWITCH_FACTORS = (1.005, 1.002, 1.01, 0.998, 0.995)
-#: the baseline of :func:`_switch`'s secant predictor in log a (5 %)
-SWITCH_BASE = 0.05
+#: How a backbone that ends because the blade walks says so (:attr:`Backbone.walks`).
+WALKS = "no periodic motion beyond"
+#: :func:`_unbalanced_mean_slip`: a Jacobian direction counts as null below this fraction of
+#: the largest singular value (measured on the quick sector where the path ends: 4e-16)
+NULL_RATIO = 1e-10
+#: ... and the residual as lying in it when this fraction of ‖R‖ does (measured there: 0.95)
+NULL_SHARE = 0.5
+#: Newton iterations (and backtracks) a step once the blade walks: every converged point of the
+#: quick sector's backbone took ≤ 7 iterations (2026-11-29)
+WALK_ITERATIONS = 8
+#: the SVD behind the diagnosis is dense: done up to this many unknowns
+NULL_MAX_UNKNOWNS = 4000
 
 
-def _switch(prob: "_EPMC", path: list, tol: float, maxiter: int):
-    """Where the continuation stalls at a kink of the path — measured on the quick sector at
-    a = 7.47e-4: four statically open pairs begin to touch, the branch without them turns in
-    a corner, and a branch with them exists from a ≈ 7.44e-4 on — natural-parameter solves at
-    a = a_last × SWITCH_FACTORS from a secant predictor over a longer baseline (SWITCH_BASE
-    in log a), which steps past the corner; the first root that is not the last point, in
-    the normalised unknowns [X/a, log a] of ``path``, or None."""
-    na, nx = prob.na, prob.nx
-    s_last = path[-1][-1]
-    k = len(path) - 2
-    while k > 0 and s_last - path[k][-1] < SWITCH_BASE:
-        k -= 1
-    if k < 0 or s_last - path[k][-1] <= 0:
-        return None
-    z0, z1 = path[k], path[-1]
-    for fac in SWITCH_FACTORS:
-        s_new = s_last + np.log(fac)
-        y = z1[:-1] + (z1[:-1] - z0[:-1]) * (s_new - s_last) / (s_last - z0[-1])
-        a = float(np.exp(s_new))
-        v = y.copy()
-        v[na:nx] *= a
-        prob.weights(a)
-        prob.a = a
-        r = newton(lambda x: prob.evaluate(x)[:2], v, fun=lambda x: prob.evaluate(x, False)[0],
-                   tol=tol, scale=1.0, maxiter=maxiter)
-        if not r.converged:
-            continue
-        y = r.x.copy()
-        y[na:nx] /= a
-        z = np.concatenate([y, [s_new]])
-        if np.linalg.norm(z[:-1] - z1[:-1]) > 1e-6 * np.linalg.norm(z1[:-1]) and abs(s_new - s_last) > 0:
-            return z
-    return None
+def _unbalanced_mean_slip(prob: "_EPMC", v, a: float) -> str:
+    """Why Newton cannot go on at (v, a) [m·√kg], if it is this (else ""): every pair in
+    contact slips at some instant of the cycle, so the interface no longer holds the mean
+    tangential position — shifting every pair's harmonic-0 tangential displacement alike moves
+    its stick anchors with it and changes no force, a null direction of the Jacobian — and the
+    residual left lies in the matching mean tangential force, which no unknown then changes:
+    the mean friction force cannot balance the static load, and the blade's mean position
+    drifts cycle after cycle (walks). Measured on the quick sector at a = 7.47e-4 (1.56 × the
+    slip onset, all 8 loaded pairs slipping through part of the cycle): σ_min/σ_max = 4e-16,
+    the right singular vector the pairs' mean t₁ displacement, 95 % of ‖R‖ in its left one; at
+    Nh = 11, nit = 128 at the same a."""
+    if prob.n > NULL_MAX_UNKNOWNS:
+        return ""
+    prob.a = a
+    R, J, _ = prob.evaluate(v)
+    U, S, Vt = np.linalg.svd(J)
+    rn = float(np.linalg.norm(R))
+    if not (rn > 0 and S[-1] <= NULL_RATIO * S[0] and abs(U[:, -1] @ R) >= NULL_SHARE * rn):
+        return ""
+    # the null direction is a mean (harmonic-0) motion whose contact part is tangential (the
+    # structure's own coordinate moves with it where the tied mode carries the shift)
+    mean = Vt[-1][:prob.nx].reshape(prob.nc, prob.na)[0]
+    pairs = mean[:prob.nr].reshape(prob.p, 3)
+    if np.sum(mean ** 2) < 0.9 or np.sum(pairs[:, 1:] ** 2) < 0.9 * np.sum(pairs ** 2):
+        return ""
+    c = 1 + int(np.argmax(np.sum(pairs[:, 1:] ** 2, axis=0)))
+    return (f"every pair in contact slips during the cycle and the interface no longer holds its mean position "
+            f"along t{c}; {abs(U[:, -1] @ R) / rn:.0%} of Newton's residual is the mean friction force along it, "
+            "which no unknown changes: it cannot balance, and the blade's mean position would drift (walk)")
 
 
 def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 64, amplitudes=None,
@@ -557,12 +566,12 @@ def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 6
     (log a, log ω, log ξ) (dimensionless; a secant predictor on the harmonics / a): the points
     are where it stepped, at most ``log(a_max/a_min)/(n − 1)`` apart in that plane, closer where
     Newton needed it; it stops past a_max, after ``max_steps`` steps, or where even short steps
-    fail (``stopped`` says why). On the quick sector the path does not turn the corner
-    at a = 7.45e-4 (1.56 × the slip onset), where four pairs that the preload leaves open begin to
-    touch: from every predictor Newton's residual levels off at 5e-4, and the branch beyond, which
-    :func:`_switch` finds, is then followed very slowly (2026-11-28; scene nonlinear-modes stops
-    below it). Raises :class:`SceneError`
-    on bad options."""
+    fail (``stopped`` says why). A blade held only by its contacts has no periodic motion once
+    every pair in contact slips during the cycle and the mean friction force cannot balance the
+    static load: its mean position drifts (it walks); the path ends there, and ``stopped`` says
+    so (:func:`_unbalanced_mean_slip`). On the quick sector that is a = 7.45e-4 m·√kg, 1.56 × the
+    slip onset (2026-11-29; at Nh = 7 and at Nh = 11 alike). Raises :class:`SceneError` on bad
+    options."""
     t_start = time.perf_counter()
     if not isinstance(law, ContactLaw):
         raise TypeError("law must be a ContactLaw")
@@ -587,7 +596,7 @@ def backbone(model, law: ContactLaw, *, mode: int = 0, nh: int = 7, nit: int = 6
                     iterations=np.array(out["it"], int), nh=nh, nit=nit, mode=st.mode,
                     tied_hz=lim["tied_hz"], tied_damping_ratio=lim["tied_damping_ratio"],
                     sliding_hz=lim["sliding_hz"], onset=onset, seconds=time.perf_counter() - t_start,
-                    stopped=stopped, unknowns=np.array(out["v"]).reshape(n, prob.n),
+                    stopped=stopped, walks=stopped.startswith(WALKS), unknowns=np.array(out["v"]).reshape(n, prob.n),
                     info={"unknowns": prob.n, "tied_hz_undamped": st.omega_tied / (2 * np.pi),
                           "sliding_damping_ratio": lim["sliding_damping_ratio"], "range": (a_min, a_max, npts),
                           "steps": steps})
@@ -696,14 +705,18 @@ class _Path:
         stopped = ""
         ds = min(ds_max, s_max - s_min) if s_max > s_min else 0.0
         steps = 0
-        jumps, jumping, restart = list(JUMPS), False, 0
+        jumps, jumping = list(JUMPS), False
+        # Newton's effort a step; cut once the blade is found to walk: the shorter steps that then
+        # locate the mode's end converge in a few iterations or not at all (a failed full-effort
+        # solve there spent ~5 s in line searches on the quick sector)
+        effort, walk = dict(maxiter=maxiter), ""
         while ds > 0 and path[-1][-1] < s_max - 1e-12:
             steps += 1
             if steps > max_steps:
                 stopped = f"{max_steps} continuation steps made (max_steps) before a_max"
                 break
             p_prev, _ = self.plane(path[-1])
-            if len(path) - restart >= 2:
+            if len(path) >= 2:
                 d = self.plane(path[-1])[0] - self.plane(path[-2])[0]
                 t = d / np.linalg.norm(d)
                 zp = path[-1] + (path[-1] - path[-2]) * (ds / np.linalg.norm(d))
@@ -714,7 +727,7 @@ class _Path:
             prob.weights(float(np.exp(path[-1][-1])))
             r = newton(lambda zz: self.augmented(zz, p_prev, t, ds), zp,
                        fun=lambda zz: self.augmented(zz, p_prev, t, ds, False)[0], tol=tol, scale=1.0,
-                       maxiter=maxiter)
+                       **effort)
             if r.converged:
                 jumping = False
                 path.append(r.x)
@@ -727,25 +740,23 @@ class _Path:
                 ds = min(ds * (1.5 if r.iterations <= 4 else 1.0), ds_max)
                 jumps = list(JUMPS)
                 continue
-            # a failed step: shorter ones down to MIN_SHORT × ds_max, then longer ones (JUMPS × ds_max),
-            # then another branch next to the last point (_switch)
+            # a failed step: shorter ones down to MIN_SHORT × ds_max, then longer ones (JUMPS × ds_max)
+            # unless the blade walks there: a longer step cannot cross the end of the mode
+            # once seen, the walking holds for the shorter steps: their cheap solves stop where
+            # their own residual says less
+            walk = _unbalanced_mean_slip(prob, *self.denorm(r.x)) or walk
+            if walk:
+                effort = dict(maxiter=min(maxiter, WALK_ITERATIONS), max_backtracks=WALK_ITERATIONS,
+                              lm_fallback=False)
             if ds > MIN_SHORT * ds_max and not jumping:
                 ds *= 0.5
                 continue
-            if jumps:
+            if jumps and not walk:
                 jumping = True
                 ds = jumps.pop(0) * ds_max
                 continue
-            z_new = _switch(prob, path, tol, maxiter)
-            if z_new is not None:
-                # another branch next to the last point (a grazing contact's corner): go on from it
-                path.append(z_new)
-                out["res"].append(float(np.linalg.norm(prob.evaluate(self.denorm(z_new)[0], False)[0])))
-                out["it"].append(0)
-                restart = len(path) - 1
-                ds, jumps, jumping = MIN_SHORT * ds_max, list(JUMPS), False
-                continue
-            stopped = f"no convergence beyond a = {np.exp(path[-1][-1]):.4g} ({r.reason})"
+            stopped = (f"{WALKS} a = {np.exp(path[-1][-1]):.4g}: {walk}" if walk else
+                       f"no convergence beyond a = {np.exp(path[-1][-1]):.4g} ({r.reason})")
             break
         out["a"] = [float(np.exp(z[-1])) for z in path]
         out["v"] = [self.denorm(z)[0] for z in path]
