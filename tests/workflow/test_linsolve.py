@@ -647,3 +647,19 @@ def test_a_solver_and_its_blocks_are_freed_after_its_solves():
     del lin
     gc.collect()
     assert gone() is None
+
+
+def test_dropping_negligible_entries_of_a_stack_is_per_matrix():
+    """A stack (g, m, m) — the cluster inverses — drops each matrix's round-off against its own
+    row and column scales, as each matrix alone does: a matrix 1e12 larger does not make the
+    other's entries negligible."""
+    from workflow.engine.linsolve import drop_negligible
+
+    rng = np.random.default_rng(1)
+    A = np.triu(np.tril(rng.standard_normal((2, 30, 30)), 2), -2) + 6 * np.eye(30)
+    A[1] *= 1e12
+    A += 1e-30 * rng.standard_normal(A.shape) * (A == 0) * np.array([1.0, 1e12])[:, None, None]
+    one = [drop_negligible(A[i].copy(), np.float32) for i in range(2)]
+    both = drop_negligible(A.copy(), np.float32)
+    assert all(np.array_equal(both[i], one[i]) for i in range(2))
+    assert np.count_nonzero(both[0]) == np.count_nonzero(np.triu(np.tril(np.ones((30, 30)), 2), -2))
