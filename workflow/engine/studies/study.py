@@ -369,7 +369,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
         # only the stability reads the grid's condensations after the sweeps (302 MB a frequency
         # at 512 pairs): the checks and the peak search condense their own points
         t_cond = cond.seconds + (first.seconds if first is not cond else 0.0)
-        grid = cond if opt.stability else None
+        grid = cond if opt.stability and getattr(cond, "keep_all", False) else None
         del cond, first
         if comm is not None and comm.Get_rank() != 0:
             return None
