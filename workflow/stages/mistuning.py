@@ -82,17 +82,12 @@ def _full_disk_tied(sub, dev, mass, omega: float) -> np.ndarray:
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
     from reduction.bundle import read_bundle
-    from reduction.condense import relative_coordinates
-    from reduction.cyclic_reduce import nodal_diameters_needed
-    from reduction.mistuned import WholeDiskCoordinates, cyclic_model, substructures
+    from reduction.mistuned import WholeDiskCoordinates, substructures
     from workflow import engine
     from workflow.engine.studies import mistuning as ms
-    from workflow.errors import SceneError
-    from workflow.io import write_rows
     from workflow.mpi import rank, world
-    from workflow.report.mistuning import plot_amplification, plot_blade_frf, plot_localisation, plot_wear_map
     from workflow.stages.assembly import bundle_folder
-    from workflow.stages.hb import clean, law_of
+    from workflow.stages.hb import clean
 
     t0 = time.perf_counter()
     out = Path(out)
@@ -103,30 +98,12 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     N = sub.n_sectors
     log.info(f"substructures: blade {sub.blade.size} coordinates, disk {sub.disk[0].size} per ND × "
              f"{len(sub.disk)} NDs, {sub.info['seconds']['total']:.1f} s")
-    for key in ("stiffness", "mass"):
-        if getattr(mt, key) and len(getattr(mt, key)) != N:
-            raise SceneError(f"mistuning.{key} has {len(getattr(mt, key))} values; the disk has {N} blades")
-    dev = np.asarray(mt.stiffness, float) if mt.stiffness else ms.pattern(N, mt.std, mt.seed)
-    mass = np.asarray(mt.mass, float) if mt.mass else None
+    dev, mass = _pattern(mt, N)
     nh = int(mt.harmonics)
     nit = int(mt.time_samples) or ms.time_samples(nh, N, eo)
     v = engine.Variant("hbm", nh, nit)
 
-    # the tuned disk on one sector, from the same substructures
-    cyc = cyclic_model(sub, nodal_diameters_needed(eo, N, nh))
-    law = law_of(scene, cyc)
-    opt = _frf_options(hb)
-    tuned = engine.frf(cyc, law, [v], points=TUNED_POINTS, options=opt)
-    if not tuned.peak or tuned.peak.get("hz") is None:
-        raise SceneError("mistuning: the tuned sector's FRF has no converged point; check contact and hb settings")
-    f_t, a_t = float(tuned.peak["hz"]), float(tuned.peak["amplitude_m"])
-    rcc = relative_coordinates(cyc)
-    band = float(mt.band)
-    ft_tied, a_tied = _tied_peak(rcc, f_t * (1 - 3 * band), f_t * (1 + 3 * band))
-    log.info(f"tuned sector (ND {eo % N}): friction-damped peak {f_t:.3f} Hz {a_t:.4g} m; tied {ft_tied:.3f} Hz "
-             f"{a_tied:.4g} m")
-    freqs = f_t * np.linspace(1 - band, 1 + band, int(mt.points))
-    ref = engine.frf(cyc, law, [v], freqs_hz=freqs, options=opt).runs[0]
+    law, rcc, (f_t, a_t, ft_tied, a_tied), freqs, ref = _tuned_sector(scene, sub, v, log)
     seeds = [ms.travelling_wave(U, N, eo) if ok else None for U, ok in zip(ref.Ur, ref.converged)]
     law_w = ms.tiled_law(law, N, eo)
 
@@ -154,30 +131,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
         log.info(f"Monte Carlo, {len(mc_rows)} patterns at σ = {mt.std:g}: p95 amplification tied "
                  f"{af['tied_p95']:.3f}, friction {af['friction_p95'] or float('nan'):.3f}")
     bound = ms.whitehead_bound(N)
-    figures = []
-    if rank() == 0:
-        write_rows(out / "blades.csv", [{"blade": s, "stiffness_deviation": float(dev[s]),
-                                         "mass_deviation": float(mass[s]) if mass is not None else 0.0,
-                                         "peak_friction_m": float(resp.blade_peaks_m[s]),
-                                         "peak_tied_m": float(resp.tied_blade_peaks_m[s])} for s in range(N)])
-        write_rows(out / "blade_frf.csv", [{"frequency_hz": float(f), "converged": bool(c),
-                                            **{f"blade_{s}_m": float(a[s]) for s in range(N)}}
-                                           for f, a, c in zip(resp.freqs_hz, resp.amplitude, resp.converged)])
-        figures = [plot_blade_frf(out / "blade_frf.png", resp, ref.freqs_hz, np.where(ref.converged, ref.amplitude,
-                                                                                        np.nan),
-                                  np.array([_tied_amplitude(rcc, f) for f in resp.tied_freqs_hz])),
-                   plot_localisation(out / "localisation.png", dev, resp.blade_peaks_m, resp.tied_blade_peaks_m,
-                                     a_t, a_tied)]
-        if worn is not None:
-            p = sub.n_pairs
-            write_rows(out / "wear_blades.csv", [{"blade": b, "pair": i, "flank": int(sub.pairs["flank"][i]),
-                                                  "worn_depth_m": float(worn["disk"].W[b, i])}
-                                                 for b in range(N) for i in range(p)])
-            figures.append(plot_wear_map(out / "wear_map.png", worn["disk"].W, sub.pairs["flank"],
-                                         sub.pairs["position"], worn["sector"].W))
-        if mc_rows:
-            write_rows(out / "monte_carlo.csv", mc_rows)
-            figures.append(plot_amplification(out / "amplification.png", mc_rows, bound))
+    figures = _write(out, sub, dev, mass, resp, ref, rcc, (a_t, a_tied), worn, mc_rows, bound) if rank() == 0 else []
     warnings = []
     if worn is not None and not worn["disk"].history.steady:
         warnings.append(f"mistuning: the whole disk's wear march stopped before its worn steady state "
@@ -202,6 +156,79 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                   "files": {"blades": "blades.csv", "blade_frf": "blade_frf.csv",
                             "figures": [Path(f).name for f in figures]},
                   "seconds": round(time.perf_counter() - t0, 3)})
+
+
+def _pattern(mt, N: int):
+    """The blades' (stiffness, mass or None) deviations from ``[mistuning]``: the lists given,
+    else a seeded pattern of standard deviation ``std``; a list of the wrong length is one
+    error naming its key."""
+    from workflow.engine.studies import mistuning as ms
+    from workflow.errors import SceneError
+
+    for key in ("stiffness", "mass"):
+        if getattr(mt, key) and len(getattr(mt, key)) != N:
+            raise SceneError(f"mistuning.{key} has {len(getattr(mt, key))} values; the disk has {N} blades")
+    dev = np.asarray(mt.stiffness, float) if mt.stiffness else ms.pattern(N, mt.std, mt.seed)
+    return dev, (np.asarray(mt.mass, float) if mt.mass else None)
+
+
+def _tuned_sector(scene, sub, v, log):
+    """The tuned disk on one sector, from the same substructures: (the sector's law, its
+    relative coordinates, (friction-damped peak Hz, m; tied peak Hz, m), the whole disk's grid
+    [Hz] around the friction-damped peak, the sector's sweep on that grid)."""
+    from reduction.condense import relative_coordinates
+    from reduction.cyclic_reduce import nodal_diameters_needed
+    from reduction.mistuned import cyclic_model
+    from workflow import engine
+    from workflow.errors import SceneError
+    from workflow.stages.hb import law_of
+
+    mt, N, eo = scene["mistuning"], sub.n_sectors, int(scene["cyclic"].engine_order)
+    cyc = cyclic_model(sub, nodal_diameters_needed(eo, N, v.nh))
+    law = law_of(scene, cyc)
+    opt = _frf_options(scene["hb"])
+    tuned = engine.frf(cyc, law, [v], points=TUNED_POINTS, options=opt)
+    if not tuned.peak or tuned.peak.get("hz") is None:
+        raise SceneError("mistuning: the tuned sector's FRF has no converged point; check contact and hb settings")
+    f_t, a_t = float(tuned.peak["hz"]), float(tuned.peak["amplitude_m"])
+    rcc = relative_coordinates(cyc)
+    band = float(mt.band)
+    ft_tied, a_tied = _tied_peak(rcc, f_t * (1 - 3 * band), f_t * (1 + 3 * band))
+    log.info(f"tuned sector (ND {eo % N}): friction-damped peak {f_t:.3f} Hz {a_t:.4g} m; tied {ft_tied:.3f} Hz "
+             f"{a_tied:.4g} m")
+    freqs = f_t * np.linspace(1 - band, 1 + band, int(mt.points))
+    ref = engine.frf(cyc, law, [v], freqs_hz=freqs, options=opt).runs[0]
+    return law, rcc, (f_t, a_t, ft_tied, a_tied), freqs, ref
+
+
+def _write(out: Path, sub, dev, mass, resp, ref, rcc, tuned_m, worn, mc_rows, bound: float) -> list:
+    """The stage's CSV files and figures (rank 0); ``tuned_m`` the tuned peaks (friction, tied) [m].
+    Returns the figures' paths."""
+    from workflow.io import write_rows
+    from workflow.report.mistuning import plot_amplification, plot_blade_frf, plot_localisation, plot_wear_map
+
+    N = sub.n_sectors
+    write_rows(out / "blades.csv", [{"blade": s, "stiffness_deviation": float(dev[s]),
+                                     "mass_deviation": float(mass[s]) if mass is not None else 0.0,
+                                     "peak_friction_m": float(resp.blade_peaks_m[s]),
+                                     "peak_tied_m": float(resp.tied_blade_peaks_m[s])} for s in range(N)])
+    write_rows(out / "blade_frf.csv", [{"frequency_hz": float(f), "converged": bool(c),
+                                        **{f"blade_{s}_m": float(a[s]) for s in range(N)}}
+                                       for f, a, c in zip(resp.freqs_hz, resp.amplitude, resp.converged)])
+    figures = [plot_blade_frf(out / "blade_frf.png", resp, ref.freqs_hz, np.where(ref.converged, ref.amplitude, np.nan),
+                              np.array([_tied_amplitude(rcc, f) for f in resp.tied_freqs_hz])),
+               plot_localisation(out / "localisation.png", dev, resp.blade_peaks_m, resp.tied_blade_peaks_m,
+                                 *tuned_m)]
+    if worn is not None:
+        write_rows(out / "wear_blades.csv", [{"blade": b, "pair": i, "flank": int(sub.pairs["flank"][i]),
+                                              "worn_depth_m": float(worn["disk"].W[b, i])}
+                                             for b in range(N) for i in range(sub.n_pairs)])
+        figures.append(plot_wear_map(out / "wear_map.png", worn["disk"].W, sub.pairs["flank"],
+                                     sub.pairs["position"], worn["sector"].W))
+    if mc_rows:
+        write_rows(out / "monte_carlo.csv", mc_rows)
+        figures.append(plot_amplification(out / "amplification.png", mc_rows, bound))
+    return figures
 
 
 def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, ref, log, checks: dict) -> dict | None:

@@ -113,9 +113,8 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     rows = [{k: r[k] for k in ("amplitude", "frequency_hz", "damping_ratio", "energy_per_cycle_J")} for r in bb.rows()]
     return clean({"backbone": rows, "mode": int(nm.mode), "harmonics": nh, "time_samples": nit,
                   "tied_hz": bb.tied_hz, "tied_damping_ratio": bb.tied_damping_ratio, "sliding_hz": bb.sliding_hz,
-                  "slip_onset": onset, "stopped": bb.stopped or None,
+                  "slip_onset": onset, "stopped": bb.stopped or None, "backbone_seconds": bb.seconds,
                   "walks_beyond_amplitude": float(bb.amplitude[-1]) if bb.walks else None,
-                  "backbone_seconds": bb.seconds,
                   "synthesis": levels, "checks": checks, "warnings": warnings, "unconverged": [],
                   "files": {"backbone": "backbone.csv", "synthesis": "synthesis.csv",
                             "figures": [Path(f).name for f in figures]},
