@@ -255,8 +255,19 @@ class Wear:
                                              "[]: none (one pseudo-time march a point)", min=0.5, max=2.0)
     resonance_shift: bool = param(True, "", "find the friction-damped resonance of the worn and the new model "
                                             "(worn − new shift in summary.json; two FRF searches)")
+    control: str = param("force", "", "what the wear study holds: \"force\" (the scene's excitation, the "
+                                      "paper's setting) or \"amplitude\" (the tip's first-harmonic amplitude "
+                                      "tip_amplitude_m, the force scaled to it as the blade wears; well posed next "
+                                      "to a resonance, docs/wear.md)", choices=("force", "amplitude"))
+    tip_amplitude_m: float = param(0.0, "m", "control = \"amplitude\": the held tip amplitude (first harmonic, "
+                                             "norm over the observed DOFs); 0: the new blade's response to the "
+                                             "scene's force at the operating point", min=0.0)
 
     def check(self):
+        if self.control == "amplitude" and self.operating_point in ("resonance", "mission"):
+            raise SceneError(f"wear.control = \"amplitude\" with wear.operating_point = {self.operating_point!r}: a "
+                             "held amplitude wears at one frequency (\"frequency\" or \"detuning\"); the dwell "
+                             "and the mission are force-controlled")
         if self.operating_point != "mission":
             if self.mission:
                 raise SceneError(f"wear.mission is set but wear.operating_point = {self.operating_point!r}: set "

@@ -171,6 +171,20 @@ class HBProblem:
         self.a_F = self._apply_L(self._Lp, Fc)
         self._refresh_penalty()
 
+    def load_terms(self, F_coef) -> tuple[np.ndarray, np.ndarray]:
+        """(r_F (n,), a_F (nc, nr)): where real load coefficients ``F_coef`` (2Nh+1, 3p) [N]
+        enter the residual and the DLFT predictor — both linear in the load."""
+        return self._apply_L(self._Lr, F_coef).ravel(), self._apply_L(self._Lp, F_coef)
+
+    def scale_load(self, s: float) -> None:
+        """The dynamic load (harmonics ≥ 1 of ``Fr``) × s in the residual and the predictor, the
+        static preload kept (a held amplitude's load scale,
+        :mod:`workflow.engine.studies.amplitude`); ``Fr`` stays the unit load."""
+        Fc = fourier.complex_to_real(self.Fr)
+        Fc[1:] *= s
+        self.F_coef = Fc
+        self.r_F, self.a_F = self._apply_L(self._Lr, Fc), self._apply_L(self._Lp, Fc)
+
     # The linear operators, applied without forming (n × n) matrices: Zb
     # harmonic by harmonic (workflow.engine.linsolve.zb_apply), HDHB's H = T⁻¹ Zb T
     # with FFTs (T: samples → coefficients is an rfft, T⁻¹ an irfft).

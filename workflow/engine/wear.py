@@ -203,7 +203,7 @@ class WearProblem:
         st = WearState(R=R, rate=rate if S is None else S @ rate, lam=lam, slip=slip, J=J)
         if not jacobian:
             return st
-        g = self._rate_sensitivity(res, law, lam, slip)
+        g = self.rate_sensitivity(res, law, lam, slip)
         # W_i enters a only through pair i's normal shift: da_{j,i,N}/dW_i = ε_N,i const_j
         daW = np.zeros((self.p, 3 * self.nc))
         daW[:, 0::3] = law.eps_n[:, None] * self._const[None, :]
@@ -223,7 +223,7 @@ class WearProblem:
         st.R_W[self._rows, np.arange(self.p)[:, None]] = w
         return st
 
-    def _rate_sensitivity(self, res, law, lam, slip):
+    def rate_sensitivity(self, res, law, lam, slip):
         """∂rate_i/∂a_i (p, 3nc) [m/cycle per N]: the wear rate's derivative in pair i's
         predictor (eq. 21 through the DLFT's dλ/da)."""
         hb, p, nc, nit = self.hb, self.p, self.nc, self.nit

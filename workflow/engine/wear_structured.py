@@ -41,38 +41,67 @@ def use(n: int) -> bool:
 
 
 def r_w_times(st, v) -> np.ndarray:
-    """``∂R/∂W · v`` (n,) for v (p,) [m]: pair i's rows take ``w_i v_i`` (N)."""
+    """``∂R/∂W · v`` (n,) for v (p,) [m]: pair i's rows take ``w_i v_i`` (N); a bordered state's
+    (a held amplitude, :class:`workflow.engine.studies.amplitude.Border`) has a constraint row
+    that W does not enter."""
     p, m = st.w.shape
-    return (st.w * np.asarray(v, dtype=float)[:, None]).reshape(p, m // 3, 3).transpose(1, 0, 2).ravel()
+    out = (st.w * np.asarray(v, dtype=float)[:, None]).reshape(p, m // 3, 3).transpose(1, 0, 2).ravel()
+    return out if getattr(st, "border", None) is None else np.append(out, 0.0)
 
 
 def rate_x_times(wp, st, v) -> np.ndarray:
-    """``∂rate/∂x · v`` (p,) [m/cycle] for unknowns v (n,): g_i · (∂a/∂x v) on pair i's rows."""
-    da = wp.hb.penalty_apply(v).ravel()[wp._rows]          # (p, 3nc)
-    return np.einsum("pa,pa->p", st.g, da)
+    """``∂rate/∂x · v`` (p,) [m/cycle] for unknowns v (n,): g_i · (∂a/∂x v) on pair i's rows
+    (and ∂rate/∂s · v_s for a bordered state's load scale)."""
+    b = getattr(st, "border", None)
+    v = np.asarray(v, dtype=float)
+    da = wp.hb.penalty_apply(v if b is None else v[:-1]).ravel()[wp._rows]          # (p, 3nc)
+    out = np.einsum("pa,pa->p", st.g, da)
+    return out if b is None else out + b.rate_s * v[-1]
+
+
+def _solver(wp, G):
+    """``r → K⁻¹(−r)`` with K = ``wp.hb.operator(G)`` factored, or None if it is not finite."""
+    lin = wp.linsolver()
+    if not lin.factor(wp.hb.operator(G)):
+        return None
+
+    def solve(r):
+        dx = lin.solve(np.asarray(r, dtype=float))
+        return None if dx is None or not np.all(np.isfinite(dx)) else dx
+    return solve
 
 
 def solve(wp, st, b):
-    """``J⁻¹ b`` (n,) with J of the state ``st`` (its blocks G), or None if GMRES gave nothing
-    finite."""
-    lin = wp.linsolver()
-    if not lin.factor(wp.hb.operator(st.G)):
+    """``J⁻¹ b`` (n,) with J of the state ``st`` (its blocks G, bordered if ``st.border``), or
+    None if GMRES gave nothing finite."""
+    solve_k = _solver(wp, st.G)
+    if solve_k is None:
         return None
-    dx = lin.solve(-np.asarray(b, dtype=float))      # J dx = b
-    return None if dx is None or not np.all(np.isfinite(dx)) else dx
+    b = np.asarray(b, dtype=float)
+    if getattr(st, "border", None) is None:
+        return solve_k(-b)                              # J dx = b
+    return st.border.solve(solve_k, -b[:-1], -float(b[-1]))
 
 
 def augmented_step(wp, st, h: float):
-    """(Δx, ΔW) of the linearly implicit step (module docstring), or None where a solve failed."""
+    """(Δx, ΔW) of the linearly implicit step (module docstring), or None where a solve failed.
+    A bordered state's load scale s enters the wear rate too: ΔW takes ∂rate/∂s Δs, and the
+    border's column takes ∂R/∂W D⁻¹ h ∂rate/∂s."""
     D = 1.0 - h * st.G_W
     if not np.all(np.abs(D) > 0):
         return None
     B = (h / D)[:, None, None] * st.w[:, :, None] * st.g[:, None, :]
-    lin = wp.linsolver()
-    if not lin.factor(wp.hb.operator(st.G + B)):
+    solve_k = _solver(wp, st.G + B)
+    if solve_k is None:
         return None
     c = h * st.rate / D
-    dx = lin.solve(st.R + r_w_times(st, c))          # (J + B-part) dx = −R − ∂R/∂W c
-    if dx is None or not np.all(np.isfinite(dx)):
+    rhs = st.R + r_w_times(st, c)                       # (J + B-part) dx = −R − ∂R/∂W c
+    b = getattr(st, "border", None)
+    if b is None:
+        dx = solve_k(rhs)
+    else:
+        col = b.R_s + r_w_times(st, h * b.rate_s / D)[:-1]
+        dx = b.solve(solve_k, rhs[:-1], float(rhs[-1]), col=col)
+    if dx is None:
         return None
     return dx, c + h * rate_x_times(wp, st, dx) / D

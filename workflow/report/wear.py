@@ -129,8 +129,15 @@ def tip_cycles(study) -> tuple:
     rc, hb, w = study.rc, study.hb, study.omega
     if not rc.O.shape[0]:
         return None, None
-    before = tip_cycle(recover(rc, w, hb.harmonics(study.base.x)))
-    return before, {m: tip_cycle(recover(rc, w, hb.harmonics(h.x))) for m, h in study.histories.items()}
+    load = getattr(hb, "load_scale", None)         # a held tip amplitude scales the dynamic load
+    unit = recover(rc, w, np.zeros((hb.nh + 1, 3 * hb.p), dtype=complex)) if load is not None else None
+
+    def tip(x):
+        obs = recover(rc, w, hb.harmonics(x))
+        if load is not None:
+            obs[1:] += (load(x) - 1.0) * unit[1:]
+        return tip_cycle(obs)
+    return tip(study.base.x), {m: tip(h.x) for m, h in study.histories.items()}
 
 
 def plot_wear_response(path: Path, response: dict) -> Path:

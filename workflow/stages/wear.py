@@ -46,7 +46,8 @@ def options(scene):
                        nh_check=hb.nh_check, operating_point=w.operating_point, detuning=w.detuning,
                        measure_length_m=w.measure_length_m, resonance_shift=w.resonance_shift, length_m=w.length_m,
                        mission=tuple(tuple(float(v) for v in point) for point in w.mission), dwell_tol=w.dwell_tol,
-                       dwell_step=w.dwell_step, dwell_stages=w.dwell_stages)
+                       dwell_step=w.dwell_step, dwell_stages=w.dwell_stages,
+                       control=w.control, tip_amplitude_m=w.tip_amplitude_m)
 
 
 def run_wear(model, scene, out: Path, log) -> dict:

@@ -59,7 +59,9 @@ class WearOptions:
     frequency; ``dwell_step`` — the relative move of the peak a stage aims at (its wear budget
     adapts to it); ``dwell_stages`` — stages at most. "mission": ``mission`` ((r, share), …), r =
     f / f_r (f_r the new model's friction-damped resonance), shares of the cycles ≥ 0 summing to 1
-    (:func:`workflow.engine.studies.operating.mission_points`)."""
+    (:func:`workflow.engine.studies.operating.mission_points`). ``control`` "force" (the load as
+    built) or "amplitude": the tip held at ``tip_amplitude_m`` [m] (0: the unworn response),
+    :mod:`workflow.engine.studies.amplitude`."""
 
     methods: tuple = ("pseudo-time", "implicit")
     method: str = "hbm"
@@ -91,6 +93,8 @@ class WearOptions:
     dwell_tol: float = 1e-5
     dwell_step: float = 3e-4
     dwell_stages: int = 100
+    control: str = "force"
+    tip_amplitude_m: float = 0.0
 
 
 @dataclass
@@ -182,7 +186,16 @@ def finer_nh_resolve(rc, omega: float, wp, hist, opt: WearOptions, eps_path) -> 
         out = {"nh": nh2, "nit": nit2, "converged": False, "iterations": its}
         if fine is None:
             return {**out, "reason": why}
-        fine.set_wear(np.maximum(np.asarray(hist.W, dtype=float), 0.0))
+        W = np.maximum(np.asarray(hist.W, dtype=float), 0.0)
+        fine.set_wear(W)
+        if getattr(wp, "target", None) is not None:    # held amplitude: the bordered solve, its load scale
+            from workflow.engine.wear import WearProblem
+
+            held = type(wp)(WearProblem(fine, q.area, q.k_w, q.share, eps_path=q.eps_path), (wp.C, wp.d), wp.target)
+            pr, _ = held.solve_hb(np.append(guess, hist.x[-1]), W, tol=opt.tol, maxiter=opt.max_iterations)
+            its += int(pr.iterations)
+            out = {**out, "converged": bool(pr.converged), "iterations": its, "reason": pr.reason}
+            break
         pr = solve_point(fine, [guess], solver="newton-powell", tol=opt.tol, maxiter=opt.max_iterations,
                          eps_path=eps_path)
         its += int(pr.iterations)
@@ -195,6 +208,9 @@ def finer_nh_resolve(rc, omega: float, wp, hist, opt: WearOptions, eps_path) -> 
 def _points(wp, omega, x) -> list:
     """[(WearProblem, ω [rad/s], its unknowns)] of each operating point of ``wp``: a
     :class:`~workflow.engine.studies.operating.MissionProblem`'s points, else ``wp`` itself at ω."""
+    if getattr(wp, "target", None) is not None:       # a held amplitude: the vibration at its load
+        wp.set_scale(x[-1])
+        return [(wp.wp, omega, np.asarray(x)[:-1])]
     if getattr(wp, "members", None) is None:
         return [(wp, omega, x)]
     return list(zip(wp.members, wp.omegas, wp.split(x)))
@@ -203,6 +219,8 @@ def _points(wp, omega, x) -> list:
 def _like(wp, problems: list, xs: list):
     """(problem, unknowns) of the same kind as ``wp`` from its points' modified problems and
     solutions (:func:`_points`): a mission of them, or the one."""
+    if getattr(wp, "target", None) is not None:
+        return wp.like(problems[0], xs[0])
     if getattr(wp, "members", None) is None:
         return problems[0], xs[0]
     from workflow.engine.studies.operating import MissionProblem
@@ -355,6 +373,8 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
                      averaging=averaging(model.position, model.area, model.flank, opt.length_m))
     if point["kind"] == "mission":
         wp, base = _mission(rc, wp, base, point, opt, eps_path, log)
+    if opt.control == "amplitude":
+        wp, base = _held_amplitude(rc, wp, base, omega, opt, point, log)
     i0 = int(np.argmax(wp.evaluate(base.x).rate))
     track = 3 * i0 + 1
     histories, schedule, last = {}, None, wp
@@ -373,6 +393,8 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
         study.base = _unworn_at(last, base.x, opt, eps_path) or base
     if point["kind"] == "mission":
         _mission_rates(point, wp, base, histories)
+    if opt.control == "amplitude":
+        point["control"]["load_scale_worn"] = {m: float(h.x[-1]) for m, h in histories.items()}
     _measure(study, model, law, wp, opt, log, new=(wp, base.x), worn_wp=last)
     ref = next((m for m in ("implicit", "explicit") if m in histories), None)
     if ref is not None and "pseudo-time" in histories:
@@ -620,6 +642,32 @@ def _mission(rc, wp, base, point: dict, opt: WearOptions, eps_path, log):
                           iterations=sum(b.iterations for b in bases),
                           residual_norm=math.hypot(*[b.residual_norm for b in bases]), reason="converged")
     return MissionProblem(members, shares, omegas, head), stacked
+
+
+def _held_amplitude(rc, wp, base, omega: float, opt: WearOptions, point: dict, log):
+    """(:class:`~workflow.engine.studies.amplitude.AmplitudeProblem`, its unworn SolveResult with
+    the unknowns [x; s]) of ``wp`` with the tip held at ``opt.tip_amplitude_m`` (0: the amplitude
+    of the unworn vibration ``base`` under the load as built); records ``point["control"]``."""
+    from workflow.engine.studies.amplitude import AmplitudeProblem, tip_map
+
+    if point["kind"] in ("resonance", "mission"):
+        raise SceneError(f"wear.control = \"amplitude\" with wear.operating_point = \"{point['kind']}\": a held "
+                         "amplitude wears at one frequency (\"frequency\" or \"detuning\")")
+    tip = tip_map(rc, omega)
+    if tip[0].shape[0] == 0:
+        raise SceneError("wear.control = \"amplitude\": the model observes no DOF (no tip to hold)")
+    target = float(opt.tip_amplitude_m)
+    if target <= 0:
+        target = float(np.linalg.norm(tip[0] @ wp.hb.harmonics(base.x)[1] + tip[1]))
+    ap = AmplitudeProblem(wp, tip, target)
+    res = ap.start(base.x, tol=opt.tol, maxiter=opt.max_iterations)
+    if not res.converged:
+        raise SolverError(f"wear: the vibration with the tip at {target:.4g} m did not solve at "
+                          f"{omega / 2 / np.pi:.3f} Hz ({res.reason}); try a smaller wear.tip_amplitude_m")
+    point["control"] = {"kind": "amplitude", "tip_amplitude_m": target, "load_scale_new": float(res.x[-1])}
+    if log is not None:
+        log.info(f"tip held at {target:.4g} m: the load × {res.x[-1]:.4g} on the new blade")
+    return ap, res
 
 
 def _mission_rates(point: dict, wp, base, histories: dict) -> None:
