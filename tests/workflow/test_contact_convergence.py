@@ -167,6 +167,12 @@ def test_linear_layout_closes_the_midside_interpenetration_with_the_vertex_pairs
     assert s["pairs_in_contact"] > 0
     assert s["midside_gap_min_m"] >= -1e-15
     assert s["vertex_only_midside_gap_min_m"] is None
+    # Under the preload the root rocks onto one long edge of each flank (docs/contact-layout.md):
+    # on this 4 × 2 grid each flank bears on one of its two rows (the other lifts off), so half
+    # of each flank's tributary area is open, and some gap is open.
+    for f in s["flanks"]:
+        assert f["open_share"] == pytest.approx(0.5, abs=1e-12)
+        assert f["max_lift_off_m"] > 0 and f["max_pressure_pa"] > 0 and f["normal_load_n"] > 0
 
 
 @pytest.mark.slow

@@ -1,7 +1,7 @@
 """How well posed the worn steady state of the ``contact-convergence`` scene is (issue 17).
 
 ``python -m workflow.bench.wear_conditioning [--grid 7x5] [--ratios 0.9999,1.0001]
-[--mu 0.495,0.505] [--force 0.505] [--out results/bench]``
+[--mu 0.495,0.505] [--force 0.505] [--set SECTION.KEY=VALUE ...] [--out results/bench]``
 
 One contact mesh of the scene (flank grid ``along x across``, meshed, assembled
 and reduced as the stage does it), its worn steady state marched by the
@@ -13,6 +13,9 @@ once per change, one change at a time:
   first tied frequency (the scene's is 1: the tied frequency itself);
 * ``contact.mu``: the friction coefficient;
 * ``wear_amplitude_N``: the tip force of the wear.
+
+``--set`` overrides a scene key in every march (e.g. ``--set 'wear.control="amplitude"'
+--set wear.tip_amplitude_m=2.5e-3``: the tip held at 2.5 mm instead of the force).
 
 Writes ``wear_conditioning.csv`` (change, value, frequency_hz, max_wear_m,
 worn_volume_m3, rel_change, steady, steps, seconds) to ``--out``; rel_change
@@ -52,7 +55,7 @@ def _march(model, overrides: list[str]) -> dict:
             "steps": out["steps"], "seconds": time.perf_counter() - t0}
 
 
-def run(grid: tuple[int, int], ratios, mus, forces, out: Path) -> list[dict]:
+def run(grid: tuple[int, int], ratios, mus, forces, out: Path, sets=()) -> list[dict]:
     """Rows of ``wear_conditioning.csv`` (see the module docstring); writes the file."""
     from workflow.scene import load_scene
     from workflow.stages.contact_convergence import build_model
@@ -60,14 +63,15 @@ def run(grid: tuple[int, int], ratios, mus, forces, out: Path) -> list[dict]:
     scene = load_scene(SCENE)
     with tempfile.TemporaryDirectory() as work:
         model, _, _ = build_model(scene, grid[0], grid[1], Path(work))
-    base = _march(model, [])
+    sets = list(sets)
+    base = _march(model, sets)
     rows = [{"change": "none", "value": "", **base}]
     f_tied = base["frequency_hz"]           # the scene wears at the first tied frequency
     cases = [("frequency_ratio", r, [f"wear.frequency_hz={r * f_tied!r}"]) for r in ratios]
     cases += [("contact.mu", m, [f"contact.mu={m!r}"]) for m in mus]
     cases += [("wear_amplitude_N", F, [f"contact_convergence.wear_amplitude={F!r}"]) for F in forces]
     for change, value, overrides in cases:
-        r = _march(model, overrides)
+        r = _march(model, sets + overrides)
         rows.append({"change": change, "value": value, **r})
         print(f"{change} = {value}: max W {r['max_wear_m']:.5g} m ({r['seconds']:.0f} s)", flush=True)
     for r in rows:
@@ -89,13 +93,15 @@ def main(argv=None) -> int:
     ap.add_argument("--ratios", default="0.9999,1.0001", help="wear frequency / first tied frequency, comma-separated")
     ap.add_argument("--mu", default="0.495,0.505", help="friction coefficients, comma-separated")
     ap.add_argument("--force", default="0.505", help="wear tip forces [N], comma-separated")
+    ap.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                    help="a scene override for every march (repeatable)")
     ap.add_argument("--out", default="results/bench", type=Path)
     a = ap.parse_args(argv)
     try:
         along, across = (int(v) for v in a.grid.lower().split("x"))
     except ValueError:
         ap.error(f"--grid {a.grid!r}: expected along x across, e.g. 7x5")
-    run((along, across), _floats(a.ratios), _floats(a.mu), _floats(a.force), a.out)
+    run((along, across), _floats(a.ratios), _floats(a.mu), _floats(a.force), a.out, a.set)
     return 0
 
 

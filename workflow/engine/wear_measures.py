@@ -14,6 +14,9 @@ import numpy as np
 #: largest (the scar's edge: 5 % is where a measured fretting-scar profile meets its noise)
 SCAR_FRACTION = 0.05
 
+#: the flank codes of ``ReducedModel.flank``
+FLANK_NAMES = {0: "intrados", 1: "extrados"}
+
 
 def _flanks(flank) -> list[int]:
     return sorted(int(f) for f in np.unique(np.asarray(flank)))
@@ -81,7 +84,7 @@ def wear_measures(W, position, area, flank, ell: float) -> dict:
     flank labels are 0/1: worn volume [m³], the ℓ-filtered profile's RMS depth and maximum [m]
     (ℓ [m]; 0: the node-wise profile), scar area [m²] and width [m], and the node-wise maximum
     depth [m] — the mesh-sensitive number, reported as such."""
-    name = {0: "intrados", 1: "extrados"}
+    name = FLANK_NAMES
     vol = worn_volume(W, area, flank)
     Wf = filtered_profile(W, position, area, flank, ell)
     l2 = profile_l2(Wf, area, flank)

@@ -145,11 +145,18 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
     t1 = time.perf_counter()
     pk = _friction_peak(model, scene["contact"], scene["hb"], cc)
     t_peak = time.perf_counter() - t1
+    from workflow.engine.wear_measures import FLANK_NAMES
+
     static = _static_gaps(model, scene["contact"], vertex)
+    flanks = static.pop("flanks")
+    static.update({"static_max_pressure_pa": max(f["max_pressure_pa"] for f in flanks),
+                   "static_max_lift_off_m": max(f["max_lift_off_m"] for f in flanks),
+                   **{f"static_open_share_{FLANK_NAMES[f['flank']]}": f["open_share"] for f in flanks}})
     t2 = time.perf_counter()
     with_wear = cc.wear and (cc.wear_max_pairs == 0 or model.n_pairs <= cc.wear_max_pairs)
     worn = _worn_profile(model, scene, cc) if with_wear else None
     t_wear = time.perf_counter() - t2
+    held = ((worn or {}).get("operating_point") or {}).get("control") or {}
     L = scene["geometry"].axial_length
     row = {"nodes_along": int(na), "nodes_across": int(nc), "pairs": int(model.n_pairs),
            "h_contact_m": L / (na - 1), "dofs": info["dofs"], "tied_hz": pk["tied_hz"], "peak_hz": pk["peak_hz"],
@@ -159,7 +166,8 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
            "wear_volume_m3": float(np.dot(worn["W"], model.area)) if worn else None,
            **_wear_measures(worn),
            "wear_steady": worn["steady"] if worn else None, "wear_hz": worn["frequency_hz"] if worn else None,
-           "wear_force_N": (cc.wear_amplitude or scene["excitation"].amplitude) if worn else None,
+           "wear_force_N": (cc.wear_amplitude or scene["excitation"].amplitude) if worn and not held else None,
+           "wear_tip_amplitude_m": held.get("tip_amplitude_m") if worn and held else None,
            "area_sum_rel_err": abs(float(model.area.sum()) - info["flank_area_m2"]) / info["flank_area_m2"],
            **static, "eps_n": pk["eps_n"], "eps_t": pk["eps_t"], "peak_evaluations": pk["evaluations"], "peak_at_band_edge": pk["at_band_edge"],
            "grid_converged": pk["grid_converged"], "grid_points": len(pk["grid_hz"]),

@@ -102,6 +102,23 @@ def _energy(model, law, variant, c, U, static, max_passes: int) -> float:
     return float(energy_per_cycle(st.lam[..., 1:], st.slip).sum())
 
 
+def flank_bearing(model, st, gap) -> list[dict]:
+    """How each flank bears under the preload (a :class:`~workflow.engine.hb.StaticState` ``st``,
+    initial gaps ``gap`` (p,) [m]): ``open_share`` of its area, ``max_lift_off_m`` (the largest
+    normal gap u_N + gap), ``max_pressure_pa`` and ``normal_load_n``. On the contact-convergence
+    sector both flanks bear on one long edge (docs/contact-layout.md): the edge row's pressure
+    grows as 1/h across the flank, a line load the contact mesh does not resolve."""
+    A, fl = np.asarray(model.area, float), np.asarray(model.flank)
+    out = []
+    for f in np.unique(fl):
+        i = np.flatnonzero(fl == f)
+        p = -st.lam[i, 0] / A[i]
+        out.append({"flank": int(f), "open_share": float(A[i][p <= 0].sum() / A[i].sum()),
+                    "max_lift_off_m": float(max(np.max(st.u[i, 0] + gap[i]), 0.0)),
+                    "max_pressure_pa": float(p.max()), "normal_load_n": float(-st.lam[i, 0].sum())})
+    return out
+
+
 def static_gaps(model, law, vertex: np.ndarray, max_passes: int, rc=None) -> dict:
     """Static preload state of ``model``: normal gap ``u_N + gap`` [m] at the
     midside pairs (``~vertex``) — negative is interpenetration — with every
@@ -122,6 +139,7 @@ def static_gaps(model, law, vertex: np.ndarray, max_passes: int, rc=None) -> dic
            "vertex_load_share": None}
     st = static_state(c.Zr, c.Fr, law, max_passes)
     out["pairs_in_contact"] = int(np.count_nonzero(st.state))
+    out["flanks"] = flank_bearing(model, st, gap)
     lam_n = np.maximum(-st.lam[:, 0], 0.0)
     out["vertex_load_share"] = float(lam_n[vertex].sum() / max(lam_n.sum(), 1e-300))
     ties = np.asarray(model.info.get("tie_pairs") or np.zeros((0, 2)), dtype=np.int64).reshape(-1, 2)
