@@ -112,8 +112,9 @@ class WearState:
     #: (J⁻¹R, J⁻¹∂R/∂W, ∂rate/∂x·J⁻¹R, ∂rate/∂x·J⁻¹∂R/∂W, LU of J) once per state, or False if J is
     #: singular (:func:`_newton_parts`)
     newton_parts: tuple | bool | None = None
-    #: the same derivatives without (n × n) or (n × p) arrays (:mod:`workflow.engine.wear_structured`):
-    #: J = ``hb.operator(G)``; ∂rate_i/∂x = g_i · ∂a_i/∂x; ∂R/∂W column i = w_i on pair i's rows
+    #: the same derivatives without (n × n) or (n × p) arrays (:mod:`workflow.engine.wear_structured`;
+    #: kept beside the formed ones too): J = ``hb.operator(G)``; ∂rate_i/∂x = g_i · ∂a_i/∂x (g
+    #: before any averaging of the rates); ∂R/∂W column i = w_i on pair i's rows
     G: np.ndarray | None = None   # contact blocks (p, 3nc, 3nc) (HBProblem.contact_blocks)
     g: np.ndarray | None = None   # ∂rate_i/∂a_i (p, 3nc) [m/cycle per N]
     w: np.ndarray | None = None   # ∂R/∂W_i on pair i's rows (p, 3nc) [N/m]
@@ -210,8 +211,8 @@ class WearProblem:
         st.G_W = np.einsum("pa,pa->p", g, daW)
         # ∂R/∂W_i: pair i's contact block times da_i/dW_i, on pair i's rows only
         w = np.einsum("pab,pb->pa", G, daW)
+        st.G, st.g, st.w = G, g, w
         if not dense:
-            st.G, st.g, st.w = G, g, w
             return st
         # chain to x: a = a_F − A y + ε (y + shift)  ⇒  da/dy = diag(ε) − A; every row of a
         # belongs to one pair, so ∂rate/∂x has row i = g_i · (diag ε − A)[pair i's rows]

@@ -200,11 +200,8 @@ class AmplitudeProblem:
         if not jacobian:
             return out
         hb, wp = self.wp.hb, self.wp
-        res = hb.last_dlft
-        G = st.G if st.G is not None else hb.contact_blocks(res.dlam)
-        R_s = -self._r_dyn + hb.apply_contact_blocks(G, self._a_dyn.reshape(-1, 1))[:, 0]
-        g = wp.rate_sensitivity(res, hb.law, st.lam, st.slip)
-        rate_s = np.einsum("pa,pa->p", g, self._a_dyn.ravel()[wp._rows])
+        R_s = -self._r_dyn + hb.apply_contact_blocks(st.G, self._a_dyn.reshape(-1, 1))[:, 0]
+        rate_s = np.einsum("pa,pa->p", st.g, self._a_dyn.ravel()[wp._rows])
         if wp.averaging is not None:
             rate_s = wp.averaging @ rate_s
         w = np.conj(o) @ self.C / max(a, 1e-300)             # ∂‖o₁‖/∂U₁ as Re(w dU₁)
@@ -212,18 +209,16 @@ class AmplitudeProblem:
         gc[1], gc[2] = w.real, w.imag                        # U₁ = c₁ − i c₂
         gx = (self._Tc.T @ gc if self._Tc is not None else gc).ravel()
         gs = float(np.real(np.conj(o) @ self.d)) / max(a, 1e-300)
-        if not dense:           # the vibration's blocks and the border (:mod:`workflow.engine.wear_structured`)
-            out.G, out.g, out.w, out.G_W = st.G, st.g, st.w, st.G_W
-            out.border = Border(R_s, rate_s, (self.sigma / self.target) * gx, (self.sigma / self.target) * gs)
+        c_x, c_s = (sig / self.target) * gx, (sig / self.target) * gs
+        out.G, out.g, out.w, out.G_W = st.G, st.g, st.w, st.G_W
+        if not dense:           # the border of the vibration's blocks (:mod:`workflow.engine.wear_structured`)
+            out.border = Border(R_s, rate_s, c_x, c_s)
             return out
         n = wp.n
-        J = np.empty((n + 1, n + 1))
-        J[:n, :n], J[:n, n] = st.J, R_s
-        J[n, :n], J[n, n] = (sig / self.target) * gx, (sig / self.target) * gs
-        out.J = J
+        out.J = np.empty((n + 1, n + 1))
+        out.J[:n, :n], out.J[:n, n], out.J[n, :n], out.J[n, n] = st.J, R_s, c_x, c_s
         out.R_W = np.vstack([st.R_W, np.zeros((1, self.p))])
         out.G_x = np.hstack([st.G_x, rate_s[:, None]])
-        out.G_W = st.G_W
         return out
 
     def solve_hb(self, x0, W, *, tol, maxiter=50, dense: bool | None = None) -> tuple:
