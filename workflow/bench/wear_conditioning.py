@@ -14,8 +14,9 @@ once per change, one change at a time:
 * ``contact.mu``: the friction coefficient;
 * ``wear_amplitude_N``: the tip force of the wear.
 
-``--set`` overrides a scene key in every march (e.g. ``--set 'wear.control="amplitude"'
---set wear.tip_amplitude_m=2.5e-3``: the tip held at 2.5 mm instead of the force).
+``--set`` overrides a scene key in every march. The scene holds the tip at 2.5 mm
+(``wear.control = "amplitude"``); ``--set 'wear.control="force"'`` wears under the fixed tip
+force instead, as the runs quoted below did.
 
 Writes ``wear_conditioning.csv`` (change, value, frequency_hz, max_wear_m,
 worn_volume_m3, rel_change, steady, steps, seconds) to ``--out``; rel_change
