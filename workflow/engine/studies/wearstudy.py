@@ -189,9 +189,11 @@ def finer_nh_resolve(rc, omega: float, wp, hist, opt: WearOptions, eps_path) -> 
         W = np.maximum(np.asarray(hist.W, dtype=float), 0.0)
         fine.set_wear(W)
         if getattr(wp, "target", None) is not None:    # held amplitude: the bordered solve, its load scale
+            from workflow.engine.studies.amplitude import AmplitudeProblem
             from workflow.engine.wear import WearProblem
 
-            held = type(wp)(WearProblem(fine, q.area, q.k_w, q.share, eps_path=q.eps_path), (wp.C, wp.d), wp.target)
+            held = AmplitudeProblem(WearProblem(fine, q.area, q.k_w, q.share, eps_path=q.eps_path), (wp.C, wp.d),
+                                    wp.target)
             pr, _ = held.solve_hb(np.append(guess, hist.x[-1]), W, tol=opt.tol, maxiter=opt.max_iterations)
             its += int(pr.iterations)
             out = {**out, "converged": bool(pr.converged), "iterations": its, "reason": pr.reason}
