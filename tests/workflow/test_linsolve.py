@@ -51,6 +51,33 @@ def test_operator_is_the_dense_jacobian(method):
     assert np.allclose(op.rmatmat(V), J.T @ V, rtol=0, atol=1e-12 * np.abs(J.T @ V).max())
 
 
+@pytest.mark.parametrize("method", ["hbm", "tcm", "hdhb"])
+def test_a_bordered_solve_is_the_dense_bordered_solution(method):
+    """``StructuredSolve.solve(R, border=(col, c, c_s))``: one GMRES on ``[[J, col], [cᵀ, c_s]]``
+    (a held amplitude's load scale, workflow/engine/studies/amplitude.py), its border taken to
+    K's coefficient space (TCM and HDHB: J = L K R). Against LAPACK on the formed matrix, to
+    GMRES's tolerance (1e-10) times the bordered matrix's condition number (~1e3 here)."""
+    prob = _problem(method)
+    x = _slipping_state(prob)
+    R, J = prob.residual_jacobian(x)
+    _, op = prob.residual_operator(x)
+    rng = np.random.default_rng(5)
+    n = prob.n
+    col = rng.standard_normal(n) * np.abs(J).max()
+    c = rng.standard_normal(n) * np.abs(J).max()
+    c_s = float(np.abs(J).max())
+    rhs = rng.standard_normal(n + 1)
+    Jt = np.block([[J, col[:, None]], [c[None, :], np.array([[c_s]])]])
+    exact = np.linalg.solve(Jt, -rhs)
+    lin = StructuredSolve()
+    assert lin.factor(op)
+    step = lin.solve(rhs, border=(col, c, c_s))
+    assert step.shape == (n + 1,)
+    assert np.abs(step - exact).max() <= 1e-6 * np.abs(exact).max()
+    plain = lin.solve(R)                    # the same solver without a border: J dx = −R
+    assert np.abs(J @ plain + R).max() <= 1e-8 * np.abs(R).max()
+
+
 def test_zb_apply_is_the_real_block_matrix():
     from workflow.engine import fourier
 

@@ -325,6 +325,26 @@ def _bidiagonalise(op, b, steps: int):
     return V[:, :k], B[:k + 1, :k], beta1
 
 
+def _bordered(k, pre, col, c, c_s: float):
+    """(mult, preconditioner) of the bordered ``[[K, col], [cᵀ, c_s]]`` from K's product ``k`` and
+    its preconditioner ``pre`` (≈ K⁻¹): the preconditioner is the exact inverse of the same
+    bordering of ``pre``, ``[dz; ds]`` with ``y = pre(r_z)``, ``y_c = pre(col)`` (once a solve),
+    ``ds = (r_s − c·y) / (c_s − c·y_c)``, ``dz = y − ds y_c`` — so GMRES on the bordered system
+    takes about K's own iterations, one Krylov solve where solving K twice took two."""
+    n = col.size
+    y_c = pre(col)
+    den = c_s - c @ y_c
+
+    def mult(v):
+        return np.append(k(v[:n]) + col * v[n], c @ v[:n] + c_s * v[n])
+
+    def precond(r):
+        y = pre(r[:n])
+        ds = (r[n] - c @ y) / den if den != 0 else 0.0
+        return np.append(y - ds * y_c, ds)
+    return mult, precond
+
+
 class _Apply:
     """A PETSc shell matrix's ``mult`` / shell preconditioner's ``apply``: y = f(x)."""
 
@@ -531,11 +551,13 @@ class StructuredSolve:
     #: :func:`workflow.engine.solvers.newton` may pass a linear tolerance (an inexact Newton step)
     inexact = True
 
-    def solve(self, R, rtol: float | None = None):
+    def solve(self, R, rtol: float | None = None, border=None):
         """The Newton step dx of ``J dx = −R`` (None if nothing finite came out) to the relative
-        linear residual ``rtol`` (:data:`GMRES_RTOL` if None or below it): :meth:`_solve`."""
+        linear residual ``rtol`` (:data:`GMRES_RTOL` if None or below it): :meth:`_solve`.
+        ``border`` (col (n,), c (n,), c_s): the bordered ``[[J, col], [cᵀ, c_s]]`` instead (one
+        more unknown and equation: a held amplitude's load scale), R and the step of size n + 1."""
         with self._blas(self.op):
-            return self._solve(R, GMRES_RTOL if rtol is None else max(rtol, GMRES_RTOL))
+            return self._solve(R, GMRES_RTOL if rtol is None else max(rtol, GMRES_RTOL), border)
 
     def lm_step(self, R, nu):
         """Levenberg–Marquardt step: :meth:`_lm_step`."""
@@ -679,15 +701,18 @@ class StructuredSolve:
             z = z + self._harmonic_solve(r - self._k_pre(z))
             return (z + self._cluster_solve(r - self._k_pre(z))).astype(float, copy=False)
 
-    def _k_solve(self, b, rtol: float = GMRES_RTOL):
+    def _k_solve(self, b, rtol: float = GMRES_RTOL, border=None):
         """Solve K z = b (coefficient space) to ``rtol`` by right-preconditioned flexible GMRES
         (PETSc's FGMRES: the preconditioned directions are kept, so a preconditioner that is
         not an exact linear map — single precision — still gives the true residual):
-        (z, relative residual ‖Kz − b‖/‖b‖, iterations)."""
+        (z, relative residual ‖Kz − b‖/‖b‖, iterations). ``border`` (col, c, c_s): the bordered
+        system ``[[K, col], [cᵀ, c_s]]`` of size n + 1 instead, preconditioned by the same
+        bordering of the preconditioner (:func:`_bordered`)."""
         from petsc4py import PETSc
 
-        n = self.op.shape[0]
-        contexts = (_Apply(self._k), _Apply(self._precond))
+        k, pre = (self._k, self._precond) if border is None else _bordered(self._k, self._precond, *border)
+        n = self.op.shape[0] + (border is not None)
+        contexts = (_Apply(k), _Apply(pre))
         A = PETSc.Mat().createPython([n, n], contexts[0], comm=PETSc.COMM_SELF)
         ksp = PETSc.KSP().create(PETSc.COMM_SELF)
         pc = ksp.getPC()
@@ -735,7 +760,7 @@ class StructuredSolve:
         if self._excess >= at * (self._lu[0][1] / dofs) ** power:
             self._refresh = True
 
-    def _solve(self, R, rtol: float):
+    def _solve(self, R, rtol: float, border=None):
         """The Newton step dx of ``J dx = −R`` (None if nothing finite came out).
 
         An inexact Newton step: GMRES stops at ``rtol`` or after
@@ -746,26 +771,41 @@ class StructuredSolve:
         still leave more are given up for double precision (the blocks of an
         extreme ε can be too ill-conditioned for float32) and the solve repeated."""
         op = self.op
-        b = -np.asarray(R, float).reshape(op.nc, op.nr)
+        b = -np.asarray(R, float)
+        n = op.shape[0]
+        b_x = b[:n].reshape(op.nc, op.nr)
         if op._left_inv is not None:
-            b = op._left_inv @ b
+            b_x = op._left_inv @ b_x
+        b = np.concatenate([b_x.ravel(), b[n:]])
+        kw = {} if border is None else {"border": self._coefficient_border(op, *border)}
         stale = max(STALE_RESIDUAL, rtol)
-        z, rel, _ = self._k_solve(b.ravel(), rtol)
+        z, rel, _ = self._k_solve(b, rtol, **kw)
         if rel > stale and self._lu_op is not op:
             self._factor_blocks(op)
-            z, rel, _ = self._k_solve(b.ravel(), rtol)
+            z, rel, _ = self._k_solve(b, rtol, **kw)
         if rel > stale and self._real is not np.float64:
             self._real = np.float64
             self.stats["precision"] = "double"
             self._lu, self._zr_pre = None, (None, None, None)
             self._factor(op)
-            z, rel, _ = self._k_solve(b.ravel(), rtol)
+            z, rel, _ = self._k_solve(b, rtol, **kw)
         if rel > stale:
             self.stats["failures"] += 1
-        z = z.reshape(op.nc, op.nr)
-        dx = z if op._right_inv is None else op._right_inv @ z
-        dx = dx.ravel()
+        zx = z[:n].reshape(op.nc, op.nr)
+        dx = np.concatenate([(zx if op._right_inv is None else op._right_inv @ zx).ravel(), z[n:]])
         return dx if np.all(np.isfinite(dx)) else None
+
+    @staticmethod
+    def _coefficient_border(op, col, c, c_s):
+        """A border (col, c, c_s) of J in the coefficient space of K
+        (``J = L_r K L_p⁻¹``: col → L_r⁻¹ col, c → L_p⁻ᵀ c)."""
+        col = np.asarray(col, float).reshape(op.nc, op.nr)
+        c = np.asarray(c, float).reshape(op.nc, op.nr)
+        if op._left_inv is not None:
+            col = op._left_inv @ col
+        if op._right_inv is not None:
+            c = op._right_inv.T @ c
+        return col.ravel(), c.ravel(), float(c_s)
 
     def _lm_step(self, R, nu):
         """Levenberg–Marquardt step ``min ‖J dx + R‖² + ν‖dx‖²``, matrix-free and

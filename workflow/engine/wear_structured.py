@@ -59,28 +59,25 @@ def rate_x_times(wp, st, v) -> np.ndarray:
     return out if b is None else out + b.rate_s * v[-1]
 
 
-def _solver(wp, G):
-    """``r → K⁻¹(−r)`` with K = ``wp.hb.operator(G)`` factored, or None if it is not finite."""
+def _factored(wp, G):
+    """The problem's structured solve with K = ``wp.hb.operator(G)`` factored, or None if it is
+    not finite."""
     lin = wp.linsolver()
-    if not lin.factor(wp.hb.operator(G)):
-        return None
+    return lin if lin.factor(wp.hb.operator(G)) else None
 
-    def solve(r):
-        dx = lin.solve(np.asarray(r, dtype=float))
-        return None if dx is None or not np.all(np.isfinite(dx)) else dx
-    return solve
+
+def _finite(dx):
+    return None if dx is None or not np.all(np.isfinite(dx)) else dx
 
 
 def solve(wp, st, b):
-    """``J⁻¹ b`` (n,) with J of the state ``st`` (its blocks G, bordered if ``st.border``), or
-    None if GMRES gave nothing finite."""
-    solve_k = _solver(wp, st.G)
-    if solve_k is None:
+    """``J⁻¹ b`` (n,) with J of the state ``st`` (its blocks G, bordered if ``st.border``: one
+    GMRES on the bordered system), or None if GMRES gave nothing finite."""
+    lin = _factored(wp, st.G)
+    if lin is None:
         return None
-    b = np.asarray(b, dtype=float)
-    if getattr(st, "border", None) is None:
-        return solve_k(-b)                              # J dx = b
-    return st.border.solve(solve_k, -b[:-1], -float(b[-1]))
+    border = getattr(st, "border", None)
+    return _finite(lin.solve(-np.asarray(b, dtype=float), border=None if border is None else border.bordered()))
 
 
 def augmented_step(wp, st, h: float):
@@ -91,17 +88,13 @@ def augmented_step(wp, st, h: float):
     if not np.all(np.abs(D) > 0):
         return None
     B = (h / D)[:, None, None] * st.w[:, :, None] * st.g[:, None, :]
-    solve_k = _solver(wp, st.G + B)
-    if solve_k is None:
+    lin = _factored(wp, st.G + B)
+    if lin is None:
         return None
     c = h * st.rate / D
-    rhs = st.R + r_w_times(st, c)                       # (J + B-part) dx = −R − ∂R/∂W c
     b = getattr(st, "border", None)
-    if b is None:
-        dx = solve_k(rhs)
-    else:
-        col = b.R_s + r_w_times(st, h * b.rate_s / D)[:-1]
-        dx = b.solve(solve_k, rhs[:-1], float(rhs[-1]), col=col)
+    border = None if b is None else b.bordered(b.R_s + r_w_times(st, h * b.rate_s / D)[:-1])
+    dx = _finite(lin.solve(st.R + r_w_times(st, c), border=border))  # (J + B-part) dx = −R − ∂R/∂W c
     if dx is None:
         return None
     return dx, c + h * rate_x_times(wp, st, dx) / D

@@ -13,8 +13,9 @@ it unloads: Ciavarella & Hills 1999, the `mdr` reference of docs/wear.md).
 unknown, the scale s of the dynamic load (harmonics ≥ 1 of F_r; the static preload stays), and
 one more equation, ‖o₁(x, s)‖ = A: o₁ the first harmonic of the observed DOFs (the tip),
 affine in the relative harmonics and in s (:func:`tip_map`). The wear marches take it for one
-problem with the unknowns ``[x; s]``: J formed and bordered, or matrix-free with the border
-eliminated by two structured solves (:class:`Border`, :mod:`workflow.engine.wear_structured`).
+problem with the unknowns ``[x; s]``: J formed and bordered, or matrix-free, one structured
+GMRES on the bordered system (:class:`Border`, :mod:`workflow.engine.wear_structured`,
+:meth:`workflow.engine.linsolve.StructuredSolve.solve`).
 """
 from __future__ import annotations
 
@@ -56,26 +57,17 @@ class Border:
     c_x: np.ndarray
     c_s: float
 
-    def solve(self, solve, b_x, b_s: float, col=None):
-        """[dx; ds] of ``[[K, col], [c_x, c_s]] [dx; ds] = −[b_x; b_s]`` by bordering, with
-        ``solve(r)`` = K⁻¹(−r) (the vibration's structured solve; ``col`` default ∂R/∂s): two
-        solves with K, None if either fails."""
-        col = self.R_s if col is None else col
-        y1, y2 = solve(b_x), solve(-col)                  # K y1 = −b_x, K y2 = col
-        if y1 is None or y2 is None:
-            return None
-        den = self.c_s - self.c_x @ y2
-        if not (np.isfinite(den) and den != 0.0):
-            return None
-        ds = (-b_s - self.c_x @ y1) / den
-        return np.append(y1 - ds * y2, ds)
+    def bordered(self, col=None) -> tuple:
+        """(col, c_x, c_s) of ``[[K, col], [c_xᵀ, c_s]]`` for
+        :meth:`workflow.engine.linsolve.StructuredSolve.solve` (``col`` default ∂R/∂s)."""
+        return (self.R_s if col is None else col), self.c_x, self.c_s
 
 
 class BorderedSolve:
     """Newton's linear solve (the protocol of :class:`workflow.engine.solvers.DenseLU`) of the
     held amplitude's bordered Jacobian, matrix-free: ``factor((operator, border))`` takes the
     vibration's operator into ``inner`` (a :class:`~workflow.engine.linsolve.StructuredSolve`),
-    ``solve(R)`` borders its solves (:meth:`Border.solve`). Tight solves only; no
+    ``solve(R)`` is its one GMRES on the bordered system. Tight solves only; no
     Levenberg–Marquardt (the caller turns it off)."""
 
     name = "bordered-structured"
@@ -92,8 +84,7 @@ class BorderedSolve:
         return self.inner.factor(op)
 
     def solve(self, R, eta=None):
-        R = np.asarray(R, dtype=float)
-        return self.border.solve(self.inner.solve, R[:-1], float(R[-1]))
+        return self.inner.solve(np.asarray(R, dtype=float), eta, border=self.border.bordered())
 
 
 class _AmplitudeHB:
