@@ -120,7 +120,7 @@ class _AmplitudeHB:
         return self._ap.wp.hb.operator(G)
 
     def penalty_apply(self, v):
-        return self._ap.wp.hb.penalty_apply(np.asarray(v)[: self._ap.wp.n])
+        return self._ap.wp.hb.penalty_apply(v)
 
 
 class AmplitudeProblem:

@@ -188,7 +188,7 @@ def finer_nh_resolve(rc, omega: float, wp, hist, opt: WearOptions, eps_path) -> 
             return {**out, "reason": why}
         W = np.maximum(np.asarray(hist.W, dtype=float), 0.0)
         fine.set_wear(W)
-        if getattr(wp, "target", None) is not None:    # held amplitude: the bordered solve, its load scale
+        if _held(wp):                                  # the bordered solve, its load scale
             from workflow.engine.studies.amplitude import AmplitudeProblem
             from workflow.engine.wear import WearProblem
 
@@ -207,10 +207,16 @@ def finer_nh_resolve(rc, omega: float, wp, hist, opt: WearOptions, eps_path) -> 
     return out
 
 
+def _held(wp) -> bool:
+    """Whether ``wp`` holds a tip amplitude (:class:`~workflow.engine.studies.amplitude.AmplitudeProblem`:
+    its unknowns end with the load scale)."""
+    return getattr(wp, "target", None) is not None
+
+
 def _points(wp, omega, x) -> list:
     """[(WearProblem, ω [rad/s], its unknowns)] of each operating point of ``wp``: a
     :class:`~workflow.engine.studies.operating.MissionProblem`'s points, else ``wp`` itself at ω."""
-    if getattr(wp, "target", None) is not None:       # a held amplitude: the vibration at its load
+    if _held(wp):                                     # the vibration at its load
         wp.set_scale(x[-1])
         return [(wp.wp, omega, np.asarray(x)[:-1])]
     if getattr(wp, "members", None) is None:
@@ -221,7 +227,7 @@ def _points(wp, omega, x) -> list:
 def _like(wp, problems: list, xs: list):
     """(problem, unknowns) of the same kind as ``wp`` from its points' modified problems and
     solutions (:func:`_points`): a mission of them, or the one."""
-    if getattr(wp, "target", None) is not None:
+    if _held(wp):
         return wp.like(problems[0], xs[0])
     if getattr(wp, "members", None) is None:
         return problems[0], xs[0]
