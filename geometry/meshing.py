@@ -121,16 +121,22 @@ def one_face(volume: int, lo, hi, tol: float, what: str) -> int:
     return found[0]
 
 
-def make_structured(face: int, n_along: int, n_across: int, along_axis: int = 0) -> None:
+def make_structured(face: int, n_along: int, n_across: int, along_axis: int = 0, across_bump: float = 1.0) -> None:
     """Transfinite (structured) mesh of a 4-sided face: ``n_along`` vertices
-    on the edges parallel to ``along_axis``, ``n_across`` on the others."""
+    on the edges parallel to ``along_axis``, ``n_across`` on the others,
+    evenly spaced or, with ``across_bump`` < 1, crowded towards both ends of
+    the across edges (gmsh's symmetric "Bump": the same on either orientation
+    of a curve, so two faces meshed alike stay node-to-node)."""
     import gmsh
 
     for c in boundary([(2, face)], 1):
         b = gmsh.model.getBoundingBox(1, c)
         ext = np.array(b[3:]) - np.array(b[:3])
         along = ext[along_axis] >= 0.5 * np.max(ext)
-        gmsh.model.mesh.setTransfiniteCurve(c, n_along if along else n_across)
+        if along or across_bump >= 1.0:
+            gmsh.model.mesh.setTransfiniteCurve(c, n_along if along else n_across)
+        else:
+            gmsh.model.mesh.setTransfiniteCurve(c, n_across, "Bump", float(across_bump))
     gmsh.model.mesh.setTransfiniteSurface(face)
 
 

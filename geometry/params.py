@@ -96,6 +96,12 @@ class SectorParams:
             node tied to its edge's midpoint: a linear contact surface, the
             paper's node count without interpenetration between vertices);
             reduction/pairs.py, docs/contact-layout.md.
+        flank_grading: gmsh's "Bump" coefficient of the contact vertices
+            across each flank, in (0, 1]: 1 spaces them evenly; below 1
+            they crowd towards both long edges, where the flanks bear under
+            the preload (docs/contact-layout.md), the end cells about
+            √flank_grading of the even spacing (0.2: 0.45×), the middle ones
+            wider.
         element_order: 1 or 2 (Lagrange tetrahedra).
 
     Cyclic symmetry
@@ -136,6 +142,7 @@ class SectorParams:
     h_airfoil: float = 0.006
     nodes_along: int = 4
     nodes_across: int = 2
+    flank_grading: float = 1.0
     element_order: int = 2
     contact_nodes: str = "vertices"
     cyclic: bool = False
@@ -192,6 +199,8 @@ def _check_types(p: SectorParams) -> None:
         _fail("nodes_along", f"must be ≥ 2, got {p.nodes_along}")
     if p.nodes_across < 2:
         _fail("nodes_across", f"must be ≥ 2, got {p.nodes_across}")
+    if not 0.0 < p.flank_grading <= 1.0:
+        _fail("flank_grading", f"must be in (0, 1] (1: evenly spaced across the flank), got {p.flank_grading!r}")
     if p.element_order not in (1, 2):
         _fail("element_order", f"must be 1 or 2, got {p.element_order}")
     if p.contact_nodes != "vertices" and p.element_order != 2:
@@ -202,6 +211,7 @@ def _check_types(p: SectorParams) -> None:
     # The flank's structured cells are faces of tetrahedra: very elongated
     # cells leave only slivers to attach to them.
     da, dc = p.axial_length / (p.nodes_along - 1), p.flank_length / (p.nodes_across - 1)
+    dc *= math.sqrt(p.flank_grading) if p.nodes_across > 2 else 1.0   # the Bump's end cells
     if max(da, dc) / min(da, dc) > MAX_FLANK_ASPECT:
         name = "nodes_along" if da > dc else "nodes_across"
         _fail(name, f"flank cells would be {1e3 * da:.3g} mm (along) × {1e3 * dc:.3g} mm (across), "

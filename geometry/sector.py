@@ -235,8 +235,8 @@ def _structure_flanks(p: SectorParams, faces: dict) -> None:
 
     for side in SIDES:
         b, d = faces[f"blade_flank_{side}"], faces[f"disk_flank_{side}"]
-        gm.make_structured(d, p.nodes_along, p.nodes_across, along_axis=0)
-        gm.make_structured(b, p.nodes_along, p.nodes_across, along_axis=0)
+        gm.make_structured(d, p.nodes_along, p.nodes_across, along_axis=0, across_bump=p.flank_grading)
+        gm.make_structured(b, p.nodes_along, p.nodes_across, along_axis=0, across_bump=p.flank_grading)
         gmsh.model.mesh.setPeriodic(2, [b], [d], gm.IDENTITY)
 
 

@@ -203,6 +203,27 @@ def test_contact_node_count_follows_the_grid(tmp_path, along, across, read_msh):
     assert info["pair_distance_max"] < 1e-12 * p.r_out
 
 
+def test_graded_flanks_crowd_their_vertices_towards_the_long_edges(tmp_path, read_msh):
+    """geometry.flank_grading: the same vertex count and node-to-node pairs, the spacing across
+    smallest at both long edges (gmsh's Bump: the end cell ≈ √g × the even spacing) and the
+    rows across still straight lines along x."""
+    g, along, across = 0.2, 12, 5
+    p = replace(SectorParams(), nodes_along=along, nodes_across=across, flank_grading=g,
+                h_disk=0.01, h_blade=0.006, h_airfoil=0.012)
+    info = build_sector(p, tmp_path / "s.msh")
+    mesh = read_msh(tmp_path / "s.msh")
+    assert info["contact_pairs"] == 2 * along * across and info["pair_distance_max"] < 1e-12 * p.r_out
+    for side in SIDES:
+        xyz = mesh.xyz(mesh.vertices(f"blade_flank_{side}"))
+        row = xyz[np.isclose(xyz[:, 0], xyz[:, 0].min())][:, 1:]          # one row across, at the first x
+        d = np.linalg.norm(row - row[np.argmin(row[:, 0])], axis=1)
+        gaps = np.diff(np.sort(d))
+        even = d.max() / (across - 1)
+        assert gaps.size == across - 1 and gaps[0] == pytest.approx(gaps[-1], rel=1e-9)   # symmetric
+        assert gaps[0] < gaps[across // 2 - 1] and 0.3 < gaps[0] / (math.sqrt(g) * even) < 1.5
+        assert len(np.unique(xyz[:, 0].round(12))) == along
+
+
 def test_first_order_mesh(tmp_path, read_msh):
     p = replace(SectorParams(), element_order=1, h_airfoil=0.012)
     info = build_sector(p, tmp_path / "s.msh")
@@ -252,6 +273,9 @@ BAD = [
     ({"nodes_across": 2.5}, "nodes_across"),
     ({"nodes_along": 2, "nodes_across": 5}, "nodes_along"),    # flank cells 40 × 1.25 mm
     ({"nodes_along": 100}, "nodes_across"),                     # flank cells 0.4 × 5 mm
+    ({"flank_grading": 0.0}, "flank_grading"),
+    ({"flank_grading": 1.5}, "flank_grading"),
+    ({"nodes_along": 7, "nodes_across": 5, "flank_grading": 0.2}, "nodes_along"),  # end cells 6.7 × 0.56 mm
     ({"relief_angle": -0.1}, "relief_angle"),
     ({"element_order": 3}, "element_order"),
     ({"h_blade": 1e-5}, "h_blade"),              # would make billions of elements

@@ -11,7 +11,7 @@ import pytest
 
 from workflow.errors import SceneError
 from geometry.flankmap import common_points, profile_at
-from workflow.engine.studies.meshstudy import observed_order, rel_change, summarise
+from workflow.engine.studies.meshstudy import grid_convergence_index, observed_order, rel_change, summarise
 from workflow.stages import contact_convergence as cc
 
 
@@ -26,6 +26,19 @@ def test_observed_order_recovers_the_exponent_for_uneven_ratios():
     assert rel_change(None, 1.0) is None
 
 
+def test_the_grid_convergence_index_bounds_the_error_of_the_finest_mesh():
+    """q = q∞ + C hᵖ on meshes in the asymptotic range: the GCI (F_s = 1.25) is 1.25 × the
+    Richardson estimate of the finest mesh's error, so it holds the exact error with that margin;
+    oscillating changes or an order below ½ give none."""
+    h = np.array([0.02, 0.013, 0.009])
+    for p in (0.7, 1.0, 2.0):
+        q = 5.0 + 0.8 * h ** p
+        err = abs(q[-1] - 5.0) / q[-1]
+        assert grid_convergence_index(h, q) == pytest.approx(1.25 * err, rel=1e-9)
+    assert grid_convergence_index(h, [1.0, 1.2, 1.1]) is None
+    assert grid_convergence_index(h, 5.0 + 0.8 * h ** 0.3) is None
+
+
 def test_summarise_reports_the_two_finest_meshes():
     h = [0.02, 0.01, 0.005]
     rows = [dict(h_contact_m=x, peak_hz=100 + x, peak_amplitude_m=1e-3 * (1 + x ** 2), energy_J=1e-4 * (1 + x),
@@ -37,6 +50,7 @@ def test_summarise_reports_the_two_finest_meshes():
     assert s["peak_change_last"] == pytest.approx(abs(h[1] ** 2 - h[2] ** 2) / (1 + h[2] ** 2))
     assert s["observed_order"]["peak_amplitude_m"] == pytest.approx(2.0, rel=1e-9)
     assert s["observed_order"]["energy_J"] == pytest.approx(1.0, rel=1e-9)
+    assert s["gci"]["wear_volume_m3"] == pytest.approx(1.25 * h[2] ** 1.5 / (1 + h[2] ** 1.5), rel=1e-9)
     assert s["profile_change_last"] == pytest.approx(0.1 / 2.1)
 
 

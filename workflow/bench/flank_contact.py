@@ -1,7 +1,7 @@
 """The flank contact and the held-amplitude worn state against the contact mesh (issue 48).
 
 ``python -m workflow.bench.flank_contact --grids 4x2,7x3,7x5,8x9 [--tip 2.5e-3] [--crown 0]
-[--models DIR] [--static-only] [--out results/bench]``
+[--grading 1] [--set SECTION.KEY=VALUE ...] [--models DIR] [--static-only] [--out results/bench]``
 
 For each flank grid (``along x across`` vertices) of the ``contact-convergence`` scene's sector
 (meshed, assembled and reduced as the stage does it; ``--models`` keeps the reduced models
@@ -15,9 +15,11 @@ there, ``model-AxC.npz``, and reads them back):
   (:func:`workflow.stages.contact_convergence._worn_profile`), no resonance-shift search.
 
 ``--crown`` δ [m] adds a parabolic initial gap across each flank (δ at its long edges, 0 on
-its centre line): a crowned flank, as micro-geometry.
+its centre line): a crowned flank, as micro-geometry. ``--grading`` g < 1 crowds the vertices
+across each flank towards its long edges (``geometry.flank_grading``).
 
-Writes ``flank_contact.csv`` (one row per grid and flank) to ``--out``.
+Writes ``flank_contact.csv`` (one row per grid and flank) to ``--out``, and each worn state
+(W, the pairs' position, flank and area) to ``worn-AxC.npz``.
 """
 from __future__ import annotations
 
@@ -51,7 +53,9 @@ def model_of(scene, grid: tuple[int, int], keep: Path | None):
     from reduction.reduced import ReducedModel
     from workflow.stages.contact_convergence import build_model
 
-    path = None if keep is None else keep / f"model-{grid[0]}x{grid[1]}.npz"
+    g = scene["geometry"].flank_grading
+    name = f"model-{grid[0]}x{grid[1]}" + (f"-g{g:g}" if g < 1 else "")
+    path = None if keep is None else keep / f"{name}.npz"
     if path is not None and path.exists():
         return ReducedModel.load(path)
     with tempfile.TemporaryDirectory() as work:
@@ -79,37 +83,42 @@ def static_contact(model, scene) -> list[dict]:
     return flank_bearing(model, st, np.asarray(law.gap, float))
 
 
-def worn(model, tip: float) -> dict:
-    """The held-amplitude worn steady state by the stage's march."""
+def worn(model, tip: float, sets=()) -> dict:
+    """The held-amplitude worn steady state by the stage's march (``sets``: more scene overrides)."""
     from workflow.scene import load_scene
     from workflow.stages.contact_convergence import _worn_profile
 
     scene = load_scene(SCENE, ["wear.control=\"amplitude\"", f"wear.tip_amplitude_m={tip!r}",
-                               "wear.resonance_shift=false"])
+                               "wear.resonance_shift=false", *sets])
     t0 = time.perf_counter()
     out = _worn_profile(model, scene, scene["contact_convergence"])
     W = out["W"]
     return {"max_wear_m": float(W.max()), "worn_volume_m3": float(W @ np.asarray(model.area)),
-            "steady": out["steady"], "steps": out["steps"], "seconds": time.perf_counter() - t0}
+            "steady": out["steady"], "steps": out["steps"], "seconds": time.perf_counter() - t0, "W": W}
 
 
-def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path) -> list[dict]:
+def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path,
+        grading: float = 1.0, sets=()) -> list[dict]:
     from workflow.scene import load_scene
 
-    scene = load_scene(SCENE)
+    scene = load_scene(SCENE, [f"geometry.flank_grading={grading!r}"])
     rows = []
+    out.mkdir(parents=True, exist_ok=True)
     for g in grids:
         model = model_of(scene, g, keep)
         if crown > 0:
             model = replace(model, gap=np.asarray(model.gap, float) + crown_gap(model, crown))
-        w = {} if static_only else worn(model, tip)
+        w = {} if static_only else worn(model, tip, sets)
+        if w:
+            np.savez(out / f"worn-{g[0]}x{g[1]}.npz", W=w.pop("W"), position=model.position, flank=model.flank,
+                     area=model.area)
         for r in static_contact(model, scene):
-            rows.append({"grid": f"{g[0]}x{g[1]}", "pairs": int(model.area.size), "crown_m": crown, **r,
+            rows.append({"grid": f"{g[0]}x{g[1]}", "pairs": int(model.area.size), "crown_m": crown,
+                         "flank_grading": grading, **r,
                          "tip_amplitude_m": None if static_only else tip, **w})
         print(rows[-1], flush=True)
     from workflow.io import write_rows
 
-    out.mkdir(parents=True, exist_ok=True)
     write_rows(out / "flank_contact.csv", rows)
     return rows
 
@@ -119,6 +128,10 @@ def main(argv=None) -> int:
     ap.add_argument("--grids", default="4x2,7x3,7x5", help="flank grids along x across, comma-separated")
     ap.add_argument("--tip", type=float, default=2.5e-3, help="held tip amplitude [m]")
     ap.add_argument("--crown", type=float, default=0.0, help="flank crown δ [m] (0: flat flanks)")
+    ap.add_argument("--grading", type=float, default=1.0,
+                    help="geometry.flank_grading: < 1 crowds the vertices towards the flanks' long edges")
+    ap.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                    help="a scene override for the wear march, e.g. wear.length_m=0.002 (repeatable)")
     ap.add_argument("--models", type=Path, default=None, help="keep the reduced models in this folder")
     ap.add_argument("--static-only", action="store_true", help="the static contact only, no wear march")
     ap.add_argument("--out", default="results/bench", type=Path)
@@ -127,9 +140,9 @@ def main(argv=None) -> int:
         grids = [tuple(int(v) for v in g.lower().split("x")) for g in a.grids.split(",") if g.strip()]
     except ValueError:
         ap.error(f"--grids {a.grids!r}: expected e.g. 4x2,7x3")
-    if not (a.tip > 0 and a.crown >= 0):
-        ap.error("--tip must be > 0 and --crown ≥ 0")
-    run(grids, a.tip, a.crown, a.models, a.static_only, a.out)
+    if not (a.tip > 0 and a.crown >= 0 and 0 < a.grading <= 1):
+        ap.error("--tip must be > 0, --crown ≥ 0 and --grading in (0, 1]")
+    run(grids, a.tip, a.crown, a.models, a.static_only, a.out, a.grading, a.set)
     return 0
 
 

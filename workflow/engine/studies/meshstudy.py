@@ -192,6 +192,19 @@ def observed_order(h, q) -> float | None:
     return float(brentq(g, lo, hi))
 
 
+def grid_convergence_index(h, q, safety: float = 1.25) -> float | None:
+    """Roache's grid-convergence index of the finest mesh, relative: ``F_s |q₂ − q₃| / (|q₃|
+    (r^p − 1))`` with r = h₂/h₃ and p the :func:`observed_order` of the last three meshes
+    (F_s = 1.25, three meshes). A band the converged value lies in, |q∞ − q₃| ≤ GCI·|q₃|, once
+    the meshes are in the asymptotic range; None without an observed order (changes not
+    monotone) or with p < 0.5, where the extrapolation it rests on is not credible."""
+    p = observed_order(h, q)
+    if p is None or p < 0.5 or q[-1] == 0:
+        return None
+    r = h[-2] / h[-1]
+    return float(safety * abs(q[-2] - q[-1]) / (abs(q[-1]) * (r ** p - 1.0)))
+
+
 def rel_change(a, b) -> float | None:
     """|b − a| / |b| (None if either is missing)."""
     if a is None or b is None or b == 0:
@@ -225,6 +238,10 @@ def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
                               for rs, ks in ((rows, ("peak_hz", "peak_amplitude_m", "energy_J")),
                                              (worn, ("max_wear_m", "wear_volume_m3", "profile_l2_m",
                                                      "filtered_max_wear_m"))) for k in ks}}
+    out["gci"] = {k: grid_convergence_index([r["h_contact_m"] for r in rs], [r.get(k) for r in rs])
+                  for rs, ks in ((rows, ("peak_amplitude_m", "energy_J")),
+                                 (worn, ("max_wear_m", "wear_volume_m3", "profile_l2_m"))) for k in ks
+                  if len(rs) >= 3 and all(r.get(k) is not None for r in rs[-3:])}
     for k in ("midside_gap_min_m", "vertex_only_midside_gap_min_m"):
         vals = [r[k] for r in rows if r.get(k) is not None]
         out[f"worst_{k}"] = min(vals) if vals else None  # < 0: the flank meshes interpenetrate
