@@ -51,6 +51,9 @@ def test_summarise_reports_the_two_finest_meshes():
     assert s["observed_order"]["peak_amplitude_m"] == pytest.approx(2.0, rel=1e-9)
     assert s["observed_order"]["energy_J"] == pytest.approx(1.0, rel=1e-9)
     assert s["gci"]["wear_volume_m3"] == pytest.approx(1.25 * h[2] ** 1.5 / (1 + h[2] ** 1.5), rel=1e-9)
+    mw = s["spread"]["max_wear_m"]                                   # 1e-6 × (1.2, 1.1, 1.05)
+    assert (mw["median"], mw["min"], mw["max"], mw["meshes"]) == pytest.approx((1.1e-6, 1.05e-6, 1.2e-6, 3))
+    assert mw["range_rel"] == pytest.approx(0.15 / 1.1)
     assert s["profile_change_last"] == pytest.approx(0.1 / 2.1)
 
 

@@ -205,6 +205,17 @@ def grid_convergence_index(h, q, safety: float = 1.25) -> float | None:
     return float(safety * abs(q[-2] - q[-1]) / (abs(q[-1]) * (r ** p - 1.0)))
 
 
+def spread(values) -> dict | None:
+    """Median, least, largest and range over the median of a measure over the meshes: its
+    sensitivity to the contact mesh where the meshes do not converge (None: fewer than two)."""
+    v = np.asarray([x for x in values if x is not None], float)
+    if v.size < 2:
+        return None
+    med = float(np.median(v))
+    return {"median": med, "min": float(v.min()), "max": float(v.max()), "meshes": int(v.size),
+            "range_rel": float((v.max() - v.min()) / abs(med)) if med else None}
+
+
 def rel_change(a, b) -> float | None:
     """|b − a| / |b| (None if either is missing)."""
     if a is None or b is None or b == 0:
@@ -242,6 +253,8 @@ def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
                   for rs, ks in ((rows, ("peak_amplitude_m", "energy_J")),
                                  (worn, ("max_wear_m", "wear_volume_m3", "profile_l2_m"))) for k in ks
                   if len(rs) >= 3 and all(r.get(k) is not None for r in rs[-3:])}
+    # the node-wise max depth is a sensitivity, not a converging measure (docs/contact-layout.md)
+    out["spread"] = {k: spread([r.get(k) for r in worn]) for k in ("max_wear_m", "wear_volume_m3")}
     for k in ("midside_gap_min_m", "vertex_only_midside_gap_min_m"):
         vals = [r[k] for r in rows if r.get(k) is not None]
         out[f"worst_{k}"] = min(vals) if vals else None  # < 0: the flank meshes interpenetrate
