@@ -192,6 +192,22 @@ def test_structured_monodromy_is_the_dense_backward_euler():
     assert np.allclose(np.sort(np.abs(live))[::-1], big, rtol=1e-10, atol=1e-12 * big[0]), (live, big)
 
 
+def test_compiled_pieces_are_the_numpy_steps(monkeypatch):
+    """The numba loops of _propagate (one call a chunk) against _step (one call a step, the
+    oracle), anchors touching again and slipping included: the same operations in another
+    order, so equal to round-off (bound 1e-12 of the largest entry)."""
+    if stability._pieces_numba is None:
+        pytest.skip("numba not importable: the NumPy steps are in use")
+    (M, C, K, B), args, _ = _synthetic_tangent()
+    blk = stability.tangent_blocks(*args)
+    assert np.any(blk["contact"][1:] & ~blk["contact"][:-1]), "the case should have pairs that touch again"
+    fast = [stability.monodromy(M, C, K, B, blk, 1.0, substeps=s, richardson=False) for s in (1, 3)]
+    monkeypatch.setattr(stability, "_pieces_numba", None)
+    slow = [stability.monodromy(M, C, K, B, blk, 1.0, substeps=s, richardson=False) for s in (1, 3)]
+    for f, s in zip(fast, slow):
+        assert np.abs(f - s).max() <= 1e-12 * np.abs(s).max(), np.abs(f - s).max()
+
+
 def test_richardson_extrapolation_is_third_order():
     """Two Richardson halvings (stability.RICHARDSON = 2) take backward Euler's monodromy from O(h)
     to O(h³): halving the step divides the error by → 8 (measured 6.96 and 7.45 from 16 to 32 to

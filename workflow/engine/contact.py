@@ -34,12 +34,12 @@ changing (see :func:`dlft_pass`).
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from workflow.engine.errors import SceneError
+from workflow.engine.jit import compiled
 
 __all__ = ["SEPARATION", "STICK", "SLIP", "ContactLaw", "DLFTResult", "dlft_pass", "dlft"]
 
@@ -340,14 +340,8 @@ def _one_pass_loops(lam_u, mu, ref, dlu, start):
     return lam, lxT_all, state, dlam, S
 
 
-_one_pass_numba = None
-if os.environ.get("BLADEWEAR_NUMBA", "1") != "0":
-    try:  # optional accelerator: the NumPy pass is the fallback and the test oracle
-        import numba as _numba
-    except Exception:  # pragma: no cover - numba missing or incompatible with this NumPy
-        _numba = None
-    if _numba is not None:
-        _one_pass_numba = _numba.njit(cache=True)(_one_pass_loops)
+#: the compiled pass, or None: the NumPy pass (the fallback and the test oracle)
+_one_pass_numba = compiled(_one_pass_loops)
 
 
 def _one_pass(lam_u, mu, ref, dlu, start):
