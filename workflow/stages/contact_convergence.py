@@ -245,7 +245,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     log.info("contact convergence, two finest meshes: "
              + ", ".join(f"{k} {v:.3%}" for k, v in summary.items() if k.endswith("change_last") and v is not None))
     for k, sp in summary["spread"].items():
-        if sp is not None:
+        if sp is not None and sp["range_rel"] is not None:
             log.info(f"{k} over the {sp['meshes']} worn meshes: median {sp['median']:.4g}, "
                      f"{sp['min']:.4g} … {sp['max']:.4g} (range {sp['range_rel']:.1%} of the median)")
     return {"rows": [{**{k: r[k] for k in ("pairs", "peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m",
