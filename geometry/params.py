@@ -101,7 +101,7 @@ class SectorParams:
             they crowd towards both long edges, where the flanks bear under
             the preload (docs/contact-layout.md), the end cells about
             √flank_grading of the even spacing (0.2: 0.45×), the middle ones
-            wider.
+            wider (with 2 or 3 vertices across, the spacing stays even).
         element_order: 1 or 2 (Lagrange tetrahedra).
 
     Cyclic symmetry
@@ -211,7 +211,7 @@ def _check_types(p: SectorParams) -> None:
     # The flank's structured cells are faces of tetrahedra: very elongated
     # cells leave only slivers to attach to them.
     da, dc = p.axial_length / (p.nodes_along - 1), p.flank_length / (p.nodes_across - 1)
-    dc *= math.sqrt(p.flank_grading) if p.nodes_across > 2 else 1.0   # the Bump's end cells
+    dc *= math.sqrt(p.flank_grading) if p.nodes_across > 3 else 1.0   # the Bump's end cells (symmetric: ≤ 3 stay even)
     if max(da, dc) / min(da, dc) > MAX_FLANK_ASPECT:
         name = "nodes_along" if da > dc else "nodes_across"
         _fail(name, f"flank cells would be {1e3 * da:.3g} mm (along) × {1e3 * dc:.3g} mm (across), "
