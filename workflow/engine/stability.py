@@ -713,7 +713,7 @@ def _pieces_loops(Z, Av, hs, ptr, rows, D, P, tptr, trows, slaved, sub, m):
     per piece the anchors that touch again set to their slaved value (``tptr``, ``trows``,
     ``slaved``: :func:`_index_rows` of the chunk), then :func:`_step` ``sub`` times. A Python
     call per step costs more than the step (7 × 238 by 18 columns at 128 pairs)."""
-    n, nc = Z.shape
+    nc = Z.shape[1]
     v1 = np.empty((m, nc))
     for j in range(Av.shape[0]):
         for r in range(2 * tptr[j], 2 * tptr[j + 1]):
