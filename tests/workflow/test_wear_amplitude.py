@@ -39,13 +39,19 @@ def _study(control: str, **kw):
     return engine.worn_steady_state(model, law, opt)
 
 
-def test_held_amplitude_wears_as_the_imposed_jenkins_element():
+@pytest.fixture(scope="module")
+def held_at_x():
+    """Case (a)'s driven element worn with its far end held at X (pseudo-time)."""
+    return _study("amplitude", tip_amplitude_m=JENKINS.X)
+
+
+def test_held_amplitude_wears_as_the_imposed_jenkins_element(held_at_x):
     """Held at X, the element wears along case (a)'s logistic to lift-off (W = N₀/k_n), though
     the model's own load moves the far end X/2: under that force the element sticks (N₀ ≥ k_t X
     / 2μ) and never wears. Bounds: the march's error control (pseudo-time at rtol 1e-4; at 1e-3
     it measured 4e-4 of δ₀ on case (a)) and the far end's departure from X cos ωt,
     O(k_t/k_g) = 1e-6."""
-    held = _study("amplitude", tip_amplitude_m=JENKINS.X)
+    held = held_at_x
     h = held.histories["pseudo-time"]
     assert h.steady
     assert held.operating_point["control"]["load_scale_new"] == pytest.approx(2.0, rel=1e-3)
@@ -141,3 +147,64 @@ def test_the_matrix_free_bordered_march_is_the_formed_one():
     assert n0 == n1
     assert np.max(np.abs(W1 - W0)) <= 1e-6 * np.max(W0)
     assert s1 == pytest.approx(s0, rel=1e-6)
+
+
+def _load_scale(hb) -> float:
+    """The scale of ``hb``'s dynamic load against its unit load (:meth:`HBProblem.scale_load`)."""
+    from workflow.engine import fourier
+
+    unit = fourier.complex_to_real(hb.Fr)[1:]
+    return float(np.linalg.norm(hb.F_coef[1:]) / np.linalg.norm(unit))
+
+
+def test_where_the_built_load_does_not_solve_the_held_amplitude_starts_from_a_smaller_one(monkeypatch, held_at_x):
+    """The unworn point under the load as built only starts a held amplitude's search: where it
+    fails (made to here), the point under a tenth of the load starts it, and the march holds
+    the same tip at the same load scale and wears the same. Bounds: the vibration's Newton
+    tolerance (1e-8 of ‖F‖) on the scale; the marches take the same steps from states that
+    agree to it (measured 0 difference in W at 1e-12 of δ₀)."""
+    from workflow.engine.errors import SolverError
+    from workflow.engine.studies import wearstudy
+
+    direct = held_at_x
+    real, scales = wearstudy.unworn_point, []
+
+    def fails_as_built(hb, *args):
+        scales.append(_load_scale(hb))
+        if scales[-1] > 0.5:
+            raise SolverError("made to fail under the load as built")
+        return real(hb, *args)
+
+    monkeypatch.setattr(wearstudy, "unworn_point", fails_as_built)
+    held = _study("amplitude", tip_amplitude_m=JENKINS.X)
+    assert scales == pytest.approx([1.0, 0.1])
+    s0, s1 = (st.operating_point["control"]["load_scale_new"] for st in (direct, held))
+    assert s1 == pytest.approx(s0, rel=1e-7)
+    w0, w1 = (st.histories["pseudo-time"].W for st in (direct, held))
+    assert held.histories["pseudo-time"].steady and np.max(np.abs(w1 - w0)) < 1e-6 * JENKINS.delta0
+    with pytest.raises(SolverError, match="made to fail"):     # a fixed force has no other load to start from
+        _study("force")
+
+
+def test_the_continuation_in_amplitude_reaches_the_held_state_where_the_jump_fails(monkeypatch, held_at_x):
+    """:meth:`AmplitudeProblem.start`: where Newton's jump from the scaled start fails (made to
+    here), geometric steps in the amplitude from the start's own (X/2 → X: 4 steps, each one
+    solve) reach the same held state. Bound: the Newton tolerance, as above."""
+    from workflow.engine.studies.amplitude import CONTINUATION_STEPS, AmplitudeProblem
+
+    direct = held_at_x
+    real, targets = AmplitudeProblem.solve_hb, []
+
+    def jump_fails(self, z, W, **kw):
+        targets.append(self.target)
+        res, st = real(self, z, W, **kw)
+        if len(targets) == 1:
+            res.converged, res.reason = False, "made to fail"
+        return res, st
+
+    monkeypatch.setattr(AmplitudeProblem, "solve_hb", jump_fails)
+    held = _study("amplitude", tip_amplitude_m=JENKINS.X)
+    steps = targets[1:CONTINUATION_STEPS + 1]
+    assert steps == pytest.approx(JENKINS.X * 2.0 ** (np.arange(1, CONTINUATION_STEPS + 1) / CONTINUATION_STEPS - 1))
+    s0, s1 = (st.operating_point["control"]["load_scale_new"] for st in (direct, held))
+    assert s1 == pytest.approx(s0, rel=1e-7) and s1 == pytest.approx(2.0, rel=1e-3)

@@ -94,7 +94,7 @@ def worn(model, tip: float, sets=()) -> dict:
     out = _worn_profile(model, scene, scene["contact_convergence"])
     W = out["W"]
     return {"max_wear_m": float(W.max()), "worn_volume_m3": float(W @ np.asarray(model.area)),
-            "steady": out["steady"], "steps": out["steps"], "seconds": time.perf_counter() - t0, "W": W}
+            "steady": out["steady"], "steps": out["steps"], "reason": out["reason"], "seconds": time.perf_counter() - t0, "W": W}
 
 
 def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path,

@@ -53,7 +53,7 @@ def _march(model, overrides: list[str]) -> dict:
     W = out["W"]
     return {"frequency_hz": out["frequency_hz"], "max_wear_m": float(W.max()),
             "worn_volume_m3": float(W @ np.asarray(model.area)), "steady": out["steady"],
-            "steps": out["steps"], "seconds": time.perf_counter() - t0}
+            "steps": out["steps"], "reason": out["reason"], "seconds": time.perf_counter() - t0}
 
 
 def run(grid: tuple[int, int], ratios, mus, forces, out: Path, sets=()) -> list[dict]:

@@ -142,6 +142,7 @@ class HBProblem:
         self._lin_memo = None                                     # (x, _linear(x)) of the last x
         Fc = fourier.complex_to_real(Fr)                          # (nc, nr)
         self.F_coef = Fc
+        self.load_factor = 1.0                                    # :meth:`scale_load`
         self._dense = None                                        # (n × n) forms, on demand only
         E = fourier.time_from_coef_matrix(nh, nit)                # (nit, nc)
         if self.method == "hbm":
@@ -182,7 +183,7 @@ class HBProblem:
         :mod:`workflow.engine.studies.amplitude`); ``Fr`` stays the unit load."""
         Fc = fourier.complex_to_real(self.Fr)
         Fc[1:] *= s
-        self.F_coef = Fc
+        self.F_coef, self.load_factor = Fc, float(s)
         self.r_F, self.a_F = self._apply_L(self._Lr, Fc), self._apply_L(self._Lp, Fc)
 
     # The linear operators, applied without forming (n × n) matrices: Zb
@@ -623,7 +624,8 @@ class HBProblem:
         """Initial guess: the static state for harmonic 0 (solving it and setting
         the anchor if no anchor was given) and, for j ≥ 1, the linear response
         with every pair in contact at the static state tied (U_j = 0 there)
-        and separated pairs free (``Z_j,ff U_f = F_j,f``). ``sliding``: pairs in
+        and separated pairs free (``Z_j,ff U_f = F_j,f``, under the load as scaled:
+        :meth:`scale_load`). ``sliding``: pairs in
         contact keep only u_N = 0, their tangential DOFs free (μ = 0)."""
         if self._static is None:
             self.static_state(apply=not self._anchor_set)
@@ -636,7 +638,7 @@ class HBProblem:
             free[0::3] = st.state == 0
         if free.any():
             for j in range(1, self.nh + 1):
-                U[j, free] = np.linalg.solve(self.Zr[j][np.ix_(free, free)], self.Fr[j, free])
+                U[j, free] = np.linalg.solve(self.Zr[j][np.ix_(free, free)], self.load_factor * self.Fr[j, free])
         return self.unknowns_from_harmonics(U)
 
     # ----------------------------------------------------------------- solve

@@ -28,6 +28,12 @@ from workflow.engine import fourier
 from workflow.engine.errors import SceneError
 from workflow.engine.wear import WearProblem, WearState
 
+#: Steps of the continuation in the held amplitude when Newton's jump to it fails
+#: (:meth:`AmplitudeProblem._continued`): equal steps of ln A from the start's amplitude.
+CONTINUATION_STEPS = 4
+#: Halvings of a failed continuation step before :meth:`AmplitudeProblem.start` gives up.
+CONTINUATION_HALVINGS = 4
+
 
 def tip_map(rc, omega: float) -> tuple[np.ndarray, np.ndarray]:
     """(C (n_obs, 3p), d (n_obs,)) complex: the observed DOFs' first harmonic is
@@ -265,18 +271,54 @@ class AmplitudeProblem:
         res = other.start(x, tol=self.tol, maxiter=self.maxiter)
         return other, res.x
 
-    def start(self, x, *, tol: float, maxiter: int = 50):
-        """``[x; s]`` with the tip at the held amplitude from the vibration x at the unit load: s
-        from the tip's amplitude at x (the response is linear in the load while the
-        interface sticks), x scaled alike, then :meth:`solve_hb`. Returns its SolveResult."""
+    def start(self, x, *, tol: float, maxiter: int = 50, scale: float = 1.0):
+        """``[x; s]`` with the tip at the held amplitude from the vibration x under ``scale`` × the
+        unit load: s from the tip's amplitude at x (the response is linear in the load while
+        the interface sticks), x scaled alike, then :meth:`solve_hb`; where that fails, by
+        continuation in the amplitude from x's own (:meth:`_continued`). Returns its SolveResult."""
         self.tol, self.maxiter = float(tol), int(maxiter)
         x = np.asarray(x, dtype=float)
-        _, a = self.tip(np.append(x, 1.0))
-        s = self.target / max(a, 1e-300)
+        _, a = self.tip(np.append(x, scale))
+        res, _ = self.solve_hb(self._scaled(np.append(x, scale), self.target / max(a, 1e-300)), self.W,
+                               tol=tol, maxiter=maxiter)
+        if res.converged or not a > 0:
+            return res
+        return self._continued(np.append(x, scale), a, spent=res)
+
+    def _scaled(self, z, r: float) -> np.ndarray:
+        """``[x; s]`` with the dynamic harmonics of x and the load scale s × r."""
         hb = self.wp.hb
-        c = hb.coefficients(x).copy()
-        c[1:] *= s
-        z = np.append(hb.unknowns_from_coefficients(c), s)
-        res, _ = self.solve_hb(z, self.W, tol=tol, maxiter=maxiter)
+        c = hb.coefficients(z[:-1]).copy()
+        c[1:] *= r
+        return np.append(hb.unknowns_from_coefficients(c), z[-1] * r)
+
+    def _continued(self, z, a: float, spent=None):
+        """From ``[x; s]`` (a solution with the tip at ``a`` [m]) to the held amplitude along
+        amplitudes in geometric steps (:data:`CONTINUATION_STEPS` of them, a failed step
+        halved at most :data:`CONTINUATION_HALVINGS` times), each from the last solution
+        scaled. Far into slip (a tied resonance's load from the stuck guess) Newton's jump
+        straight to the target can fail where each step's change of the slip pattern is small.
+        Returns the last SolveResult (not converged if a step could not be made); its
+        iterations count every attempt, ``spent``'s included."""
+        target, la, lt = self.target, math.log(a), math.log(self.target)
+        step = (lt - la) / CONTINUATION_STEPS
+        its, jac = (0, 0) if spent is None else (spent.iterations, spent.jacobian_evaluations)
+        halvings, res = 0, spent
+        try:
+            while la != lt:
+                nxt = lt if abs(lt - la) <= abs(step) * (1 + 1e-12) else la + step
+                self.target = math.exp(nxt)
+                res, _ = self.solve_hb(self._scaled(z, math.exp(nxt - la)), self.W, tol=self.tol,
+                                       maxiter=self.maxiter)
+                its, jac = its + res.iterations, jac + res.jacobian_evaluations
+                if res.converged:
+                    z, la = res.x, nxt
+                elif halvings < CONTINUATION_HALVINGS:
+                    step, halvings = 0.5 * step, halvings + 1
+                else:
+                    break
+        finally:
+            self.target = target
+        res.iterations, res.jacobian_evaluations = its, jac
         return res
 

@@ -160,13 +160,14 @@ def worn_profile(model, law, eps_path, options) -> dict:
     :func:`workflow.engine.worn_steady_state` with ``options``, a
     :class:`~workflow.engine.WearOptions` whose methods include
     ``"pseudo-time"``): ``W`` (p,) [m], ``steady``, ``steps``, ``frequency_hz``, and the wear
-    measures, energies, operating point and resonance shift of :class:`WearStudy`."""
+    measures, energies, operating point and resonance shift of :class:`WearStudy`, and
+    ``reason``, why the march stopped."""
     from workflow.engine.studies.wearstudy import worn_steady_state
 
     study = worn_steady_state(model, law, options, eps_path=eps_path)
     h = study.histories["pseudo-time"]
     return {"W": np.asarray(h.W, dtype=float), "steady": bool(h.steady), "steps": int(h.iterations),
-            "frequency_hz": float(study.omega / 2 / np.pi), "measures": study.measures,
+            "reason": h.reason, "frequency_hz": float(study.omega / 2 / np.pi), "measures": study.measures,
             "energy_per_cycle_J": study.energy_per_cycle_J, "operating_point": study.operating_point,
             "resonance_shift": study.resonance_shift}
 

@@ -327,6 +327,41 @@ def unworn_point(hb, omega: float, opt: WearOptions, eps_path):
     return pr.result
 
 
+#: Load scales tried, in order, for the start of a held amplitude whose unworn point does not
+#: solve under the load as built (:func:`_unworn_start`).
+START_SCALES = (0.1, 0.01)
+
+
+def _unworn_start(hb, omega: float, opt: WearOptions, eps_path, log=None) -> tuple:
+    """(the unworn SolveResult the march starts from, the load scale it is under).
+
+    Under a held tip amplitude (``tip_amplitude_m`` > 0) the load as built only starts the
+    search for the load that holds the tip, so where its point does not solve — a tied
+    resonance's load from the stuck guess drives the flanks far into slip (a crowned 144-pair
+    flank at 0.5 N, 2026-11-29) — the point under :data:`START_SCALES` × that load, nearer to
+    stick, starts it instead (:meth:`~workflow.engine.studies.amplitude.AmplitudeProblem.start`
+    continues in amplitude from there). Otherwise scale 1 or the unworn point's SolverError."""
+    try:
+        return unworn_point(hb, omega, opt, eps_path), 1.0
+    except SolverError as err:
+        if opt.control != "amplitude" or not opt.tip_amplitude_m > 0:
+            raise
+        first = err
+    for s in START_SCALES:
+        hb.scale_load(s)
+        try:
+            base = unworn_point(hb, omega, opt, eps_path)
+        except SolverError:
+            continue
+        finally:
+            hb.scale_load(1.0)
+        if log is not None:
+            log.info(f"the unworn point did not solve under the load as built; the held amplitude starts "
+                     f"from {s:g} × it")
+        return base, s
+    raise first
+
+
 def march(wp, x, method: str, opt: WearOptions, track: int, block_tol: float, W0=None,
            max_cycles: float = math.inf, max_increment: float = math.inf, report=None):
     """One march of ``wp`` by ``method`` from x and the wear W0 [m] (None: unworn), to the worn
@@ -371,7 +406,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     if log is not None:
         log.info(f"wear at {omega / 2 / np.pi:.3f} Hz, {hb.p} pairs, Nh = {hb.nh}, nit = {hb.nit}, {hb.method}; "
                  f"{penalty.describe(law)}")
-    base = unworn_point(hb, omega, opt, eps_path)
+    base, scale = _unworn_start(hb, omega, opt, eps_path, log)
     # the paper's comparison at the unworn point: Newton and pseudo-time from the same start
     unworn = unworn_solvers(hb, hb.x0(), tol=opt.tol, max_steps=min(opt.max_steps, 400), eps_path=eps_path) \
         if opt.compare_unworn else {}
@@ -382,7 +417,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     if point["kind"] == "mission":
         wp, base = _mission(rc, wp, base, point, opt, eps_path, log)
     if opt.control == "amplitude":
-        wp, base = _held_amplitude(rc, wp, base, omega, opt, point, log)
+        wp, base = _held_amplitude(rc, wp, base, omega, opt, point, log, scale)
     i0 = int(np.argmax(wp.evaluate(base.x).rate))
     track = 3 * i0 + 1
     histories, schedule, last = {}, None, wp
@@ -652,10 +687,11 @@ def _mission(rc, wp, base, point: dict, opt: WearOptions, eps_path, log):
     return MissionProblem(members, shares, omegas, head), stacked
 
 
-def _held_amplitude(rc, wp, base, omega: float, opt: WearOptions, point: dict, log):
+def _held_amplitude(rc, wp, base, omega: float, opt: WearOptions, point: dict, log, scale: float = 1.0):
     """(:class:`~workflow.engine.studies.amplitude.AmplitudeProblem`, its unworn SolveResult with
     the unknowns [x; s]) of ``wp`` with the tip held at ``opt.tip_amplitude_m`` (0: the amplitude
-    of the unworn vibration ``base`` under the load as built); records ``point["control"]``."""
+    of the unworn vibration ``base`` under the load as built), started from ``base`` under
+    ``scale`` × that load; records ``point["control"]``."""
     from workflow.engine.studies.amplitude import AmplitudeProblem, tip_map
 
     if point["kind"] in ("resonance", "mission"):
@@ -668,7 +704,7 @@ def _held_amplitude(rc, wp, base, omega: float, opt: WearOptions, point: dict, l
     if target <= 0:
         target = float(np.linalg.norm(tip[0] @ wp.hb.harmonics(base.x)[1] + tip[1]))
     ap = AmplitudeProblem(wp, tip, target)
-    res = ap.start(base.x, tol=opt.tol, maxiter=opt.max_iterations)
+    res = ap.start(base.x, tol=opt.tol, maxiter=opt.max_iterations, scale=scale)
     if not res.converged:
         raise SolverError(f"wear: the vibration with the tip at {target:.4g} m did not solve at "
                           f"{omega / 2 / np.pi:.3f} Hz ({res.reason}); try a smaller wear.tip_amplitude_m")
