@@ -587,6 +587,32 @@ class WholeDiskCoordinates:
         self.observed_at[float(omega)] = out
         return out
 
+    def tip_map(self, omega: float) -> tuple[np.ndarray, np.ndarray]:
+        """(C (N·n_obs, 3pN), d (N·n_obs,)) complex: every blade's observed first harmonic is
+        ``o₁ = C r₁ + s d`` [m] for relative first harmonics r₁ [m] and the load scale s — the
+        affine map :meth:`recover` applies, formed from the kept A⁻¹ at ω [rad/s] in block
+        products instead of 3pN + 1 recoveries. With ``P_s = O_c − O_w X_s`` (blade s's
+        interior solve) and ``v_d = A⁻¹ (g − S_b r)``: ``o_s = P_s R_b⁻¹ (v_d,s + r_s) + O_w x_s``."""
+        om, kept = self._kept
+        if om != float(omega) or 1 not in kept:
+            self.condense(omega, 1)
+            kept = self._kept[1]
+        Ainv, Sb, g, aux = kept[1]
+        b, N, n = self.sub.blade, self.N, self.n_rel // self.N
+        m = b.O.shape[0]
+        Oc, Ow = b.O[:, self.c], b.O[:, self.w]
+        # (I − A⁻¹ S_b) with S_b block diagonal: A⁻¹'s column blocks times each blade's S_b
+        E = -np.matmul(Ainv.reshape(N * n, N, n).transpose(1, 0, 2), Sb).transpose(1, 0, 2).reshape(N * n, N * n)
+        E[np.diag_indices(N * n)] += 1.0
+        v0 = (Ainv @ g.ravel()).reshape(N, n)
+        C = np.empty((N * m, N * n), complex)
+        d = np.empty(N * m, complex)
+        for s in range(N):
+            Q = (Oc - Ow @ aux[s][:, :-1]) @ self.Rb_inv
+            C[s * m:(s + 1) * m] = Q @ E[s * n:(s + 1) * n]
+            d[s * m:(s + 1) * m] = Q @ v0[s] + Ow @ aux[s][:, -1]
+        return C, d
+
     def tied_response(self, omega: float) -> np.ndarray:
         """Observed first-harmonic amplitudes (N·n_obs,) [m] with the interface tied (r = 0):
         one solve of ``A v = g`` at ω [rad/s], no inverse."""

@@ -108,7 +108,7 @@ def _sigint_watch():
 
     Importing gmsh sets SIGINT to SIG_DFL (so that Ctrl-C can stop its C
     code) until ``gmsh.finalize``: Ctrl-C in the geometry or remap stage
-    killed the process with no message. Here SIGINT is blocked in every
+    killed the process with no message. Here SIGINT is blocked in the main
     thread and a watcher thread waits for it: it raises KeyboardInterrupt
     in the main thread (through SIGUSR1's Python handler, which no library
     touches); if the main thread is stuck inside a library call and does
@@ -116,6 +116,13 @@ def _sigint_watch():
     line and ends the process with status 130 (every write is atomic, so
     nothing is half-written; the next run removes the temporaries). Serial
     runs in the main thread only: under MPI the launcher owns the signals.
+
+    Threads started before the block (OpenBLAS's pool, at NumPy's import)
+    still take SIGINT: under SIG_DFL that ended the process, so gmsh is
+    imported here first and SIGINT's disposition is then a handler that
+    does nothing but write the wakeup byte (``signal.set_wakeup_fd``) that
+    the watcher reads beside ``sigtimedwait`` (measured 2026-11-29: Ctrl-C
+    while gmsh meshed, OpenBLAS threads on, status −2 and no message).
     """
     import threading
 
@@ -130,15 +137,35 @@ def _sigint_watch():
     def raise_interrupt(signum, frame):
         raise KeyboardInterrupt
 
+    def noted(signum, frame):       # the wakeup byte is the message; the watcher acts on it
+        pass
+
     old_usr1 = signal.signal(signal.SIGUSR1, raise_interrupt)
+    old_int = signal.signal(signal.SIGINT, noted)
+    try:
+        import gmsh  # noqa: F401 (its import sets SIG_DFL once, and finalize restores `noted`)
+    except ImportError:
+        pass
+    signal.signal(signal.SIGINT, noted)
+    wake_r, wake_w = os.pipe()
+    os.set_blocking(wake_r, False)
+    os.set_blocking(wake_w, False)
+    old_wake = signal.set_wakeup_fd(wake_w, warn_on_full_buffer=False)
     old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     stop = threading.Event()
     guard = threading.Lock()       # the watcher leaves only under it: see the finally below
     done = []
 
+    def woken() -> bool:
+        """A SIGINT that another thread took (its byte on the wakeup pipe)."""
+        try:
+            return signal.SIGINT in os.read(wake_r, 512)
+        except BlockingIOError:
+            return False
+
     def watch():
         while True:
-            got = signal.sigtimedwait({signal.SIGINT}, 0.2)
+            got = signal.sigtimedwait({signal.SIGINT}, 0.2) or (woken() or None)
             with guard:
                 if stop.is_set() or got is not None:
                     done.append(True)
@@ -164,6 +191,10 @@ def _sigint_watch():
                 signal.pthread_kill(watcher.ident, signal.SIGINT)
         watcher.join()
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        signal.set_wakeup_fd(old_wake)
+        os.close(wake_r)
+        os.close(wake_w)
+        signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGUSR1, old_usr1)
 
 

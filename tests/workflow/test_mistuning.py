@@ -219,3 +219,83 @@ def test_whole_disk_wear_refuses_a_length_scale(sub):
     with pytest.raises(SceneError, match="wear.length_m"):
         ms.worn_blades(WholeDiskCoordinates(sub), ms.tiled_law(law, N, EO), engine.Variant("hbm", 1, 10), 1.0,
                        sub.pairs["area"], WearOptions(length_m=1e-3), n_sectors=N)
+
+
+def test_the_whole_disks_tip_map_is_its_recovery(sub):
+    """WholeDiskCoordinates.tip_map (block products of the kept A⁻¹) is the affine map that
+    recover applies, column by column (3pN + 1 recoveries), to round-off."""
+    rc = WholeDiskCoordinates(sub, DEV)
+    C, d = rc.tip_map(1.3)
+    Ur = np.zeros((2, rc.n_rel), complex)
+    d_ref = recover(rc, 1.3, Ur)[1]
+    C_ref = np.empty_like(C)
+    for k in range(rc.n_rel):
+        Ur[1, k] = 1.0
+        C_ref[:, k] = recover(rc, 1.3, Ur)[1] - d_ref
+        Ur[1, k] = 0.0
+    assert _rel(C, C_ref) < 1e-12 and _rel(d, d_ref) < 1e-12
+
+
+def test_a_held_blade_is_the_most_vibrating_one_at_the_held_amplitude(sub):
+    """wear.control = "amplitude" on the whole disk (ms.held_blade): the blade held is the one
+    whose tip vibrates most, and the load scale s it finds is the load under which the disk's
+    own fixed-load Newton, from the stuck guess, puts that tip at the held amplitude (1.5 × its
+    unworn one) — to the Newton tolerance (1e-10 of ‖F‖ here)."""
+    from workflow.engine.hb import HBProblem
+    from workflow.engine.linear import condensed, first_excited_mode
+    from workflow.engine.studies.study import static_state
+    from workflow.engine.studies.wearstudy import WearOptions
+    from workflow.engine.wear import WearProblem
+
+    cyc = cyclic_model(sub, [0, 1, 2, 3, 4])
+    law = ms.tiled_law(engine.contact_law(cyc, mu=0.3), N, EO)
+    w = 2 * np.pi * first_excited_mode(relative_coordinates(cyc))[0] * 1.03
+    rc = WholeDiskCoordinates(sub, DEV)
+    c = condensed(rc, w, 1)
+    hb = HBProblem(c.Zr, c.Fr, law, 1, ms.time_samples(1, N, EO), "hbm", static=static_state(c.Zr, c.Fr, law))
+    x = hb.solve(hb.x0(), solver="newton", tol=1e-10, maxiter=100).x
+    C, d = rc.tip_map(w)
+    tips = np.linalg.norm((C @ hb.harmonics(x)[1] + d).reshape(N, -1), axis=1)
+    b = int(np.argmax(tips))
+    assert tips[b] > 1.01 * np.sort(tips)[-2]          # one blade stands out under this pattern
+    wp = WearProblem(hb, np.tile(sub.pairs["area"], N), 1e-13, 0.5)
+    opt = WearOptions(control="amplitude", tip_amplitude_m=1.5 * tips[b], tol=1e-10)
+    _, z, held = ms.held_blade(rc, wp, x, w, opt, N)
+    assert held["blade"] == b and held["tip_amplitude_m"] == pytest.approx(1.5 * tips[b], rel=1e-15)
+    s = z[-1]
+    hb.scale_load(s)
+    y = hb.solve(hb.x0(), solver="newton", tol=1e-10, maxiter=100).x
+    tip = np.linalg.norm((C @ hb.harmonics(y)[1] + s * d).reshape(N, -1)[b])
+    assert tip == pytest.approx(1.5 * tips[b], rel=1e-7)
+    assert np.abs(y - z[:-1]).max() <= 1e-7 * np.abs(y).max()
+
+
+@pytest.mark.parametrize("key", [{"operating_point": "detuning"}, {"frequency_hz": 200.0}])
+def test_a_wear_operating_point_of_its_own_is_one_clear_error_on_the_disk(key):
+    """The disk wears at its largest blade's peak: a [wear] operating point is refused by name
+    before anything is built, not silently not read; the defaults pass."""
+    from workflow.errors import SceneError
+    from workflow.params import Wear
+    from workflow.stages.mistuning import _wear_point
+
+    _wear_point(Wear())
+    with pytest.raises(SceneError, match="wear.operating_point"):
+        _wear_point(Wear(**key))
+
+
+def test_a_wear_step_whose_vibration_correction_fails_is_resolved_from_its_predictor():
+    """A pseudo-time step whose vibration correction cannot be solved at fixed W is re-solved
+    along the ε-path from the step's predictor (workflow.engine.wear._wear_step). On this tuned
+    lumped disk (load 0.02, μ = 0.3, Nh = 1, 0.96 f₁) the re-solve started from x plus None and
+    the march died with a TypeError; it now ends with its reason (the flanks slip grossly)."""
+    from workflow.engine.linear import first_excited_mode
+    from workflow.engine.studies.wearstudy import WearOptions
+
+    light = substructures(sector_bundle(N, amplitude=0.02), EO, blade_modes=50, disk_modes=50)
+    cyc = cyclic_model(light, [0, 1, 2, 3, 4])
+    law = engine.contact_law(cyc, mu=0.3)
+    w = 2 * np.pi * first_excited_mode(relative_coordinates(cyc))[0] * 0.96
+    v = engine.Variant("hbm", 1, ms.time_samples(1, N, EO))
+    disk = ms.worn_blades(WholeDiskCoordinates(light), ms.tiled_law(law, N, EO), v, w, light.pairs["area"],
+                          WearOptions(method="hbm", nh=1, nit=v.nit), n_sectors=N)
+    assert disk.history.reason and np.isfinite(disk.W).all() and disk.W.min() >= 0 and disk.W.max() > 0

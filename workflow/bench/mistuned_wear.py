@@ -1,6 +1,7 @@
 """Every blade's worn steady state on the whole disk against the cyclic sector's (issue 50).
 
-``python -m workflow.bench.mistuned_wear [--scene mistuning] [--hz 0] [--std 0] [--out results/bench]``
+``python -m workflow.bench.mistuned_wear [--scene mistuning] [--hz 0] [--std 0] [--set SECTION.KEY=VALUE ...]
+[--out results/bench]``
 
 The scene's sector bundle is built through the pipeline (cached like any run), split into its
 blade and disk-per-ND substructures, and the tuned sector's friction-damped HB solution at
@@ -8,7 +9,9 @@ blade and disk-per-ND substructures, and the tuned sector's friction-damped HB s
 the scene's wear law and march: the sector's (cyclic coordinates) and the whole disk's, tuned
 (``--std 0``) or mistuned with the scene's seed. Writes ``mistuned_wear.json``: each march's
 steps, seconds, steady flag, every blade's deepest point and, tuned, the largest difference of
-the disk's worn state from the sector's, relative to its deepest point.
+the disk's worn state from the sector's, relative to its deepest point. ``--set`` overrides scene
+keys, e.g. ``--set 'wear.control="amplitude"'`` holds the most vibrating blade's tip (and the
+sector's) instead of the force.
 """
 from __future__ import annotations
 
@@ -39,11 +42,13 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", default="mistuning")
     ap.add_argument("--hz", type=float, default=0.0)
     ap.add_argument("--std", type=float, default=0.0)
+    ap.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                    help="a scene override, e.g. 'wear.control=\"amplitude\"' (repeatable)")
     ap.add_argument("--out", type=Path, default=Path("results/bench"))
     a = ap.parse_args(argv)
     run_dir = a.out / f"{a.scene}-bundle"
     run_to(a.scene, "bundle", run_dir)
-    scene = load_scene(a.scene)
+    scene = load_scene(a.scene, a.set)
     mt, eo = scene["mistuning"], int(scene["cyclic"].engine_order)
     sub = substructures(read_bundle(bundle_folder(run_dir / "assembly")), eo, mt.blade_modes, mt.disk_modes)
     N, nh = sub.n_sectors, int(mt.harmonics)
@@ -64,7 +69,9 @@ def main(argv=None) -> int:
     t_disk = time.perf_counter() - t
     out = {"scene": a.scene, "frequency_hz": f, "std": a.std, "pairs": int(N * sub.n_pairs), "nh": v.nh, "nit": v.nit,
            "sector": {**sector.history.summary(), "wall_s": t_sector, "max_m": float(sector.W.max())},
-           "disk": {**disk.history.summary(), "wall_s": t_disk, "blade_max_m": disk.blade_max_m.tolist()},
+           "disk": {**disk.history.summary(), "wall_s": t_disk, "blade_max_m": disk.blade_max_m.tolist(),
+                    "control": disk.control},
+           "sector_control": sector.control, "overrides": a.set,
            "disk_vs_sector": float(np.abs(disk.W - sector.W).max() / sector.W.max()) if not a.std else None}
     write_json(a.out / "mistuned_wear.json", out)
     print(f"sector: {sector.history.iterations} steps {t_sector:.1f} s, deepest {sector.W.max():.4e} m; disk: "

@@ -961,7 +961,7 @@ def _wear_step(wp: WearProblem, x, W, st: WearState, h: float, x_tol: float, x_c
     if step is None:                    # a matrix-free solve failed: refused, h shrinks
         return x, W, st, False
     dx, dW = step
-    xn = x + dx
+    xn = x_pred = x + dx
     Wn = np.maximum(W + dW, W)          # wear never decreases
     stn = wp.evaluate(xn, Wn)
     for _ in range(x_corrections):          # relaxed vibration convergence at fixed W (Newton)
@@ -977,7 +977,7 @@ def _wear_step(wp: WearProblem, x, W, st: WearState, h: float, x_tol: float, x_c
         count["corrections"] += 1
     if wp.eps_path and not np.linalg.norm(stn.R) <= x_tol * scale:
         # large ε: Newton's basin at fixed W is small; the root from the moderate-ε one
-        res, stn = wp.solve_hb(x + dx, Wn, tol=x_tol)
+        res, stn = wp.solve_hb(x_pred, Wn, tol=x_tol)
         xn = res.x
         count["nje"] += res.jacobian_evaluations
         count["corrections"] += int(res.iterations)

@@ -92,6 +92,8 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     t0 = time.perf_counter()
     out = Path(out)
     mt, hb = scene["mistuning"], scene["hb"]
+    if mt.wear:
+        _wear_point(scene["wear"])
     eo = int(scene["cyclic"].engine_order)
     bundle = read_bundle(bundle_folder(inputs["bundle"]))
     sub = substructures(bundle, eo, mt.blade_modes, mt.disk_modes)
@@ -231,6 +233,17 @@ def _write(out: Path, sub, dev, mass, resp, ref, rcc, tuned_m, worn, mc_rows, bo
     return figures
 
 
+def _wear_point(w) -> None:
+    """The disk wears at its largest blade's friction-damped peak (the tuned sector at its own):
+    a ``[wear]`` operating point of its own is one clear error, not a key silently not read."""
+    from workflow.errors import SceneError
+
+    if w.operating_point != "frequency" or w.frequency_hz > 0:
+        raise SceneError(f"wear.operating_point = {w.operating_point!r}, wear.frequency_hz = {w.frequency_hz:g}: "
+                         "with mistuning.wear the disk wears at its largest blade's friction-damped peak; "
+                         "leave them at \"frequency\" and 0 (wear.control = \"amplitude\" holds that blade's tip)")
+
+
 def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, ref, log, checks: dict) -> dict | None:
     """The worn steady state of every blade at the largest blade's friction-damped peak, the
     tuned sector's at its own peak (what the wear amplification divides by) and, with the
@@ -266,6 +279,7 @@ def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, ref, log, checks
                "blade_volume_m3": disk.blade_volume_m3.tolist(), "tuned_max_m": w_t,
                "amplification": float(disk.blade_max_m.max()) / w_t if w_t > 0 else None,
                "disk": disk.history.summary(), "sector": sector.history.summary(),
+               "control": {"kind": opt.control, "disk": disk.control, "sector": sector.control},
                "law": {"k_w": opt.k_w, "blade_share": opt.blade_share, "steady_tol": opt.steady_tol,
                        "rtol": opt.rtol}}
     return {"disk": disk, "sector": sector, "summary": summary}

@@ -274,7 +274,8 @@ class WornDisk:
     ``W`` (N, p) worn depth per blade and pair [m]; ``blade_max_m`` (N,) its deepest point,
     ``blade_volume_m3`` (N,) Σ W·area; ``omega`` [rad/s]; ``history`` the march
     (:class:`workflow.engine.wear.WearHistory`: steady, iterations, reason); ``unworn_x`` the
-    HB unknowns it started from."""
+    HB unknowns it started from; ``control`` with a held amplitude (:func:`held_blade`) the
+    blade held, its amplitude [m] and the load scales new and worn, else None."""
 
     W: np.ndarray
     blade_max_m: np.ndarray
@@ -282,6 +283,35 @@ class WornDisk:
     omega: float
     history: object
     unworn_x: np.ndarray
+    control: dict | None = None
+
+
+def held_blade(rc, wp, x, omega: float, opt, n_sectors: int):
+    """The whole disk's wear problem with one blade's tip held (``wear.control = "amplitude"``):
+    the blade whose tip vibrates most in the unworn vibration x at ω [rad/s], held at
+    ``opt.tip_amplitude_m`` (0: its own unworn amplitude) while the engine-order load's scale
+    follows (:class:`~workflow.engine.studies.amplitude.AmplitudeProblem` on that blade's rows
+    of :func:`~workflow.engine.studies.amplitude.tip_map`). On a tuned disk every blade holds
+    the sector's amplitude, so its worn state is the sector's held one. Returns (the problem,
+    its unknowns ``[x; s]``, ``{"blade", "tip_amplitude_m", "load_scale_new"}``); SolverError
+    where the held vibration does not solve."""
+    from workflow.engine.errors import SolverError
+    from workflow.engine.studies.amplitude import AmplitudeProblem, tip_map
+
+    C, d = tip_map(rc, omega)
+    m = C.shape[0] // int(n_sectors)
+    if m == 0:
+        raise SceneError("wear.control = \"amplitude\": the blade observes no DOF (no tip to hold)")
+    o = (C @ wp.hb.harmonics(x)[1] + d).reshape(int(n_sectors), m)
+    b = int(np.argmax(np.linalg.norm(o, axis=1)))
+    target = float(opt.tip_amplitude_m) or float(np.linalg.norm(o[b]))
+    rows = slice(b * m, (b + 1) * m)
+    ap = AmplitudeProblem(wp, (C[rows], d[rows]), target)
+    res = ap.start(x, tol=opt.tol, maxiter=opt.max_iterations)
+    if not res.converged:
+        raise SolverError(f"mistuning wear: blade {b}'s tip at {target:.4g} m did not solve at "
+                          f"{omega / 2 / np.pi:.3f} Hz ({res.reason}); try a smaller wear.tip_amplitude_m")
+    return ap, res.x, {"blade": b, "tip_amplitude_m": target, "load_scale_new": float(res.x[-1])}
 
 
 def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0=None, log=None) -> WornDisk:
@@ -297,7 +327,8 @@ def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0
     ``U0`` (Nh+1, n_rel) relative harmonics [m] of a converged vibration at ω to start from
     (the forced response's); if it is not converged here the solver cascade starts from it and
     from the stuck guess. The node-wise law only: a length scale (``opt.length_m`` > 0) couples
-    the pairs, and the march would form the whole disk's J."""
+    the pairs, and the march would form the whole disk's J. With ``opt.control`` "amplitude"
+    the most vibrating blade's tip is held (:func:`held_blade`) and the load follows."""
     from workflow.engine import penalty
     from workflow.engine.cascade import solve_point
     from workflow.engine.errors import SolverError
@@ -329,13 +360,20 @@ def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0
     blade_area = np.asarray(area, float)
     wp = WearProblem(hb, np.tile(blade_area, N), opt.k_w, opt.blade_share, eps_path=eps_path)
     track = 3 * int(np.argmax(wp.evaluate(x).rate)) + 1
+    control, z = None, x
+    if opt.control == "amplitude":
+        wp, z, control = held_blade(rc, wp, x, omega, opt, N)
     if log is not None:
+        held = "" if control is None else (f", blade {control['blade']}'s tip held at "
+                                           f"{control['tip_amplitude_m']:.4g} m")
         log(f"wear of {N} blades × {blade_area.size} pairs at {omega / 2 / np.pi:.3f} Hz (Nh = {variant.nh}, "
-            f"nit = {variant.nit}): pseudo-time march")
-    h = march(wp, x, "pseudo-time", opt, track, opt.block_tol, report=log)
+            f"nit = {variant.nit}{held}): pseudo-time march")
+    h = march(wp, z, "pseudo-time", opt, track, opt.block_tol, report=log)
+    if control is not None:
+        control["load_scale_worn"] = float(h.x[-1])
     W = np.asarray(h.W, float).reshape(N, -1)
     return WornDisk(W=W, blade_max_m=W.max(axis=1), blade_volume_m3=W @ blade_area, omega=float(omega),
-                    history=h, unworn_x=x)
+                    history=h, unworn_x=x, control=control)
 
 
 def percentile(values, q: float = 95.0) -> float | None:
