@@ -144,7 +144,7 @@ def _sigint_watch():
     old_int = signal.signal(signal.SIGINT, noted)
     try:
         import gmsh  # noqa: F401 (its import sets SIG_DFL once, and finalize restores `noted`)
-    except ImportError:
+    except (ImportError, OSError):  # no gmsh, or its library does not load: the stages that need it say so
         pass
     signal.signal(signal.SIGINT, noted)
     wake_r, wake_w = os.pipe()
