@@ -81,7 +81,7 @@ def run(grid: tuple[int, int], ratios, mus, forces, out: Path, sets=()) -> list[
     tmp = out / "wear_conditioning.csv.tmp"
     with open(tmp, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=["change", "value", "frequency_hz", "max_wear_m", "worn_volume_m3",
-                                           "rel_change", "steady", "steps", "seconds"])
+                                           "rel_change", "steady", "steps", "reason", "seconds"])
         w.writeheader()
         w.writerows(rows)
     tmp.replace(out / "wear_conditioning.csv")
