@@ -118,11 +118,8 @@ def _sigint_watch():
     runs in the main thread only: under MPI the launcher owns the signals.
 
     Threads started before the block (OpenBLAS's pool, at NumPy's import)
-    still take SIGINT: under SIG_DFL that ended the process, so gmsh is
-    imported here first and SIGINT's disposition is then a handler that
-    does nothing but write the wakeup byte (``signal.set_wakeup_fd``) that
-    the watcher reads beside ``sigtimedwait`` (measured 2026-11-29: Ctrl-C
-    while gmsh meshed, OpenBLAS threads on, status −2 and no message).
+    still take SIGINT; :func:`_sigint_noted` makes that harmless and tells
+    the watcher.
     """
     import threading
 
@@ -137,31 +134,13 @@ def _sigint_watch():
     def raise_interrupt(signum, frame):
         raise KeyboardInterrupt
 
-    def noted(signum, frame):       # the wakeup byte is the message; the watcher acts on it
-        pass
-
     old_usr1 = signal.signal(signal.SIGUSR1, raise_interrupt)
-    old_int = signal.signal(signal.SIGINT, noted)
-    try:
-        import gmsh  # noqa: F401 (its import sets SIG_DFL once, and finalize restores `noted`)
-    except (ImportError, OSError):  # no gmsh, or its library does not load: the stages that need it say so
-        pass
-    signal.signal(signal.SIGINT, noted)
-    wake_r, wake_w = os.pipe()
-    os.set_blocking(wake_r, False)
-    os.set_blocking(wake_w, False)
-    old_wake = signal.set_wakeup_fd(wake_w, warn_on_full_buffer=False)
+    noted = _sigint_noted()
+    woken = next(noted)
     old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     stop = threading.Event()
     guard = threading.Lock()       # the watcher leaves only under it: see the finally below
     done = []
-
-    def woken() -> bool:
-        """A SIGINT that another thread took (its byte on the wakeup pipe)."""
-        try:
-            return signal.SIGINT in os.read(wake_r, 512)
-        except BlockingIOError:
-            return False
 
     def watch():
         while True:
@@ -191,11 +170,49 @@ def _sigint_watch():
                 signal.pthread_kill(watcher.ident, signal.SIGINT)
         watcher.join()
         signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
+        noted.close()
+        signal.signal(signal.SIGUSR1, old_usr1)
+
+
+def _sigint_noted():
+    """SIGINT made harmless in any thread, and told: a generator whose first ``next`` installs
+    it and yields ``woken()`` (True once a SIGINT arrived since the last call), and whose
+    ``close`` restores what it replaced.
+
+    Threads started before SIGINT is blocked (OpenBLAS's pool, at NumPy's import) still take
+    it, and under the SIG_DFL that importing gmsh leaves it ended the process (measured
+    2026-11-29: Ctrl-C while gmsh meshed, OpenBLAS threads on, status −2 and no message). So
+    gmsh is imported first, and SIGINT's disposition is then a handler that does nothing but
+    write its byte to the wakeup pipe (``signal.set_wakeup_fd``), which ``woken`` reads."""
+    import os
+
+    def noted(signum, frame):       # the wakeup byte is the message; the watcher acts on it
+        pass
+
+    old_int = signal.signal(signal.SIGINT, noted)
+    try:
+        import gmsh  # noqa: F401 (its import sets SIG_DFL once, and finalize restores `noted`)
+    except (ImportError, OSError):  # no gmsh, or its library does not load: the stages that need it say so
+        pass
+    signal.signal(signal.SIGINT, noted)
+    wake_r, wake_w = os.pipe()
+    os.set_blocking(wake_r, False)
+    os.set_blocking(wake_w, False)
+    old_wake = signal.set_wakeup_fd(wake_w, warn_on_full_buffer=False)
+
+    def woken() -> bool:
+        try:
+            return signal.SIGINT in os.read(wake_r, 512)
+        except BlockingIOError:
+            return False
+
+    try:
+        yield woken
+    finally:
         signal.set_wakeup_fd(old_wake)
         os.close(wake_r)
         os.close(wake_w)
         signal.signal(signal.SIGINT, old_int)
-        signal.signal(signal.SIGUSR1, old_usr1)
 
 
 @contextlib.contextmanager
