@@ -57,6 +57,32 @@ def tip_map(rc, omega: float) -> tuple[np.ndarray, np.ndarray]:
     return C, d
 
 
+def hold(rc, wp: WearProblem, x, omega: float, target: float, *, tol: float, maxiter: int,
+         blades: int = 1, scale: float = 1.0):
+    """Hold a tip of ``wp``'s model at ``target`` [m] (0: its amplitude in the vibration x under
+    ``scale`` × the unit load, at ω [rad/s]): the observed DOFs split into ``blades`` equal
+    groups (a whole disk's blades; 1: one tip), the group vibrating most in x held.
+    Returns (:class:`AmplitudeProblem`, its SolveResult of ``[x; s]``, the group held);
+    SceneError without observed DOFs, SolverError where the held vibration does not solve."""
+    from workflow.engine.errors import SolverError
+
+    C, d = tip_map(rc, omega)
+    m = C.shape[0] // int(blades)
+    if m == 0:
+        raise SceneError("wear.control = \"amplitude\": the model observes no DOF (no tip to hold)")
+    o = (C @ wp.hb.harmonics(x)[1] + scale * d).reshape(int(blades), m)
+    b = int(np.argmax(np.linalg.norm(o, axis=1)))
+    target = float(target) or float(np.linalg.norm(o[b]))
+    rows = slice(b * m, (b + 1) * m)
+    ap = AmplitudeProblem(wp, (C[rows], d[rows]), target)
+    res = ap.start(x, tol=tol, maxiter=maxiter, scale=scale)
+    if not res.converged:
+        who = "the tip" if blades == 1 else f"blade {b}'s tip"
+        raise SolverError(f"wear: the vibration with {who} at {target:.4g} m did not solve at "
+                          f"{omega / 2 / np.pi:.3f} Hz ({res.reason}); try a smaller wear.tip_amplitude_m")
+    return ap, res, b
+
+
 @dataclass
 class Border:
     """The held amplitude's border of a vibration state: ∂R/∂s (n,) [N], ∂rate/∂s (p,)

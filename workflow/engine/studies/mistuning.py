@@ -294,24 +294,12 @@ def held_blade(rc, wp, x, omega: float, opt, n_sectors: int):
     of :func:`~workflow.engine.studies.amplitude.tip_map`). On a tuned disk every blade holds
     the sector's amplitude, so its worn state is the sector's held one. Returns (the problem,
     its unknowns ``[x; s]``, ``{"blade", "tip_amplitude_m", "load_scale_new"}``); SolverError
-    where the held vibration does not solve."""
-    from workflow.engine.errors import SolverError
-    from workflow.engine.studies.amplitude import AmplitudeProblem, tip_map
+    where the held vibration does not solve (:func:`~workflow.engine.studies.amplitude.hold`)."""
+    from workflow.engine.studies.amplitude import hold
 
-    C, d = tip_map(rc, omega)
-    m = C.shape[0] // int(n_sectors)
-    if m == 0:
-        raise SceneError("wear.control = \"amplitude\": the blade observes no DOF (no tip to hold)")
-    o = (C @ wp.hb.harmonics(x)[1] + d).reshape(int(n_sectors), m)
-    b = int(np.argmax(np.linalg.norm(o, axis=1)))
-    target = float(opt.tip_amplitude_m) or float(np.linalg.norm(o[b]))
-    rows = slice(b * m, (b + 1) * m)
-    ap = AmplitudeProblem(wp, (C[rows], d[rows]), target)
-    res = ap.start(x, tol=opt.tol, maxiter=opt.max_iterations)
-    if not res.converged:
-        raise SolverError(f"mistuning wear: blade {b}'s tip at {target:.4g} m did not solve at "
-                          f"{omega / 2 / np.pi:.3f} Hz ({res.reason}); try a smaller wear.tip_amplitude_m")
-    return ap, res.x, {"blade": b, "tip_amplitude_m": target, "load_scale_new": float(res.x[-1])}
+    ap, res, b = hold(rc, wp, x, omega, float(opt.tip_amplitude_m), tol=opt.tol, maxiter=opt.max_iterations,
+                      blades=n_sectors)
+    return ap, res.x, {"blade": b, "tip_amplitude_m": ap.target, "load_scale_new": float(res.x[-1])}
 
 
 def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0=None, log=None) -> WornDisk:

@@ -692,22 +692,14 @@ def _held_amplitude(rc, wp, base, omega: float, opt: WearOptions, point: dict, l
     the unknowns [x; s]) of ``wp`` with the tip held at ``opt.tip_amplitude_m`` (0: the amplitude
     of the unworn vibration ``base`` under the load as built), started from ``base`` under
     ``scale`` × that load; records ``point["control"]``."""
-    from workflow.engine.studies.amplitude import AmplitudeProblem, tip_map
+    from workflow.engine.studies.amplitude import hold
 
     if point["kind"] in ("resonance", "mission"):
         raise SceneError(f"wear.control = \"amplitude\" with wear.operating_point = \"{point['kind']}\": a held "
                          "amplitude wears at one frequency (\"frequency\" or \"detuning\")")
-    tip = tip_map(rc, omega)
-    if tip[0].shape[0] == 0:
-        raise SceneError("wear.control = \"amplitude\": the model observes no DOF (no tip to hold)")
-    target = float(opt.tip_amplitude_m)
-    if target <= 0:
-        target = float(np.linalg.norm(tip[0] @ wp.hb.harmonics(base.x)[1] + tip[1]))
-    ap = AmplitudeProblem(wp, tip, target)
-    res = ap.start(base.x, tol=opt.tol, maxiter=opt.max_iterations, scale=scale)
-    if not res.converged:
-        raise SolverError(f"wear: the vibration with the tip at {target:.4g} m did not solve at "
-                          f"{omega / 2 / np.pi:.3f} Hz ({res.reason}); try a smaller wear.tip_amplitude_m")
+    ap, res, _ = hold(rc, wp, base.x, omega, max(float(opt.tip_amplitude_m), 0.0), tol=opt.tol,
+                      maxiter=opt.max_iterations, scale=scale)
+    target = ap.target
     point["control"] = {"kind": "amplitude", "tip_amplitude_m": target, "load_scale_new": float(res.x[-1])}
     if log is not None:
         log.info(f"tip held at {target:.4g} m: the load × {res.x[-1]:.4g} on the new blade")
