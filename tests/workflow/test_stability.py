@@ -1,4 +1,4 @@
-"""Floquet stability of HB solutions (workflow/engine/stability.py) against independent references
+"""Floquet stability of HB solutions (workflow/engine/stability/) against independent references
 (workflow/verification/floquet.py): Duffing (Hill vs shooting, stability change at the folds of an
 independent HB continuation), a Jenkins oscillator solved by the engine (vs event-driven shooting),
 the linear limits (closed form) and the quick sector."""
@@ -10,6 +10,7 @@ import pytest
 
 from workflow import engine
 from workflow.engine import stability
+from workflow.engine.stability import floquet as floq, monodromy_matrix as mono, switches
 from workflow.engine.contact import STICK
 from workflow.engine.hb import HBProblem
 from workflow.engine.linear import condensed
@@ -103,7 +104,7 @@ def test_jenkins_multipliers_match_event_driven_shooting(omega, cN):
 
 
 def test_switching_instants_are_located_between_the_samples():
-    """The monodromy's pieces (stability._switch_pieces) put the stick phases of the Jenkins
+    """The monodromy's pieces (switches._switch_pieces) put the stick phases of the Jenkins
     oscillator (ω = 1.3) where event-driven shooting has them: stuck 0.5202716 of the period.
     Measured 2026-11-28 at both settings: 0.5202637 (−7.9e-6, the HB orbit's own at Nh = 15,
     nit = 128: the same at both); on the samples alone (refine = 1, nit = 2048) 0.5195312
@@ -118,7 +119,7 @@ def test_switching_instants_are_located_between_the_samples():
     hb, x, _ = _engine_point(model, law, omega)
     T = 2 * np.pi / omega
     for nit, refine in ((2048, 64), (8192, 256), (256, (8, 8, 8))):
-        pc = stability._switch_pieces(hb, x, nit, omega, refine)
+        pc = switches._switch_pieces(hb, x, nit, omega, refine)
         assert pc.switches == 4 and len(pc.h) == nit + 4 and np.isclose(pc.h.sum(), T, rtol=1e-12)
         stuck = pc.h[pc.state[:, 0] == STICK].sum() / T
         assert abs(stuck - ss.stick_fraction[0]) < 2e-5, (nit, stuck, ss.stick_fraction[0])
@@ -174,7 +175,7 @@ def _dense_backward_euler(M, C, K, B, tan, h, sub):
 def test_structured_monodromy_is_the_dense_backward_euler():
     """stability.monodromy eliminates the anchors pair by pair and leaves a separated pair's rows
     slaved; it is the same backward Euler as the assembled (2m + na)² system, and the multipliers
-    of its live block (stability._live_multipliers: the period started where the fewest pairs
+    of its live block (monodromy_matrix._live_multipliers: the period started where the fewest pairs
     touch, only the states not slaved there) are the full monodromy's nonzero ones. Bounds: round-
     off of ~100 steps of a system whose entries span 1e-2…1e2 (measured ≤ 4.5e-14), 1e-10."""
     (M, C, K, B), args, _ = _synthetic_tangent()
@@ -186,7 +187,7 @@ def test_structured_monodromy_is_the_dense_backward_euler():
         ref = _dense_backward_euler(M, C, K, B, dense, h, sub)
         assert np.abs(Z - ref).max() < 1e-10 * np.abs(ref).max(), np.abs(Z - ref).max()
     full = np.linalg.eigvals(stability.monodromy(M, C, K, B, blk, 1.0))
-    live = stability._live_multipliers(M, C, K, B, blk, 1.0)
+    live = mono._live_multipliers(M, C, K, B, blk, 1.0)
     assert len(live) < len(full)
     big = np.sort(np.abs(full))[::-1][:len(live)]
     assert np.allclose(np.sort(np.abs(live))[::-1], big, rtol=1e-10, atol=1e-12 * big[0]), (live, big)
@@ -196,20 +197,20 @@ def test_compiled_pieces_are_the_numpy_steps(monkeypatch):
     """The numba loops of _propagate (one call a chunk) against _step (one call a step, the
     oracle), anchors touching again and slipping included: the same operations in another
     order, so equal to round-off (bound 1e-12 of the largest entry)."""
-    if stability._pieces_numba is None:
+    if mono._pieces_numba is None:
         pytest.skip("numba not importable: the NumPy steps are in use")
     (M, C, K, B), args, _ = _synthetic_tangent()
     blk = stability.tangent_blocks(*args)
     assert np.any(blk["contact"][1:] & ~blk["contact"][:-1]), "the case should have pairs that touch again"
     fast = [stability.monodromy(M, C, K, B, blk, 1.0, substeps=s, richardson=False) for s in (1, 3)]
-    monkeypatch.setattr(stability, "_pieces_numba", None)
+    monkeypatch.setattr(mono, "_pieces_numba", None)
     slow = [stability.monodromy(M, C, K, B, blk, 1.0, substeps=s, richardson=False) for s in (1, 3)]
     for f, s in zip(fast, slow):
         assert np.abs(f - s).max() <= 1e-12 * np.abs(s).max(), np.abs(f - s).max()
 
 
 def test_richardson_extrapolation_is_third_order():
-    """Two Richardson halvings (stability.RICHARDSON = 2) take backward Euler's monodromy from O(h)
+    """Two Richardson halvings (monodromy_matrix.RICHARDSON = 2) take backward Euler's monodromy from O(h)
     to O(h³): halving the step divides the error by → 8 (measured 6.96 and 7.45 from 16 to 32 to
     64 steps a piece; one halving, O(h²): 3.43 and 3.70) against 256 steps a piece. Bounds 6.5
     and 9: the ratio 8 less the next term's share at these steps."""
@@ -329,7 +330,7 @@ def test_turning_points_of_a_continued_path_and_the_stability_across_them():
 
 
 def test_ritz_projection_kept_across_a_sweep_is_the_computed_one():
-    """stability._structure keeps the Ritz basis and its projection in a sweep's cache under the
+    """floquet._structure keeps the Ritz basis and its projection in a sweep's cache under the
     modes kept (round 2, 2026-11-29: 12 ms a point at 782 DOFs): a point whose cut-off keeps the
     same modes reads exactly what it would compute, one that keeps more computes its own."""
     from types import SimpleNamespace
@@ -341,8 +342,8 @@ def test_ritz_projection_kept_across_a_sweep_is_the_computed_one():
     en, et = 30.0 * np.ones(nr // 3), 20.0 * np.ones(nr // 3)
     cache = {}
     for omega in (1.0, 1.01, 3.0):
-        got = stability._structure(rc, nr, en, et, omega, 2.0, cache)
-        ref = stability._structure(rc, nr, en, et, omega, 2.0, None)
+        got = floq._structure(rc, nr, en, et, omega, 2.0, cache)
+        ref = floq._structure(rc, nr, en, et, omega, 2.0, None)
         assert got[4] == ref[4]
         for g, r in zip(got[:4], ref[:4]):
             assert np.array_equal(g, r)
