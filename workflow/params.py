@@ -405,7 +405,7 @@ class ContactConvergence:
     wear_harmonics: int = param(0, "", "Nh of the wear marches alone (0: harmonics); the worn steady state "
                                        "may converge in Nh sooner than the FRF peak — a wear step solves the "
                                        "augmented system by dense LU below 500 HB unknowns and matrix-free "
-                                       "above (workflow/engine/wear_structured.py)", min=0)
+                                       "above (workflow/engine/wear/structured.py)", min=0)
     time_samples: int = param(32, "", "nit per period (≥ 2Nh+1)", min=1)
     band: float = param(0.1, "", "peak search band: ± this fraction of the first tied frequency", min=0.0,
                         min_exclusive=True, max=0.5)

@@ -182,7 +182,7 @@ def test_a_march_that_loses_the_vibration_is_re_solved_at_a_finer_nh_and_says_wh
     the x the cascade just failed from, and the study re-solves the same wear at 1.5×Nh
     with the real cascade — a root there, so the advice is hb.harmonics, not the step budget."""
     from workflow.engine.studies import extreme as X
-    from workflow.engine import wear
+    from workflow.engine.wear import pseudotime as wear
     from workflow.engine.solvers import SolveResult
 
     model = X.synthetic_model(2)

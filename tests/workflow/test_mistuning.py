@@ -285,7 +285,7 @@ def test_a_wear_operating_point_of_its_own_is_one_clear_error_on_the_disk(key):
 
 def test_a_wear_step_whose_vibration_correction_fails_is_resolved_from_its_predictor():
     """A pseudo-time step whose vibration correction cannot be solved at fixed W is re-solved
-    along the ε-path from the step's predictor (workflow.engine.wear._wear_step). On this tuned
+    along the ε-path from the step's predictor (workflow.engine.wear.pseudotime._wear_step). On this tuned
     lumped disk (load 0.02, μ = 0.3, Nh = 1, 0.96 f₁) the re-solve started from x plus None and
     the march died with a TypeError; it now ends with its reason (the flanks slip grossly)."""
     from workflow.engine.linear import first_excited_mode

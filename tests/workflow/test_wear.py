@@ -56,7 +56,7 @@ def test_remaining_wear_extrapolates_power_law_and_exponential_tails():
     """remaining_wear on synthetic paths: exact for a rate ∝ t^−α (α > 1: r·t/(α − 1)),
     within 1.7× above the truth for an exponential tail at t = 10τ, ∞ while the rate decays no faster
     than 1/t, 0 once it is 0."""
-    from workflow.engine.wear import WearHistory, remaining_wear
+    from workflow.engine.wear.history import WearHistory, remaining_wear
 
     def hist(t, r):
         return WearHistory(method="x", W=np.zeros(1), x=np.zeros(1), steady=False, seconds=0.0, iterations=0,
@@ -202,7 +202,7 @@ def test_one_vector_solves_of_a_step_reuse_its_lu_and_equal_a_fresh_one(monkeypa
     a whole march factors fewer Jacobians for the same worn profile."""
     import scipy.linalg
 
-    import workflow.engine.wear as wear
+    import workflow.engine.wear.pseudotime as wear
 
     hb = hb_problem(20.0, nh=3, nit=32)
     x0 = hb.solve(tol=1e-10).x
@@ -248,7 +248,8 @@ def test_schur_wear_step_equals_the_whole_augmented_solve():
     """The pseudo-time step eliminates Δx through J's LU (a p × p system per step
     length); it must be the solution of the whole (n + p) system at every h, and a
     singular J must fall back to that system."""
-    from workflow.engine.wear import _augmented_step, _newton_parts
+    from workflow.engine.wear.problem import _newton_parts
+    from workflow.engine.wear.pseudotime import _augmented_step
 
     hb = hb_problem(20.0, nh=2, nit=32)
     sol = hb.solve(tol=1e-11)
@@ -533,7 +534,7 @@ def test_implicit_block_with_no_root_is_shortened_and_the_march_ends_at_the_jump
     step), never accepted unsolved: the implicit march ends steady at W = Wj, past it by at
     most the shortest block's wear (block_tol × W scale / 2⁴). Accepting unsolved blocks left
     paper-wear's coarse reference march at the same W for 870 blocks, never steady."""
-    from workflow.engine.wear import MAX_BLOCK_HALVINGS
+    from workflow.engine.wear.reference import MAX_BLOCK_HALVINGS
 
     Wj, block_tol, scale = 5e-9, 0.01, 1e-8
     wp = _JumpWear(r0=1e-17, Wj=Wj)
@@ -548,12 +549,12 @@ def test_implicit_block_with_no_root_is_shortened_and_the_march_ends_at_the_jump
 
 @pytest.mark.parametrize("method", ["hbm", "tcm", "hdhb"])
 def test_matrix_free_wear_step_equals_the_whole_augmented_solve(method):
-    """:mod:`workflow.engine.wear_structured`: the step from the blocks (J never formed; ∂R/∂W and
+    """:mod:`workflow.engine.wear.structured`: the step from the blocks (J never formed; ∂R/∂W and
     ∂rate/∂x per pair) solves the same (n + p) system as the formed one, and a J-solve with
     the matrix-free J equals the LU's."""
-    from workflow.engine import wear_structured
+    from workflow.engine.wear import structured as wear_structured
     from workflow.engine.linsolve import GMRES_RTOL
-    from workflow.engine.wear import _augmented_step, _j_solve
+    from workflow.engine.wear.pseudotime import _augmented_step, _j_solve
 
     nit = {"hbm": 32, "tcm": 33, "hdhb": 5}[method]
     hb = hb_problem(20.0, nh=2, nit=32)
@@ -591,7 +592,7 @@ def test_matrix_free_wear_step_equals_the_whole_augmented_solve(method):
 
 def test_matrix_free_march_reaches_the_dense_worn_steady_state(monkeypatch):
     """A whole pseudo-time march with J never formed (``structured``: every step, correction and
-    shift a GMRES solve, :mod:`workflow.engine.wear_structured`) ends on the worn steady state of the
+    shift a GMRES solve, :mod:`workflow.engine.wear.structured`) ends on the worn steady state of the
     march with J formed and factored: the same profile to the march's path tolerance, about
     the same steps — and no (n × n) Jacobian is made on the way."""
     import workflow.engine.hb as hbmod
@@ -618,7 +619,8 @@ def test_wear_law_with_a_length_scale():
     the node-wise law exactly; ℓ far above the pairs' spacing gives every pair of a flank the
     area-weighted mean rate; the derivatives (S·∂rate/∂x, S·diag ∂rate/∂W) match finite
     differences as the node-wise ones do (test_wear_derivatives_match_finite_differences)."""
-    from workflow.engine.wear import averaging, rate_w
+    from workflow.engine.wear.law import averaging
+    from workflow.engine.wear.problem import rate_w
 
     hb = hb_problem(20.0, nh=2, nit=32)
     x = hb.solve(tol=1e-11).x

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workflow.engine.wear_measures import (filter_matrix, filtered_profile, profile_l2, scar, wear_measures,
+from workflow.engine.wear.measures import (filter_matrix, filtered_profile, profile_l2, scar, wear_measures,
                                            worn_volume)
 
 

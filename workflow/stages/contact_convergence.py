@@ -145,7 +145,7 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
     t1 = time.perf_counter()
     pk = _friction_peak(model, scene["contact"], scene["hb"], cc)
     t_peak = time.perf_counter() - t1
-    from workflow.engine.wear_measures import FLANK_NAMES
+    from workflow.engine.wear.measures import FLANK_NAMES
 
     static = _static_gaps(model, scene["contact"], vertex)
     flanks = static.pop("flanks")
@@ -182,7 +182,7 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
 
 
 def _wear_measures(worn: dict | None) -> dict:
-    """The table's wear measures of one mesh (:mod:`workflow.engine.wear_measures`): the ℓ-filtered
+    """The table's wear measures of one mesh (:mod:`workflow.engine.wear.measures`): the ℓ-filtered
     profile's RMS and maximum over both flanks, the scar width, the energy per cycle before and
     after wear, the worn − new friction-damped resonance shift."""
     keys = ("profile_l2_m", "filtered_max_wear_m", "scar_width_m", "wear_length_m", "energy_new_J", "energy_worn_J",

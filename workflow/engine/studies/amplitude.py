@@ -14,7 +14,7 @@ unknown, the scale s of the dynamic load (harmonics ≥ 1 of F_r; the static pre
 one more equation, ‖o₁(x, s)‖ = A: o₁ the first harmonic of the observed DOFs (the tip),
 affine in the relative harmonics and in s (:func:`tip_map`). The wear marches take it for one
 problem with the unknowns ``[x; s]``: J formed and bordered, or matrix-free, one structured
-GMRES on the bordered system (:class:`Border`, :mod:`workflow.engine.wear_structured`,
+GMRES on the bordered system (:class:`Border`, :mod:`workflow.engine.wear.structured`,
 :meth:`workflow.engine.linsolve.StructuredSolve.solve`).
 """
 from __future__ import annotations
@@ -238,7 +238,7 @@ class AmplitudeProblem:
         gs = float(np.real(np.conj(o) @ self.d)) / max(a, 1e-300)
         c_x, c_s = (sig / self.target) * gx, (sig / self.target) * gs
         out.G, out.g, out.w, out.G_W = st.G, st.g, st.w, st.G_W
-        if not dense:           # the border of the vibration's blocks (:mod:`workflow.engine.wear_structured`)
+        if not dense:           # the border of the vibration's blocks (:mod:`workflow.engine.wear.structured`)
             out.border = Border(R_s, rate_s, c_x, c_s)
             return out
         n = wp.n
@@ -282,7 +282,7 @@ class AmplitudeProblem:
                     res = alt
         return res, self.evaluate(res.x, jacobian=True, dense=dense)
 
-    # what the matrix-free steps read (:mod:`workflow.engine.wear_structured`)
+    # what the matrix-free steps read (:mod:`workflow.engine.wear.structured`)
     def linsolver(self):
         return self.wp.linsolver()
 

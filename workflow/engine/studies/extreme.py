@@ -830,7 +830,7 @@ def _run_wear(su: Setup, case: Case, method: str, solver: str, out: CaseResult, 
     try:
         from workflow.engine import wear as wmod
     except ImportError as exc:
-        out.diagnosis = f"not run: workflow/engine/wear.py not available ({exc})"
+        out.diagnosis = f"not run: workflow/engine/wear not available ({exc})"
         out.seconds = time.perf_counter() - t0
         return out
     s = su.settings

@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from workflow.engine.errors import BundleError, SceneError, SolverError
-from workflow.engine.wear import WearProblem, WearState, _newton_parts
+from workflow.engine.wear.problem import WearProblem, WearState, _newton_parts
 
 OPERATING_POINTS = ("frequency", "detuning", "resonance", "mission")
 #: grid of the resonance search: ±10 % around the first tied mode the load excites (the FRF's
@@ -210,7 +210,7 @@ class MissionState(WearState):
         self._parts = value
 
     def _member_parts(self):
-        """(y0, Y, g0, GY, LU) of :func:`workflow.engine.wear._newton_parts` from each point's: J is
+        """(y0, Y, g0, GY, LU) of :func:`workflow.engine.wear.problem._newton_parts` from each point's: J is
         block-diagonal, so J⁻¹ acts point by point, ∂rate/∂x·J⁻¹ sums the points' with the shares,
         and the points' LU factors side by side are the stacked J's (pivots within each block);
         False if any point's J is singular."""

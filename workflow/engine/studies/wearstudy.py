@@ -50,8 +50,8 @@ class WearOptions:
     comparison); ``operating_point`` "frequency" (``frequency_hz``) or "detuning"
     (``detuning`` × the friction-damped resonance, :mod:`workflow.engine.studies.operating`);
     ``length_m``: the wear law's length scale ℓ [m] (0: node-wise, eq. 21;
-    :func:`workflow.engine.wear.averaging`); ``measure_length_m``: ℓ [m] of the filtered profile among the wear measures
-    (:mod:`workflow.engine.wear_measures`); ``resonance_shift``: find the friction-damped
+    :func:`workflow.engine.wear.law.averaging`); ``measure_length_m``: ℓ [m] of the filtered profile among the wear measures
+    (:mod:`workflow.engine.wear.measures`); ``resonance_shift``: find the friction-damped
     resonance of the worn and the new model (two FRF searches).
 
     ``operating_point`` "resonance" (the dwell, :func:`_dwell`): ``dwell_tol`` — it ends when a
@@ -410,7 +410,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     # the paper's comparison at the unworn point: Newton and pseudo-time from the same start
     unworn = unworn_solvers(hb, hb.x0(), tol=opt.tol, max_steps=min(opt.max_steps, 400), eps_path=eps_path) \
         if opt.compare_unworn else {}
-    from workflow.engine.wear import averaging
+    from workflow.engine.wear.law import averaging
 
     wp = WearProblem(hb, model.area, opt.k_w, opt.blade_share, eps_path=eps_path,
                      averaging=averaging(model.position, model.area, model.flank, opt.length_m))
@@ -499,7 +499,7 @@ def _penalty_and_truncation_checks(study: WearStudy, wp, x0, opt: WearOptions, t
 #: How a resonance dwell that spent ``WearOptions.dwell_stages`` says so (:func:`_dwell`).
 DWELL_UNFINISHED = "resonance dwell unfinished"
 #: The resonance dwell's first stage wears this fraction of the unworn normal interpenetration
-#: (:func:`workflow.engine.wear.penetration_scale`); the budget then adapts by × 0.25 … 4 a stage.
+#: (:func:`workflow.engine.wear.history.penetration_scale`); the budget then adapts by × 0.25 … 4 a stage.
 #: Where a pad's whole load is one interpenetration (a Jenkins pad on its own normal spring) its
 #: peak moves 7.5 % over that wear; on the quick sector 2e-4 over 2.6 µm: small enough for the
 #: first, two stages of growth for the second.
@@ -528,7 +528,7 @@ def _dwell(model, law, wp, rc, omega: float, x, method: str, opt: WearOptions, t
     (:func:`workflow.engine.studies.operating.friction_damped_resonance` with the march's own
     static state: the blade wore in place, its stick anchors are the new assembly's) and the next
     stage starts there from that peak's vibration. The budget starts at :data:`DWELL_FIRST` of the
-    unworn state's normal interpenetration (:func:`workflow.engine.wear.penetration_scale`, the W
+    unworn state's normal interpenetration (:func:`workflow.engine.wear.history.penetration_scale`, the W
     scale of the dynamics) and adapts so that a stage moves the peak by about ``opt.dwell_step``
     (× 0.25 … 4 a stage): the peak is the worst case only if the excitation stays on it as the
     wear moves it, and the end state depends on the path (quick sector, Nh = 3: max wear 1.261 /
@@ -544,7 +544,7 @@ def _dwell(model, law, wp, rc, omega: float, x, method: str, opt: WearOptions, t
     import time
 
     from workflow.engine.studies.operating import friction_damped_resonance
-    from workflow.engine.wear import STAGE_END, penetration_scale
+    from workflow.engine.wear.history import STAGE_END, penetration_scale
 
     t0 = time.perf_counter()
     kw = dict(method=opt.method, nh=opt.nh, nit=opt.nit, tol=opt.tol, max_iterations=opt.max_iterations,
@@ -609,7 +609,7 @@ def _replay(wp, x, method: str, opt: WearOptions, track: int, block_tol: float, 
     """``wp`` (at the schedule's first frequency) marched by ``method`` from x and no wear
     through a dwell's stages (:func:`_dwell`): stage k at ω_k for cycles_k cycles, the last to
     its worn steady state — the same excitation history, for another method or a check."""
-    from workflow.engine.wear import STAGE_END
+    from workflow.engine.wear.history import STAGE_END
 
     stages, W = [], None
     for k, (omega, cycles) in enumerate(schedule):
@@ -722,7 +722,7 @@ def _mission_rates(point: dict, wp, base, histories: dict) -> None:
 
 
 def _measure(study: WearStudy, model, law, wp, opt: WearOptions, log, new=None, worn_wp=None) -> None:
-    """The worn state's measures (:func:`workflow.engine.wear_measures.wear_measures`), the
+    """The worn state's measures (:func:`workflow.engine.wear.measures.wear_measures`), the
     friction energy per cycle before and after wear [J] and, with ``opt.resonance_shift``, the
     worn − new friction-damped resonance — of the march the checks compare with (pseudo-time
     first), in place; nothing when no march reached a worn steady state. ``new``: (problem,
@@ -730,7 +730,7 @@ def _measure(study: WearStudy, model, law, wp, opt: WearOptions, log, new=None, 
     problem at the worn state's frequency (default ``wp``; a dwell's last stage). A mission's
     energy per cycle is its points' weighted with their shares: per cycle of the mission."""
     from workflow.engine.studies.operating import resonance_shift
-    from workflow.engine.wear_measures import wear_measures
+    from workflow.engine.wear.measures import wear_measures
 
     h = _steady_history(study.histories)
     if h is None:
