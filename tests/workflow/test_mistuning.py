@@ -44,6 +44,20 @@ def test_whole_disk_is_the_disk_assembled_sector_by_sector(sub, omega):
         assert _rel(c.Fr, ref.Fr) < 1e-12
 
 
+@pytest.mark.parametrize("omega", [0.7, 2.3])
+def test_the_compliance_without_a_whole_disk_inverse_is_the_assembled_disks(sub, omega):
+    """WholeDiskCoordinates.compliance, S_b⁻¹ + S_d⁻¹ (blade and disk in series, the disk by
+    its per-ND inverses), is the inverse of the lumped disk's Z_r assembled in physical
+    coordinates, harmonics 1 and 2, to round-off; harmonic 0 has none (a blade floats)."""
+    ref = condense(relative_coordinates(full_disk(N, EO, amplitude=0.1, blade_stiffness=DEV)), omega, 2)
+    rc = WholeDiskCoordinates(sub, DEV)
+    for j in (1, 2):
+        H = rc.compliance(omega, j)
+        assert np.abs(H @ ref.Zr[j] - np.eye(rc.n_rel)).max() < 1e-10
+    with pytest.raises(ValueError, match="harmonic j"):
+        rc.compliance(omega, 0)
+
+
 def test_recovered_tips_and_tied_response_equal_the_assembled_disk(sub):
     """Every blade's observed harmonics (norms: the full disk observes in the global frame) from
     relative harmonics, and the tied response, against the assembled disk."""

@@ -24,16 +24,13 @@ from pathlib import Path
 def main(argv=None) -> int:
     import numpy as np
 
-    from reduction.bundle import read_bundle
     from reduction.condense import relative_coordinates
     from reduction.cyclic_reduce import nodal_diameters_needed
-    from reduction.mistuned import WholeDiskCoordinates, cyclic_model, substructures
+    from reduction.mistuned import WholeDiskCoordinates, cyclic_model
     from workflow import engine
     from workflow.engine.studies import mistuning as ms
-    from workflow.bench import run_to
+    from workflow.bench import scene_disk
     from workflow.io import write_json
-    from workflow.scene import load_scene
-    from workflow.stages.assembly import bundle_folder
     from workflow.stages.hb import law_of
     from workflow.stages.mistuning import _frf_options
     from workflow.stages.wear import options
@@ -46,11 +43,8 @@ def main(argv=None) -> int:
                     help="a scene override, e.g. 'wear.control=\"amplitude\"' (repeatable)")
     ap.add_argument("--out", type=Path, default=Path("results/bench"))
     a = ap.parse_args(argv)
-    run_dir = a.out / f"{a.scene}-bundle"
-    run_to(a.scene, "bundle", run_dir)
-    scene = load_scene(a.scene, a.set)
+    scene, sub = scene_disk(a.scene, a.set, a.out)
     mt, eo = scene["mistuning"], int(scene["cyclic"].engine_order)
-    sub = substructures(read_bundle(bundle_folder(run_dir / "assembly")), eo, mt.blade_modes, mt.disk_modes)
     N, nh = sub.n_sectors, int(mt.harmonics)
     v = engine.Variant("hbm", nh, int(mt.time_samples) or ms.time_samples(nh, N, eo))
     cyc = cyclic_model(sub, nodal_diameters_needed(eo, N, nh))
