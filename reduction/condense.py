@@ -304,6 +304,8 @@ class Condensed:
 
     ``Zr``: (Nh+1, 3p, 3p) complex [N/m]; ``Fr``: (Nh+1, 3p) complex [N];
     ``dZr``, ``dFr``: their derivatives with respect to ω [per rad/s], or None.
+    ``compliance``: ``Zr`` holds Z_0 and the compliances H_j = Z_j⁻¹ [m/N] of harmonics j ≥ 1
+    (the engine's compliance form), with ``stiffness(j, U_j)`` → Z_j U_j [N].
     """
 
     omega: float
@@ -311,6 +313,8 @@ class Condensed:
     Fr: np.ndarray
     dZr: np.ndarray | None = None
     dFr: np.ndarray | None = None
+    compliance: bool = False
+    stiffness: object = None
 
     @property
     def nh(self) -> int:

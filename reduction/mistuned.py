@@ -439,6 +439,65 @@ def cyclic_model(sub: Substructures, nds) -> "CyclicReducedModel":
                               info={"method": "blade + disk per ND (substructures)"})
 
 
+class _TiedSolve:
+    """``b ↦ A⁻¹ b`` for the tied interface's A = S_b + S_d of one harmonic without forming A:
+    GMRES on ``A P⁻¹`` (the true residual), P the tuned disk's A — the blades' mean S_b beside
+    the disk, block circulant, so P⁻¹ is one 3p × 3p inverse per nodal diameter between two
+    FFTs over the sectors, exact without mistuning. Converged to :data:`RTOL` of ‖b‖ or
+    refused for a dense LU of A (made once, then used for every solve)."""
+
+    #: relative residual of the solves (the condensed load F_r and the recoveries take them)
+    RTOL = 1e-13
+    #: GMRES iterations before the dense LU takes over
+    MAXITER = 200
+
+    def __init__(self, Sb, blocks, circulant):
+        self.Sb, self.blocks, self._circulant = Sb, blocks, circulant
+        self.Pinv = np.linalg.inv(blocks + Sb.mean(axis=0))
+        self.N, self.n = Sb.shape[0], Sb.shape[1]
+        self._lu = None
+
+    def _ft(self, B, v):
+        """The circulant of the per-ND blocks B applied to v (N·n,): FFT, block products, iFFT."""
+        V = np.fft.fft(v.reshape(self.N, self.n), axis=0)
+        return np.fft.ifft(np.einsum("kab,kb->ka", B, V), axis=0).ravel()
+
+    def apply(self, v):
+        """A v for v (N·n,)."""
+        return np.einsum("sab,sb->sa", self.Sb, v.reshape(self.N, self.n)).ravel() + self._ft(self.blocks, v)
+
+    def __call__(self, b):
+        import scipy.linalg as sla
+        import scipy.sparse.linalg as spla
+
+        b = np.asarray(b, dtype=complex)
+        nb = float(np.linalg.norm(b))
+        if nb == 0.0:
+            return np.zeros_like(b)
+        if self._lu is None:
+            m = b.size
+            op = spla.LinearOperator((m, m), matvec=lambda z: self.apply(self._ft(self.Pinv, z)), dtype=complex)
+            z, _ = spla.gmres(op, b, restart=self.MAXITER, maxiter=1, atol=0.0, **{_GMRES_TOL: 0.1 * self.RTOL})
+            x = self._ft(self.Pinv, z)
+            if np.all(np.isfinite(x)) and np.linalg.norm(self.apply(x) - b) <= self.RTOL * nb:
+                return x
+            A = self._circulant(self.blocks)
+            for s in range(self.N):
+                A[s * self.n:(s + 1) * self.n, s * self.n:(s + 1) * self.n] += self.Sb[s]
+            self._lu = sla.lu_factor(A, overwrite_a=True, check_finite=False)
+        return sla.lu_solve(self._lu, b, check_finite=False)
+
+
+def _gmres_tol_name() -> str:
+    import inspect
+
+    import scipy.sparse.linalg as spla
+    return "rtol" if "rtol" in inspect.signature(spla.gmres).parameters else "tol"
+
+
+_GMRES_TOL = _gmres_tol_name()
+
+
 class WholeDiskCoordinates:
     """The whole (mistuned) disk condensed onto its relative contact DOFs, substructure by
     substructure: the :func:`reduction.condense.condense` / :func:`~reduction.condense.recover`
@@ -461,10 +520,14 @@ class WholeDiskCoordinates:
     """
 
     is_whole_disk = True
+    #: the forms :meth:`condense` gives (``form``)
+    FORMS = ("stiffness", "compliance")
 
-    def __init__(self, sub: Substructures, stiffness=None, mass=None):
+    def __init__(self, sub: Substructures, stiffness=None, mass=None, form: str = "stiffness"):
         N, b = sub.n_sectors, sub.blade
-        self.sub, self.N = sub, N
+        if form not in self.FORMS:
+            raise ValueError(f"whole disk: form {form!r} is not one of {', '.join(self.FORMS)}")
+        self.sub, self.N, self.form = sub, N, form
         self.dk, self.dm = _factors(stiffness, N, "stiffness mistuning"), _factors(mass, N, "mass mistuning")
         p = sub.n_pairs
         self.n_rel = 3 * p * N
@@ -483,6 +546,10 @@ class WholeDiskCoordinates:
         #: ω [rad/s] → the last observed harmonics recovered there (every blade's: a sweep's
         #: point records the norm over all blades; the study reads each blade's from here)
         self.observed_at: dict = {}
+
+    def in_form(self, form: str) -> "WholeDiskCoordinates":
+        """The same disk (substructures, mistuning) condensing in ``form`` (:attr:`FORMS`)."""
+        return self if form == self.form else WholeDiskCoordinates(self.sub, self.dk, self.dm, form=form)
 
     # -- the substructures at one harmonic --------------------------------------------------
     def _blade(self, j: int, omega: float):
@@ -546,11 +613,37 @@ class WholeDiskCoordinates:
             raise ValueError("compliance: harmonic j ≥ 1 (at j = 0 a blade alone floats)")
         Sb, _, _ = self._blade(j, omega)
         blocks, _ = self._disk_blocks(j, omega)
+        return self._compliance_of(Sb, blocks)
+
+    def _compliance_of(self, Sb, blocks) -> np.ndarray:
+        """H = S_b⁻¹ + S_d⁻¹ (3pN)² from the blades' S_b (N, 3p, 3p) and the disk's per-ND blocks."""
         H = self._circulant(np.linalg.inv(blocks))
         n = self.n_rel // self.N
         for s, Bi in enumerate(np.linalg.inv(Sb)):
             H[s * n:(s + 1) * n, s * n:(s + 1) * n] += Bi
         return H
+
+    def _compliant_harmonic(self, j: int, omega: float):
+        """(H_j, F_r,j, kept) of harmonic j ≥ 1 in the compliance form: no inverse of A; F_r and
+        every later use of A⁻¹ (:meth:`recover`, the stiffness map) by :class:`_TiedSolve`."""
+        Sb, gb, aux = self._blade(j, omega)
+        blocks, _ = self._disk_blocks(j, omega)
+        solve = _TiedSolve(Sb, blocks, self._circulant)
+        N, n = self.N, self.n_rel // self.N
+        y = solve(gb.ravel()).reshape(N, n)          # the disk's load is static: g_d = 0 for j ≥ 1
+        Fr = gb.ravel() - np.einsum("sab,sb->sa", Sb, y).ravel()
+        return self._compliance_of(Sb, blocks), Fr, (solve, Sb, gb, aux)
+
+    def _stiffness_map(self, kept: dict):
+        """``(j, U_j) → Z_j U_j`` [N] for the harmonics ``kept`` of the compliance form:
+        ``S_b U − S_b A⁻¹ S_b U``, one solve with A (a guess in displacements → its forces)."""
+        N, n = self.N, self.n_rel // self.N
+
+        def stiffness(j: int, U):
+            solve, Sb = kept[j][0], kept[j][1]
+            SU = np.einsum("sab,sb->sa", Sb, np.asarray(U).reshape(N, n))
+            return (SU - np.einsum("sab,sb->sa", Sb, solve(SU.ravel()).reshape(N, n))).ravel()
+        return stiffness
 
     def _harmonic(self, j: int, omega: float):
         import scipy.linalg as sla
@@ -582,14 +675,17 @@ class WholeDiskCoordinates:
         Zr = np.empty((nh + 1, r, r), complex)
         Fr = np.empty((nh + 1, r), complex)
         kept = {}
+        compliance = self.form == "compliance"
         for j in range(nh + 1):
             if j == 0 and self._zero is not None:
                 Zr[0], Fr[0], kept[0] = self._zero
                 continue
-            Zr[j], Fr[j], kept[j] = self._harmonic(j, omega)
+            Zr[j], Fr[j], kept[j] = self._compliant_harmonic(j, omega) if compliance and j else self._harmonic(j, omega)
             if j == 0:
                 self._zero = (Zr[0].copy(), Fr[0].copy(), kept[0])
         self._kept = (float(omega), kept)
+        if compliance:
+            return Condensed(omega=omega, Zr=Zr, Fr=Fr, compliance=True, stiffness=self._stiffness_map(kept))
         return Condensed(omega=omega, Zr=Zr, Fr=Fr)
 
     def recover(self, omega: float, Ur) -> np.ndarray:
@@ -606,7 +702,8 @@ class WholeDiskCoordinates:
         for j in range(Ur.shape[0]):
             Ainv, Sb, g, aux = kept[j]
             r = Ur[j].reshape(N, n)
-            vd = (Ainv @ (g.ravel() - np.einsum("sab,sb->sa", Sb, r).ravel())).reshape(N, n)
+            b_d = g.ravel() - np.einsum("sab,sb->sa", Sb, r).ravel()
+            vd = (Ainv @ b_d if isinstance(Ainv, np.ndarray) else Ainv(b_d)).reshape(N, n)
             for s in range(N):
                 uc = self.Rb_inv @ (vd[s] + r[s])
                 X = aux[s]
@@ -621,6 +718,8 @@ class WholeDiskCoordinates:
         affine map :meth:`recover` applies, formed from the kept A⁻¹ at ω [rad/s] in block
         products instead of 3pN + 1 recoveries. With ``P_s = O_c − O_w X_s`` (blade s's
         interior solve) and ``v_d = A⁻¹ (g − S_b r)``: ``o_s = P_s R_b⁻¹ (v_d,s + r_s) + O_w x_s``."""
+        if self.form != "stiffness":
+            raise NotImplementedError("whole disk: the tip map reads A⁻¹ of the stiffness form")
         om, kept = self._kept
         if om != float(omega) or 1 not in kept:
             self.condense(omega, 1)
@@ -643,15 +742,12 @@ class WholeDiskCoordinates:
 
     def tied_response(self, omega: float) -> np.ndarray:
         """Observed first-harmonic amplitudes (N·n_obs,) [m] with the interface tied (r = 0):
-        one solve of ``A v = g`` at ω [rad/s], no inverse."""
-        import scipy.linalg as sla
-
+        one solve of ``A v = g`` at ω [rad/s] (:class:`_TiedSolve`: A never formed; the disk's load
+        is static, so g = g_b at harmonic 1)."""
         Sb, gb, aux = self._blade(1, omega)
-        Sd, gd = self._disk(1, omega)
+        blocks, _ = self._disk_blocks(1, omega)
         N, n = self.N, self.n_rel // self.N
-        for s in range(N):
-            Sd[s * n:(s + 1) * n, s * n:(s + 1) * n] += Sb[s]
-        v = sla.solve(Sd, (gb + gd).ravel(), overwrite_a=True, check_finite=False).reshape(N, n)
+        v = _TiedSolve(Sb, blocks, self._circulant)(gb.ravel()).reshape(N, n)
         b = self.sub.blade
         m = b.O.shape[0]
         out = np.zeros(N * m, complex)

@@ -351,7 +351,7 @@ def nh_continuation(prob, run, solver: str, tol: float, maxiter: int, best: _Bes
     if nh_low < 1:
         return False
     low = HBProblem(prob.Zr, prob.Fr, prob.law, nh_low, prob.nit, "hbm", max_passes=prob.max_passes,
-                    stick_anchor=prob.stick_anchor, static=prob.static)
+                    stick_anchor=prob.stick_anchor, static=prob.static, **prob.linear_form())
     pr = solve_point(low, [low.x0()], solver=run.solver, tol=tol, maxiter=run.maxiter, eps_path=run.eps_path,
                      pseudo=run.pseudo)
     best.total += pr.iterations

@@ -48,12 +48,20 @@ import numpy as np
 from workflow.engine import fourier
 from workflow.engine.contact import STICK, ContactLaw, DLFTResult, dlft
 from workflow.engine.errors import SceneError
-from workflow.engine.linsolve import ContactJacobian, StructuredSolve, zb_apply
+from workflow.engine.linsolve import ContactJacobian, StructuredSolve, split_pq, zb_apply
 from workflow.engine.solvers import SolveResult, newton, powell
 
-__all__ = ["METHODS", "HBProblem", "StaticState"]
+__all__ = ["METHODS", "HBProblem", "StaticState", "condensed_form"]
 
 METHODS = ("hbm", "tcm", "hdhb")
+
+
+def condensed_form(c) -> dict:
+    """The :class:`HBProblem` keywords of a condensation's form (``compliance``, ``stiffness``:
+    :class:`reduction.condense.Condensed`): none for the stiffness form."""
+    if getattr(c, "compliance", False):
+        return {"compliance": True, "stiffness": c.stiffness}
+    return {}
 
 
 @dataclass
@@ -92,12 +100,19 @@ class HBProblem:
     static : a :class:`StaticState` already solved (e.g. by
         :func:`workflow.engine.static_state`, with its ε-continuation): used
         by :meth:`x0` and, if ``stick_anchor`` is None, for the anchor.
+    compliance : HBM in the interface forces (:meth:`compliance_form`): ``Zr`` holds Z_0 and
+        the compliances H_j = Z_j⁻¹ (m/N) of harmonics j ≥ 1, and ``stiffness(j, U_j)`` →
+        Z_j U_j (N) converts a displacement guess (:meth:`unknowns_from_harmonics`).
     """
 
     def __init__(self, Zr, Fr, contact: ContactLaw, nh: int, nit: int, method: str = "hbm", *,
-                 max_passes: int = 30, pass_tol: float = 1e-10, stick_anchor=None, static=None):
+                 max_passes: int = 30, pass_tol: float = 1e-10, stick_anchor=None, static=None,
+                 compliance: bool = False, stiffness=None):
         if method not in METHODS:
             raise SceneError(f"hb.method: {method!r} is not one of {', '.join(METHODS)}")
+        if compliance and method != "hbm":
+            raise SceneError(f"hb.method: {method!r} has no compliance form (a whole disk's harmonic balance is hbm)")
+        self.compliance, self.stiffness = bool(compliance), stiffness
         if not isinstance(contact, ContactLaw):
             raise TypeError("contact must be a ContactLaw")
         nh = int(nh)
@@ -196,13 +211,20 @@ class HBProblem:
         return fourier.to_time(fourier.real_to_complex(c), self.nit)
 
     def _apply_A(self, y):
-        """A y for y (nc, nr): Zb y (HBM, TCM) or H y (HDHB)."""
+        """A y for y (nc, nr): Zb y (HBM, TCM) or H y (HDHB); in the compliance form the forces
+        P y the unknowns stand for (:func:`~workflow.engine.linsolve.split_pq`)."""
+        return self._apply_PQ(y)[0]
+
+    def _apply_PQ(self, y):
+        """(A y, the displacement coefficients of y): (Zb y, y) in the stiffness form, HDHB's
+        (T⁻¹ Zb T y, y), the compliance form's (P y, Q y) — one product with the arrays of Zr."""
         if self.method == "hdhb":
-            return self._to_samples(zb_apply(self.Zr, self._to_coef(y)))
-        return zb_apply(self.Zr, y)
+            return self._to_samples(zb_apply(self.Zr, self._to_coef(y))), y
+        return split_pq(zb_apply(self.Zr, y), y, self.compliance)
 
     def _linear(self, x):
-        """(y, A y, Rlin y) for the unknowns x, y = x as (nc, nr): one product with Zb serves
+        """(u, A y, Rlin y) for the unknowns x, y = x as (nc, nr), u its displacement
+        coefficients (y itself but in the compliance form): one product with Zb serves
         the DLFT predictor and the residual's linear part (Rlin = A for HBM and HDHB, Ec·A
         for TCM); at 512 pairs that product is the residual's largest cost. The last x's
         are kept (:meth:`residual_along`): Newton's Jacobian at an accepted trial point
@@ -210,18 +232,19 @@ class HBProblem:
         x = np.asarray(x, dtype=float)
         if self._lin_memo is not None and np.array_equal(self._lin_memo[0], x):
             return self._lin_memo[1]
-        Ay = self._apply_A(x.reshape(self.nc, self.nr))
-        return self._remember(x, Ay, self._rlin(Ay))
+        Ay, u = self._apply_PQ(x.reshape(self.nc, self.nr))
+        return self._remember(x, Ay, self._rlin(Ay), u if self.compliance else None)
 
     def _rlin(self, Ay):
         return self._Ec @ Ay if self.method == "tcm" else Ay
 
-    def _remember(self, x, Ay, Ry):
-        """(y, A y, Rlin y) kept for x. y is a view of the memo's own copy of x, never of the
-        caller's array: MINPACK (Powell) overwrites its x buffer in place, and a kept view
-        of it turned the next residual at the same point into garbage."""
+    def _remember(self, x, Ay, Ry, u=None):
+        """(u, A y, Rlin y) kept for x; u (the compliance form's displacement coefficients) or,
+        by default, a view of the memo's own copy of x, never of the caller's array: MINPACK
+        (Powell) overwrites its x buffer in place, and a kept view of it turned the next
+        residual at the same point into garbage."""
         xc = np.array(x, dtype=float)
-        lin = (xc.reshape(self.nc, self.nr), Ay, Ry)
+        lin = (xc.reshape(self.nc, self.nr) if u is None else u, Ay, Ry)
         self._lin_memo = (xc, lin)
         return lin
 
@@ -233,13 +256,13 @@ class HBProblem:
         products of 11.7 ms. Equal to :meth:`residual` to round-off (1e-16 of ‖A x‖)."""
         x = np.asarray(x, dtype=float)
         dx = np.asarray(dx, dtype=float)
-        _, Ay, Ry = self._linear(x)
-        Ad = self._apply_A(dx.reshape(self.nc, self.nr))
+        u, Ay, Ry = self._linear(x)
+        Ad, ud = self._apply_PQ(dx.reshape(self.nc, self.nr))
         Rd = self._rlin(Ad)
 
         def at(alpha: float):
             xt = x + alpha * dx
-            lin = self._remember(xt, Ay + alpha * Ad, Ry + alpha * Rd)
+            lin = self._remember(xt, Ay + alpha * Ad, Ry + alpha * Rd, u + alpha * ud if self.compliance else None)
             return xt, self._evaluate(xt, False, lin)[0]
         return at
 
@@ -249,7 +272,11 @@ class HBProblem:
         if self._dense is None:
             nc, n, nr = self.nc, self.n, self.nr
             Zb = fourier.real_block_diag(self.Zr)
-            if self.method == "hbm":
+            if self.compliance:     # (P, Q): P = diag(Z_0, I, …), Q = diag(I, H_1, …)
+                P, Q = np.eye(n), Zb.copy()
+                P[:nr, :nr], Q[:nr, :nr] = Zb[:nr, :nr], np.eye(nr)
+                self._dense = (P, P, Q)
+            elif self.method == "hbm":
                 self._dense = (Zb, Zb)
             elif self.method == "tcm":
                 self._dense = ((self._Ec @ Zb.reshape(nc, -1)).reshape(n, n), Zb)
@@ -270,6 +297,11 @@ class HBProblem:
         """Dense predictor matrix (n × n, N/m) of ``a = a_F − A y + …``; formed on first access."""
         return self._dense_parts()[1]
 
+    def _eps_dense(self) -> np.ndarray:
+        """∂(ε u)/∂y (n × n, N/m): diag ε, or diag ε · Q in the compliance form."""
+        eps = np.tile(self._eps, self.nc)
+        return eps[:, None] * self._dense_parts()[2] if self.compliance else np.diag(eps)
+
     def _refresh_penalty(self):
         self._eps = self.law.eps().reshape(self.nr)
         self._shift = np.outer(self._const, self.law.offset().reshape(self.nr))   # (nc, nr)
@@ -279,7 +311,7 @@ class HBProblem:
         """(diag ε − A, its per-harmonic blocks or None), dense, on first use."""
         if self._pen is not None:
             return self._pen
-        M = np.diag(np.tile(self._eps, self.nc)) - self.A                  # diag ε − A
+        M = self._eps_dense() - self.A                                       # diag ε − A
         blocks = None
         if self.method != "hdhb":
             # HBM/TCM: A = Z is block-diagonal in harmonics, so G·(diag ε − A) only
@@ -301,11 +333,18 @@ class HBProblem:
     def _apply_L(L, v):
         return v if L is None else L @ v
 
-    def with_linear(self, Zr, Fr) -> "HBProblem":
-        """A new problem at another frequency: same law, method, Nh, nit, anchor
-        (and the same :class:`~workflow.engine.linsolve.StructuredSolve`, if any)."""
+    def linear_form(self, stiffness=None) -> dict:
+        """The keywords that give another problem this one's form: ``compliance`` and its
+        ``stiffness`` map (``stiffness``: another frequency's, else this one's)."""
+        return {"compliance": self.compliance, "stiffness": stiffness or self.stiffness}
+
+    def with_linear(self, Zr, Fr, stiffness=None) -> "HBProblem":
+        """A new problem at another frequency: same law, method, Nh, nit, anchor, form
+        (``stiffness``: the compliance form's map at that frequency) and the same
+        :class:`~workflow.engine.linsolve.StructuredSolve`, if any."""
         new = HBProblem(Zr, Fr, self.law, self.nh, self.nit, self.method, max_passes=self.max_passes,
-                        pass_tol=self.pass_tol, stick_anchor=self.stick_anchor, static=self._static)
+                        pass_tol=self.pass_tol, stick_anchor=self.stick_anchor, static=self._static,
+                        **self.linear_form(stiffness))
         new._anchor_set = True
         # the structured solve's blocks are lagged anyway: a neighbouring frequency's are a
         # good preconditioner (GMRES always solves with the new K), refactored when GMRES slows
@@ -352,11 +391,21 @@ class HBProblem:
     def coefficients(self, x) -> np.ndarray:
         """Real harmonic coefficients (2Nh+1, 3p) of U_r (m) for unknowns x."""
         y = np.asarray(x, dtype=float).reshape(self.nc, self.nr)
+        if self.compliance:
+            return self._linear(x)[0].copy()
         return self.T @ y if self.method == "hdhb" else y
 
     def unknowns_from_coefficients(self, coef) -> np.ndarray:
-        """Unknown vector (n,) from real coefficients (2Nh+1, 3p)."""
+        """Unknown vector (n,) from real coefficients (2Nh+1, 3p) of U_r; in the compliance
+        form the forces Z_j U_j of harmonics ≥ 1, by the problem's ``stiffness`` map."""
         coef = np.asarray(coef, dtype=float).reshape(self.nc, self.nr)
+        if self.compliance:
+            if self.stiffness is None:
+                raise SceneError("hb: a compliance-form problem needs its stiffness map to take a displacement guess")
+            U = fourier.real_to_complex(coef)
+            for j in range(1, self.nh + 1):
+                U[j] = self.stiffness(j, U[j])
+            return fourier.complex_to_real(U).ravel()
         return (self.Tinv @ coef if self.method == "hdhb" else coef).ravel()
 
     def unknowns_from_harmonics(self, U) -> np.ndarray:
@@ -535,13 +584,15 @@ class HBProblem:
         :meth:`contact_blocks`, matrix-free: :class:`~workflow.engine.linsolve.ContactJacobian`."""
         left, right = {"hbm": (None, None), "tcm": (self._Ec if self.method == "tcm" else None, None),
                        "hdhb": (getattr(self, "Tinv", None), getattr(self, "T", None))}[self.method]
-        return ContactJacobian(self.Zr, self._eps, self.coefficient_blocks(G), left=left, right=right)
+        return ContactJacobian(self.Zr, self._eps, self.coefficient_blocks(G), left=left, right=right,
+                               compliance=self.compliance)
 
     def penalty_apply(self, v) -> np.ndarray:
         """``(diag ε − A) v`` = ∂a/∂y · v for unknowns v (n,): (nc, nr) in the predictor's layout
-        (N per unit of v) — one product with Zb."""
+        (N per unit of v) — one product with Zb (compliance form: ``ε Q v − P v``)."""
         y = np.asarray(v, dtype=float).reshape(self.nc, self.nr)
-        return self._eps * y - self._apply_A(y)
+        Ay, u = self._apply_PQ(y)
+        return self._eps * u - Ay
 
     def residual_operator(self, x):
         """(R, J) with J the matrix-free :class:`~workflow.engine.linsolve.ContactJacobian`
@@ -564,6 +615,8 @@ class HBProblem:
         through Z and F: ``∂R/∂ω = L_r q − G L_p q`` with
         ``q = ∂Z/∂ω Ũ − ∂F/∂ω`` (coefficients). Units N·s/rad.
         """
+        if self.compliance:
+            raise NotImplementedError("hb: the compliance form has no ω-derivative (grid sweeps only)")
         R, J, G = self._evaluate(x, True)
         dZb = fourier.real_block_diag(np.asarray(dZr)[: self.nh + 1])
         q = (dZb @ self.coefficients(x).ravel()).reshape(self.nc, self.nr) \
@@ -636,10 +689,26 @@ class HBProblem:
         if sliding:
             free = np.ones(self.nr, bool)
             free[0::3] = st.state == 0
+        if self.compliance:
+            return fourier.complex_to_real(self._tied_forces(U, free)).ravel()
         if free.any():
             for j in range(1, self.nh + 1):
                 U[j, free] = np.linalg.solve(self.Zr[j][np.ix_(free, free)], self.load_factor * self.Fr[j, free])
         return self.unknowns_from_harmonics(U)
+
+    def _tied_forces(self, U, free):
+        """:meth:`x0`'s guess in the compliance form: harmonic 0 ``U[0]``; for j ≥ 1 the forces
+        Z_j U_j of the same linear response, from H_j: a free DOF carries no contact force
+        (y_f = F_f), a tied one no displacement (H_cc y_c = −H_cf y_f)."""
+        Y = np.zeros_like(U)
+        Y[0] = U[0]
+        tied = ~free
+        for j in range(1, self.nh + 1):
+            Y[j, free] = self.load_factor * self.Fr[j, free]
+            if tied.any() and free.any():
+                H = self.Zr[j]
+                Y[j, tied] = -np.linalg.solve(H[np.ix_(tied, tied)], H[np.ix_(tied, free)] @ Y[j, free])
+        return Y
 
     # ----------------------------------------------------------------- solve
     def solve(self, x0=None, *, solver: str = "newton", tol: float = 1e-9, maxiter: int = 50,

@@ -180,12 +180,26 @@ def zb_apply(Zr, y, conj_transpose: bool = False):
     return fourier.complex_to_real(V)
 
 
-def k_apply(Zr, Gt, eps, Y, nc: int, p: int):
-    """``K Y = Zb Y + G̃ (E Y − Zb Y)`` for coefficients Y (nc, 3p, k) in the arrays' own
+def split_pq(V, Y, compliance: bool):
+    """(P Y, Q Y) from ``V = Zb Y`` (the harmonic products with the arrays of ``Zr``) for
+    coefficients Y (nc, nr[, k]). The stiffness form has P = Zb, Q = I. The compliance form
+    (``Zr`` holds Z_0 and the compliances H_j = Z_j⁻¹, j ≥ 1: unknowns the interface forces
+    Z_j U_j of harmonics ≥ 1, the displacement of harmonic 0) has P = diag(Z_0, I, …) and
+    Q = diag(I, H_1, …): the force the unknowns stand for is P Y, the displacement Q Y."""
+    if not compliance:
+        return V, Y
+    P, Q = Y.copy(), V
+    P[0] = V[0]
+    Q[0] = Y[0]
+    return P, Q
+
+
+def k_apply(Zr, Gt, eps, Y, nc: int, p: int, compliance: bool = False):
+    """``K Y = P Y + G̃ (E Q Y − P Y)`` for coefficients Y (nc, 3p, k) in the arrays' own
     precision (complex128/float64 for the Newton operator, complex64/float32 for the
-    preconditioner's copies)."""
-    Zy = zb_apply(Zr, Y)
-    return Zy + _pair_apply(Gt, eps[:, None] * Y - Zy, nc, p)
+    preconditioner's copies); P = Zb, Q = I in the stiffness form (:func:`split_pq`)."""
+    Py, Qy = split_pq(zb_apply(Zr, Y), Y, compliance)
+    return Py + _pair_apply(Gt, eps[:, None] * Qy - Py, nc, p)
 
 
 def real_blocks(Zr, dtype=np.float64):
@@ -207,10 +221,10 @@ def zb_apply_blocks(blocks, Y):
     return out
 
 
-def k_apply_blocks(blocks, Gt, eps, Y, nc: int, p: int):
+def k_apply_blocks(blocks, Gt, eps, Y, nc: int, p: int, compliance: bool = False):
     """:func:`k_apply` with Zb as :func:`real_blocks`."""
-    Zy = zb_apply_blocks(blocks, Y)
-    return Zy + _pair_apply(Gt, eps[:, None] * Y - Zy, nc, p)
+    Py, Qy = split_pq(zb_apply_blocks(blocks, Y), Y, compliance)
+    return Py + _pair_apply(Gt, eps[:, None] * Qy - Py, nc, p)
 
 
 def _pair_apply(G, V, nc, p):
@@ -364,11 +378,15 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
     Zr (Nh+1, nr, nr) complex N/m; eps (nr,) N/m; Gt (p, 3nc, 3nc) the per-pair
     DLFT blocks in coefficient space (dimensionless); ``left`` (nc, nc) or None
     maps K's rows to J's (J = left·K·right); ``right`` (nc, nc) or None maps
-    J's unknowns to coefficients. Never holds an (n × n) array.
+    J's unknowns to coefficients. Never holds an (n × n) array. ``compliance``: Zr holds Z_0
+    and the compliances H_j (m/N) of harmonics ≥ 1, whose unknowns are forces, and
+    ``K = P + G̃ (E Q − P)`` (:func:`split_pq`): for those harmonics ``I + G̃ (E H − I)``,
+    the stiffness form's K times H.
     """
 
-    def __init__(self, Zr, eps, Gt, left=None, right=None):
+    def __init__(self, Zr, eps, Gt, left=None, right=None, compliance: bool = False):
         self.Zr, self.eps, self.Gt = Zr, np.asarray(eps, float), Gt
+        self.compliance = bool(compliance)
         self.nh = Zr.shape[0] - 1
         self.nc, self.nr = fourier.n_coef(self.nh), Zr.shape[1]
         self.p = self.nr // 3
@@ -384,15 +402,20 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
 
     def k_apply(self, Y):
         """K Y for coefficients Y (nc, nr, k)."""
-        return k_apply(self.Zr, self.Gt, self.eps, Y, self.nc, self.p)
+        return k_apply(self.Zr, self.Gt, self.eps, Y, self.nc, self.p, self.compliance)
 
     def k_apply_t(self, Y):
-        """Kᵀ Y = Zbᵀ Y + (E − Zbᵀ) G̃ᵀ Y."""
+        """Kᵀ Y = Pᵀ (Y − G̃ᵀ Y) + Qᵀ E G̃ᵀ Y (stiffness form: P = Zb, Q = I)."""
         if self._ZrH is None:
             self._ZrH = np.conj(np.swapaxes(self.Zr, 1, 2))
             self._GtT = np.ascontiguousarray(np.swapaxes(self.Gt, 1, 2))
         W = _pair_apply(self._GtT, Y, self.nc, self.p)
-        return zb_apply(self._ZrH, Y - W) + self.eps[:, None] * W
+        if not self.compliance:
+            return zb_apply(self._ZrH, Y - W) + self.eps[:, None] * W
+        D, EW = Y - W, self.eps[:, None] * W
+        PtD, _ = split_pq(zb_apply(self._ZrH, D), D, True)
+        _, QtEW = split_pq(zb_apply(self._ZrH, EW), EW, True)
+        return PtD + QtEW
 
     @staticmethod
     def _lmul(L, Y):
@@ -443,6 +466,13 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
         m = 3 * s * nc
         Zcc = Zcc.reshape(g, m, m)
         E = np.broadcast_to(self.eps[dofs].reshape(g, s, 1, 3), (g, s, nc, 3)).reshape(g, m)
+        if self.compliance:     # P_CC, E Q_CC − P_CC: harmonic 0's block is Z_0's, the others' H's
+            h0 = np.tile(np.repeat(np.arange(nc) == 0, 3), s)
+            Q = np.where(~h0[:, None] & ~h0[None, :], Zcc, 0.0)
+            Q[:, h0, h0] = 1.0
+            P = np.where(h0[:, None] & h0[None, :], Zcc, 0.0)
+            P[:, ~h0, ~h0] = 1.0
+            return P, E[:, :, None] * Q - P
         M = -Zcc
         M[:, np.arange(m), np.arange(m)] += E
         return Zcc, M
@@ -476,6 +506,12 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
                 c, s = idx
                 Zh, t = self.Zr[h], cdt
                 Gp = 0.5 * (G5[:, c, :, c, :] + G5[:, s, :, s, :]) + 0.5j * (G5[:, c, :, s, :] - G5[:, s, :, c, :])
+            if self.compliance and h > 0:   # (I − Ĝ) + Ĝ E H_h
+                B = np.matmul(Gp.astype(t), (self.eps[:, None] * Zh).astype(t).reshape(p, 3, nr))
+                for d in range(3):
+                    B[ip, :, 3 * ip + d] += (np.eye(3)[:, d] - Gp[:, :, d]).astype(t)
+                yield idx, drop_negligible(B.reshape(nr, nr), dtype)
+                continue
             B = np.matmul((np.eye(3) - Gp).astype(t), Zh.astype(t).reshape(p, 3, nr))
             for d in range(3):
                 B[ip, :, 3 * ip + d] += Gp[:, :, d] * self.eps[3 * ip + d, None]
@@ -495,9 +531,19 @@ class ContactJacobian(scipy.sparse.linalg.LinearOperator):
             s = len(idx)
             Z = self.Zr[h]
             Zh = Z.real.astype(dtype) if s == 1 else fourier.real_block(Z, dtype)
+            Gh = G5[:, idx][:, :, :, idx].reshape(p, 3 * s, 3 * s)
+            if self.compliance and h > 0:   # (I − G̃_hh) + G̃_hh E H_hh
+                EH = (np.tile(self.eps, s)[:, None] * Zh).astype(dtype)
+                rows = EH.reshape(s, p, 3, s * nr).transpose(1, 0, 2, 3).reshape(p, 3 * s, s * nr)
+                K = np.matmul(Gh.astype(dtype), rows).reshape(p, 3 * s, s, nr)
+                I_G = np.eye(3 * s) - Gh
+                for a in range(s):
+                    for c in range(3):
+                        K[ip, :, a, 3 * ip + c] += I_G[:, :, 3 * a + c]
+                yield idx, K.reshape(p, s, 3, s * nr).transpose(1, 0, 2, 3).reshape(s * nr, s * nr)
+                continue
             # rows (s, p, 3) → per pair (p, 3s) to meet G̃_hh (p, 3s, 3s)
             rows = Zh.reshape(s, p, 3, s * nr).transpose(1, 0, 2, 3).reshape(p, 3 * s, s * nr)
-            Gh = G5[:, idx][:, :, :, idx].reshape(p, 3 * s, 3 * s)
             K = np.matmul((np.eye(3 * s) - Gh).astype(dtype), rows).reshape(p, 3 * s, s, nr)
             for a in range(s):
                 for c in range(3):
@@ -534,6 +580,7 @@ class StructuredSolve:
         # (Zr, its copy in the preconditioner's precision, its real blocks in double or None):
         # real blocks (real_blocks) up to INVERSE_MAX_DOFS, complex above
         self._zr_pre = (None, None, None)
+        self._compliance = False    # the operator's form, for the preconditioner's own products
         self.stats = {"factorizations": 0, "gmres_iterations": 0, "solves": 0, "failures": 0,
                       "precision": "single" if single else "double"}
 
@@ -575,6 +622,7 @@ class StructuredSolve:
                                 self._precision_copy(op.Zr),
                                 real_blocks(op.Zr) if op.nr <= INVERSE_MAX_DOFS else None)
             self._pre = (self._zr_pre[1], op.Gt.astype(real, copy=False), op.eps.astype(real))
+            self._compliance = op.compliance
             self._cluster_inverses(op)
         if self._lu is None or self._refresh or self._lu[0] != (op.nc, op.nr):
             self._factor_blocks(op)
@@ -683,14 +731,14 @@ class StructuredSolve:
         op = self.op
         Y = x.reshape(op.nc, op.nr, 1)
         if self._zr_pre[2] is not None and self._zr_pre[0] is op.Zr:
-            return k_apply_blocks(self._zr_pre[2], op.Gt, op.eps, Y, op.nc, op.p).ravel()
+            return k_apply_blocks(self._zr_pre[2], op.Gt, op.eps, Y, op.nc, op.p, op.compliance).ravel()
         return op.k_apply(Y).ravel()
 
     def _k_pre(self, x):
         """K x in the preconditioner's precision (its own copies of Zr, G̃, ε)."""
         op = self.op
         apply = k_apply_blocks if self._zr_pre[2] is not None else k_apply
-        return apply(*self._pre, x.reshape(op.nc, op.nr, 1), op.nc, op.p).ravel()
+        return apply(*self._pre, x.reshape(op.nc, op.nr, 1), op.nc, op.p, self._compliance).ravel()
 
     def _precond(self, r):
         """Symmetric multiplicative Schwarz: cluster blocks, harmonic blocks, cluster blocks (in the

@@ -99,7 +99,7 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
     converged upper neighbours ("downwards-…" in ``how``). Measured on the Coulomb grid
     at ε = 10⁴k (300 points, Nh = 1…25): 1 point recovered, which the way up had lost.
     """
-    from workflow.engine.hb import HBProblem
+    from workflow.engine.hb import HBProblem, condensed_form
 
     n, omegas, clock0 = len(cond), _omegas(cond), getattr(cond, "seconds", 0.0)
     out = SweepResult(variant=v, solver=solver, freqs_hz=omegas / (2 * np.pi),
@@ -119,16 +119,18 @@ def sweep_variant(rc, cond: list, law, static, v: Variant, *, solver: str, tol: 
         c = cond[i]
         t0 = time.perf_counter()
         if prob is None:
-            prob = HBProblem(c.Zr, c.Fr, law, v.nh, v.nit, v.method, max_passes=max_passes, static=static)
+            prob = HBProblem(c.Zr, c.Fr, law, v.nh, v.nit, v.method, max_passes=max_passes, static=static,
+                             **condensed_form(c))
             prob.linsolver = linsolver
         else:
-            prob = prob.with_linear(c.Zr, c.Fr)
+            prob = prob.with_linear(c.Zr, c.Fr, getattr(c, "stiffness", None))
         below = [(omegas[j], xs[j]) for j in range(i) if xs[j] is not None][-2:]
         guesses = _guesses(prob, None if seeds is None else seeds[i], below, c.omega)
         snit = smooth_nit if v.nit < smooth_nit else 2 * v.nit
 
         def smooth(c=c, guess=guesses[-1], prob=prob):
-            sp = HBProblem(c.Zr, c.Fr, law, v.nh, snit, "hbm", max_passes=max_passes, static=static)
+            sp = HBProblem(c.Zr, c.Fr, law, v.nh, snit, "hbm", max_passes=max_passes, static=static,
+                           **condensed_form(c))
             pr = solve_point(sp, [sp.unknowns_from_harmonics(prob.harmonics(guess))], solver=solver,
                              tol=tol, maxiter=maxiter, eps_path=eps_path, pseudo=pseudo)
             return (prob.unknowns_from_harmonics(sp.harmonics(pr.result.x)) if pr.converged else None), \
@@ -176,7 +178,7 @@ def _downwards(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> 
             continue
         c, t0 = cond[i], time.perf_counter()
         above = [(omegas[j], xs[j]) for j in (i + 2, i + 1) if j < n and xs[j] is not None]
-        prob = prob.with_linear(c.Zr, c.Fr)
+        prob = prob.with_linear(c.Zr, c.Fr, getattr(c, "stiffness", None))
         pr = solve_point(prob, secant_guesses(above, c.omega), **solve_kw)
         if pr.converged:
             pr = replace(pr, how=f"downwards-{pr.how}")
@@ -213,7 +215,7 @@ def _approach(out: SweepResult, rc, cond: list, xs: list, prob, **solve_kw) -> N
             nh = cond.nh if hasattr(cond, "omegas") else cond[i].nh
             for k, w in enumerate(steps):
                 c = cond[i] if k == len(steps) - 1 else condensed(rc, float(w), nh)
-                q = prob.with_linear(c.Zr, c.Fr)
+                q = prob.with_linear(c.Zr, c.Fr, getattr(c, "stiffness", None))
                 pr = solve_point(q, secant_guesses(path[-2:], float(w)), **solve_kw)
                 its += pr.iterations
                 if not pr.converged:
@@ -313,7 +315,12 @@ def arclength_scale(cond: list) -> float:
         from workflow.engine.linear import CondensedGrid
 
         cond = CondensedGrid(cond.rc, cond.omegas, 1, keep_bytes=0.0)
-    return max(max(float(np.abs(np.linalg.solve(c.Zr[1], c.Fr[1])).max()) for c in cond), 1e-30)
+    return max(max(float(np.abs(_free_first_harmonic(c)).max()) for c in cond), 1e-30)
+
+
+def _free_first_harmonic(c) -> np.ndarray:
+    """U_1 of the free interface, ``Z_r,1 U = F_r,1`` [m] (the compliance form's ``H_1 F_r,1``)."""
+    return c.Zr[1] @ c.Fr[1] if getattr(c, "compliance", False) else np.linalg.solve(c.Zr[1], c.Fr[1])
 
 
 def trace_variant(rc, f0: float, f1: float, law, static, v: Variant, *, solver: str, tol: float, maxiter: int,
