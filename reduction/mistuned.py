@@ -470,6 +470,8 @@ class _TiedSolve:
         import scipy.linalg as sla
         import scipy.sparse.linalg as spla
 
+        from workflow.engine.solvers import gmres_rtol
+
         b = np.asarray(b, dtype=complex)
         nb = float(np.linalg.norm(b))
         if nb == 0.0:
@@ -477,7 +479,7 @@ class _TiedSolve:
         if self._lu is None:
             m = b.size
             op = spla.LinearOperator((m, m), matvec=lambda z: self.apply(self._ft(self.Pinv, z)), dtype=complex)
-            z, _ = spla.gmres(op, b, restart=self.MAXITER, maxiter=1, atol=0.0, **{_GMRES_TOL: 0.1 * self.RTOL})
+            z, _ = spla.gmres(op, b, restart=self.MAXITER, maxiter=1, atol=0.0, **gmres_rtol(0.1 * self.RTOL))
             x = self._ft(self.Pinv, z)
             if np.all(np.isfinite(x)) and np.linalg.norm(self.apply(x) - b) <= self.RTOL * nb:
                 return x
@@ -486,16 +488,6 @@ class _TiedSolve:
                 A[s * self.n:(s + 1) * self.n, s * self.n:(s + 1) * self.n] += self.Sb[s]
             self._lu = sla.lu_factor(A, overwrite_a=True, check_finite=False)
         return sla.lu_solve(self._lu, b, check_finite=False)
-
-
-def _gmres_tol_name() -> str:
-    import inspect
-
-    import scipy.sparse.linalg as spla
-    return "rtol" if "rtol" in inspect.signature(spla.gmres).parameters else "tol"
-
-
-_GMRES_TOL = _gmres_tol_name()
 
 
 class WholeDiskCoordinates:

@@ -12,6 +12,7 @@ the last finite iterate and says why in ``reason``.
 """
 from __future__ import annotations
 
+import inspect
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -19,8 +20,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 import scipy.optimize
+import scipy.sparse.linalg
 
 __all__ = ["DenseLU", "SolveResult", "newton", "powell"]
+
+#: the name SciPy's GMRES gives its relative tolerance ("tol" up to SciPy 1.11, "rtol" after)
+_GMRES_TOL = "rtol" if "rtol" in inspect.signature(scipy.sparse.linalg.gmres).parameters else "tol"
+
+
+def gmres_rtol(value: float) -> dict:
+    """``{name: value}``: SciPy's GMRES relative tolerance under the name this SciPy gives it."""
+    return {_GMRES_TOL: float(value)}
 
 
 @dataclass

@@ -12,7 +12,6 @@ structure (:mod:`workflow.engine.wear.structured`).
 """
 from __future__ import annotations
 
-import inspect
 import math
 import time
 
@@ -20,6 +19,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
+from workflow.engine.solvers import gmres_rtol
 from workflow.engine.wear.history import (PERSISTENT, UNSOLVABLE, WearHistory, _close, _record, _stage_end,
                                           _steady_or_persistent, _wscale, penetration_scale)
 from workflow.engine.wear import structured
@@ -188,7 +188,6 @@ def _resolve_vibration(wp: WearProblem, x, st: WearState, W, tol: float, count: 
 NEAR_ITERS, NEAR_RTOL = 30, 1e-11
 
 
-_GMRES_RTOL = "rtol" if "rtol" in inspect.signature(scipy.sparse.linalg.gmres).parameters else "tol"
 
 
 def _near_solve(ref: WearState, st: WearState, b):
@@ -210,7 +209,7 @@ def _near_solve(ref: WearState, st: WearState, b):
     M = scipy.sparse.linalg.LinearOperator((n, n), matvec=lambda v: scipy.linalg.lu_solve(lu, v, check_finite=False),
                                            dtype=float)
     y, _ = scipy.sparse.linalg.gmres(A, b, M=M, restart=NEAR_ITERS, maxiter=1, atol=0.0,
-                                     **{_GMRES_RTOL: 0.1 * NEAR_RTOL})
+                                     **gmres_rtol(0.1 * NEAR_RTOL))
     if not np.all(np.isfinite(y)) or np.linalg.norm(b - J @ y) > NEAR_RTOL * np.linalg.norm(b):
         return None
     return y
