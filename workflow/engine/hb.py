@@ -100,7 +100,7 @@ class HBProblem:
     static : a :class:`StaticState` already solved (e.g. by
         :func:`workflow.engine.static_state`, with its ε-continuation): used
         by :meth:`x0` and, if ``stick_anchor`` is None, for the anchor.
-    compliance : HBM in the interface forces (:meth:`compliance_form`): ``Zr`` holds Z_0 and
+    compliance : HBM in the interface forces (:func:`~workflow.engine.linsolve.split_pq`): ``Zr`` holds Z_0 and
         the compliances H_j = Z_j⁻¹ (m/N) of harmonics j ≥ 1, and ``stiffness(j, U_j)`` →
         Z_j U_j (N) converts a displacement guess (:meth:`unknowns_from_harmonics`).
     """
