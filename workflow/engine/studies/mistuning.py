@@ -151,11 +151,11 @@ def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "ne
     secant predictor alone lost the three points at the resonance that the tuned seeds find.
     ``progress`` wraps the grid's frequency loop (e.g. ``log.progress``); ``form``: the HB's
     unknowns, "stiffness" or "compliance" (:meth:`reduction.mistuned.WholeDiskCoordinates.in_form`;
-    None: the disk's own). Both give the same amplitudes to the Newton tolerance; measured on the
-    quick disk (σ = 0.02, two threads, 2026-11-29) a point costs 22.6 → 14.8 s on three grid points
-    and 6.9 s over a peak search in the compliance form, but Newton's inexact steps follow another
-    path in each form, and at one point near the peak (212.6777 Hz) the compliance form's stalled
-    where the stiffness form's converged (with exact steps it converges, at 11–19 s a point).
+    None: the disk's own). Both give the same amplitudes to the Newton tolerance. The compliance
+    form drops the condensation's dense inverses, but its Newton solve costs more (its
+    preconditioner holds less of its Jacobian) and is less robust at the peak: on the quick disk
+    with the scene's law (two threads, 2026-11-29) a point took 23.1 s against 20.7 s in the
+    stiffness form (docs/mistuning.md).
     """
     from scipy.optimize import minimize_scalar
 
