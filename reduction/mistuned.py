@@ -439,6 +439,15 @@ def cyclic_model(sub: Substructures, nds) -> "CyclicReducedModel":
                               info={"method": "blade + disk per ND (substructures)"})
 
 
+def _add_blade_blocks(M: np.ndarray, blocks) -> np.ndarray:
+    """M (N·n, N·n) with ``blocks[s]`` (n, n) added on its diagonal block s (each blade's own
+    3p × 3p term, block diagonal over the blades), in place; returns M."""
+    n = M.shape[0] // len(blocks)
+    for s, B in enumerate(blocks):
+        M[s * n:(s + 1) * n, s * n:(s + 1) * n] += B
+    return M
+
+
 class _TiedSolve:
     """``b ↦ A⁻¹ b`` for the tied interface's A = S_b + S_d of one harmonic without forming A:
     GMRES on ``A P⁻¹`` (the true residual), P the tuned disk's A — the blades' mean S_b beside
@@ -483,9 +492,7 @@ class _TiedSolve:
             x = self._ft(self.Pinv, z)
             if np.all(np.isfinite(x)) and np.linalg.norm(self.apply(x) - b) <= self.RTOL * nb:
                 return x
-            A = self._circulant(self.blocks)
-            for s in range(self.N):
-                A[s * self.n:(s + 1) * self.n, s * self.n:(s + 1) * self.n] += self.Sb[s]
+            A = _add_blade_blocks(self._circulant(self.blocks), self.Sb)
             self._lu = sla.lu_factor(A, overwrite_a=True, check_finite=False)
         return sla.lu_solve(self._lu, b, check_finite=False)
 
@@ -508,7 +515,9 @@ class WholeDiskCoordinates:
     Ω = 0 although a blade alone floats. One dense inverse of A (3pN)² a harmonic is the cost
     (harmonic 0 does not depend on ω and is made once); A⁻¹ of the last ω is kept for
     :meth:`recover`. ``n_rel`` = 3pN; ω-derivatives are not provided (grid sweeps and bounded
-    peak searches need none).
+    peak searches need none). ``form = "compliance"``: harmonics ≥ 1 condense to the compliance
+    ``H = Z_r⁻¹ = S_b⁻¹ + S_d⁻¹`` (:meth:`compliance`) instead, with every solve with A iterative
+    (:class:`_TiedSolve`), for the engine's harmonic balance in the interface forces.
     """
 
     is_whole_disk = True
@@ -609,11 +618,7 @@ class WholeDiskCoordinates:
 
     def _compliance_of(self, Sb, blocks) -> np.ndarray:
         """H = S_b⁻¹ + S_d⁻¹ (3pN)² from the blades' S_b (N, 3p, 3p) and the disk's per-ND blocks."""
-        H = self._circulant(np.linalg.inv(blocks))
-        n = self.n_rel // self.N
-        for s, Bi in enumerate(np.linalg.inv(Sb)):
-            H[s * n:(s + 1) * n, s * n:(s + 1) * n] += Bi
-        return H
+        return _add_blade_blocks(self._circulant(np.linalg.inv(blocks)), np.linalg.inv(Sb))
 
     def _compliant_harmonic(self, j: int, omega: float):
         """(H_j, F_r,j, kept) of harmonic j ≥ 1 in the compliance form: no inverse of A; F_r and
@@ -643,15 +648,11 @@ class WholeDiskCoordinates:
         Sb, gb, aux = self._blade(j, omega)
         Sd, gd = self._disk(j, omega)
         N, n = self.N, self.n_rel // self.N
-        A = Sd
-        for s in range(N):
-            A[s * n:(s + 1) * n, s * n:(s + 1) * n] += Sb[s]
-        Ainv = sla.inv(A, overwrite_a=True, check_finite=False)
+        Ainv = sla.inv(_add_blade_blocks(Sd, Sb), overwrite_a=True, check_finite=False)
         # S_b A⁻¹ S_b with S_b block diagonal: blocks of rows and columns, no dense product
         T = Ainv.reshape(N, n, N, n).transpose(0, 2, 1, 3)                  # (s, t) blocks
-        Zr = -np.matmul(np.matmul(Sb[:, None], T), Sb[None]).transpose(0, 2, 1, 3).reshape(N * n, N * n)
-        for s in range(N):
-            Zr[s * n:(s + 1) * n, s * n:(s + 1) * n] += Sb[s]
+        Zr = _add_blade_blocks(-np.matmul(np.matmul(Sb[:, None], T), Sb[None]).transpose(0, 2, 1, 3)
+                               .reshape(N * n, N * n), Sb)
         y = Ainv @ (gb + gd).ravel()
         Fr = gb.ravel() - np.einsum("sab,sb->sa", Sb, y.reshape(N, n)).ravel()
         return Zr, Fr, (Ainv, Sb, gb + gd, aux)
