@@ -94,6 +94,7 @@ def test_newton_finds_the_stiffness_forms_solution(disk, linear):
     assert np.abs(Uc - Us).max() <= 1e-7 * np.abs(Us[1:]).max()
 
 
+@pytest.mark.slow  # 3.5 s: a tuned FRF and two forced responses of three points
 def test_the_forced_response_is_the_stiffness_forms(disk):
     """Every blade's amplitude of the mistuned disk at three frequencies (seeded with the tuned
     travelling wave), compliance against stiffness form: to the Newton tolerance."""
