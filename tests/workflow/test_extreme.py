@@ -1,4 +1,4 @@
-"""The extreme-case runner (workflow/engine/studies/extreme.py) on the synthetic reduced model."""
+"""The extreme-case runner (workflow/engine/studies/extreme/) on the synthetic reduced model."""
 from __future__ import annotations
 
 import json

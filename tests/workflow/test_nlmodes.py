@@ -1,4 +1,4 @@
-"""Friction-damped nonlinear modes (EPMC) and single-mode synthesis (workflow/engine/studies/nlmodes.py)
+"""Friction-damped nonlinear modes (EPMC) and single-mode synthesis (workflow/engine/studies/nlmodes/)
 against closed forms and independent references (workflow/verification/masing.py).
 
 The lumped case: a unit mass on a spring k = 1 N/m with a Jenkins element (k_t = 2 N/m,

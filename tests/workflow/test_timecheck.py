@@ -125,6 +125,7 @@ def test_spurious_collocation_roots_are_flagged_and_converged_hb_is_not():
     from dataclasses import replace
 
     from workflow.engine.studies import extreme as X
+    from workflow.engine.studies.extreme import hbproblem
 
     su = X.setup(X.synthetic_model(4), X.Settings(max_iterations=30, pseudo_steps=150))
     by = {c.name: c for c in X.build_cases(su)}
@@ -134,7 +135,7 @@ def test_spurious_collocation_roots_are_flagged_and_converged_hb_is_not():
         case = replace(by[name], force_scale=10.0, nh=nh, nit=nit)
         r = X.run_case(su, case, method, "newton")
         assert r.converged and r.slipping > 0.95
-        tc = time_check(model, X._law(su, case, su.model), case.omega, r.U)
+        tc = time_check(model, hbproblem._law(su, case, su.model), case.omega, r.U)
         assert tc.within_tolerance is ok, (name, method, tc.log_line())
         # a wrong state is decided before the motion has settled (off by more than twice the
         # tolerance whatever the transient left); a right one only once it has
