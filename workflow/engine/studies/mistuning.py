@@ -5,8 +5,9 @@ blade's contact pairs physical, N × p pairs) go through the same sweep and solv
 sector (:func:`workflow.engine.studies.frf.sweep_variant`); what is new is what a mistuned disk
 is read by:
 
-* each blade's tip amplitude (first harmonic, ‖·‖ of its observed DOFs) at every frequency, the
-  largest over the blades refined by a bounded scalar search (:func:`forced_response`);
+* each blade's tip amplitude (first harmonic, ‖·‖ of its observed DOFs) at every frequency, and
+  the largest blade peak found by a search on every blade's own resonance, started where the
+  tied response's highest blades peak (:mod:`workflow.engine.studies.bladepeak`);
 * the **amplification factor**: the largest blade peak over the tuned disk's peak (Whitehead
   1966 bounds it by (1 + √N)/2 for a linear one-family disk), with the interface tied (linear)
   and friction-damped (:func:`amplification`);
@@ -22,9 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from workflow.engine.errors import SceneError
+from workflow.engine.studies.bladepeak import peak_of, search_blade_peaks, tied_candidates
 
-#: relative frequency tolerance of the peak searches (bounded Brent between grid neighbours)
-PEAK_XTOL = 1e-5
 #: the tied response's grid is this many times denser than the friction-damped one: a tied point
 #: is one linear solve (0.1 s on the 752-pair disk, iterative, against ~20 s a friction-damped
 #: point), and mistuned blades peak between the friction grid's points
@@ -140,9 +140,11 @@ def _solve_at(rc, law, static, variant, freqs_hz, seeds, **kw):
 def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "newton-powell", tol: float = 1e-8,
                     maxiter: int = 60, refine: bool = True, tied: bool = True, progress=None,
                     form: str | None = None) -> MistunedResponse:
-    """The mistuned disk's friction-damped response of every blade over ``freqs_hz`` (Hz), its
-    largest blade peak refined to :data:`PEAK_XTOL` (relative) between grid neighbours, and the
-    tied (linear) response at the same points with its own largest blade peak refined.
+    """The mistuned disk's friction-damped response of every blade over ``freqs_hz`` (Hz), the
+    tied (linear) response on a :data:`TIED_REFINEMENT` × denser grid, and each one's largest
+    blade peak (:mod:`~workflow.engine.studies.bladepeak`; the friction-damped search first
+    evaluates where the tied response's highest blades peak). ``refine`` False: the grids'
+    largest points are the peaks.
 
     ``rc``: :class:`reduction.mistuned.WholeDiskCoordinates`; ``law``: the whole disk's DLFT law
     (:func:`tiled_law`); ``variant``: HB method, Nh, nit (:class:`~workflow.engine.Variant`);
@@ -157,8 +159,6 @@ def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "ne
     with the scene's law (two threads, 2026-11-29) a point took 23.1 s against 20.7 s in the
     stiffness form (docs/mistuning.md).
     """
-    from scipy.optimize import minimize_scalar
-
     from reduction.condense import condense
     from workflow.engine.studies.study import static_state
 
@@ -169,41 +169,34 @@ def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "ne
     static = static_state(c0.Zr, c0.Fr, law)
     kw = dict(solver=solver, tol=tol, maxiter=maxiter)
     conv, amp, Ur, secs = _solve_at(rc, law, static, variant, freqs, seeds, progress=progress, **kw)
-    solved = {float(f): (a, U) for f, a, U, ok in zip(freqs, amp, Ur, conv) if ok}
+    solved = {float(f): a for f, a, ok in zip(freqs, amp, conv) if ok}
+    states = {float(f): U for f, U, ok in zip(freqs, Ur, conv) if ok}
     n_points, t_points = len(freqs), secs
 
-    def minus_peak(f):
+    def blade_peaks_at(f):
         nonlocal n_points, t_points
-        near = min(solved, key=lambda g: abs(g - f))
-        ok, a, U, s = _solve_at(rc, law, static, variant, [f], [solved[near][1]], **kw)
+        near = min(states, key=lambda g: abs(g - f))
+        ok, a, U, s = _solve_at(rc, law, static, variant, [f], [states[near]], **kw)
         n_points, t_points = n_points + 1, t_points + s
         if not ok[0]:
-            return 0.0
-        solved[float(f)] = (a[0], U[0])
-        return -float(np.max(a[0]))
+            return None
+        states[float(f)] = U[0]
+        return a[0]
 
-    if refine and solved:
-        best = np.full(len(freqs), -np.inf)
-        best[conv] = amp[conv].max(axis=1)
-        i = int(np.argmax(best))
-        lo, hi = freqs[max(i - 1, 0)], freqs[min(i + 1, len(freqs) - 1)]
-        if hi > lo:
-            minimize_scalar(minus_peak, bounds=(lo, hi), method="bounded",
-                            options={"xatol": PEAK_XTOL * freqs[i]})
+    tied_freqs = np.linspace(freqs[0], freqs[-1], TIED_REFINEMENT * (len(freqs) - 1) + 1) if tied else freqs[:0]
+    tied_amp = np.full((len(tied_freqs), rc.N), np.nan)
+    tied_peak, tied_blades, candidates = {"hz": None, "amplitude_m": None, "blade": None}, np.full(rc.N, np.nan), []
+    if tied:
+        tied_amp, tied_peak, tied_blades = tied_response(rc, tied_freqs, refine=refine)
+        candidates = tied_candidates(tied_freqs, tied_amp)
+    search = search_blade_peaks(blade_peaks_at, solved, candidates=candidates) if refine and solved else None
     if solved:
-        f_pk = max(solved, key=lambda g: np.max(solved[g][0]))
-        a_pk = solved[f_pk][0]
-        peak = {"hz": f_pk, "amplitude_m": float(np.max(a_pk)), "blade": int(np.argmax(a_pk))}
-        blade_peaks = np.max(np.array([v[0] for v in solved.values()]), axis=0)
-        peak_U = np.asarray(solved[f_pk][1])
+        peak = peak_of(solved, search)
+        blade_peaks = np.max(np.array(list(solved.values())), axis=0)
+        peak_U = np.asarray(states[peak["hz"]])
     else:
         peak, blade_peaks = {"hz": None, "amplitude_m": None, "blade": None}, np.full(rc.N, np.nan)
         peak_U = None
-    tied_freqs = np.linspace(freqs[0], freqs[-1], TIED_REFINEMENT * (len(freqs) - 1) + 1) if tied else freqs[:0]
-    tied_amp = np.full((len(tied_freqs), rc.N), np.nan)
-    tied_peak, tied_blades = {"hz": None, "amplitude_m": None, "blade": None}, np.full(rc.N, np.nan)
-    if tied:
-        tied_amp, tied_peak, tied_blades = tied_response(rc, tied_freqs, refine=refine)
     return MistunedResponse(freqs_hz=freqs, amplitude=amp, converged=conv, tied=tied_amp, tied_freqs_hz=tied_freqs,
                             peak=peak,
                             blade_peaks_m=blade_peaks, tied_peak=tied_peak, tied_blade_peaks_m=tied_blades,
@@ -214,26 +207,16 @@ def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "ne
 def tied_response(rc, freqs_hz, refine: bool = True):
     """((n_f, N) tied blade amplitudes [m], the refined largest blade peak {"hz", "amplitude_m",
     "blade"}, (N,) each blade's largest over the points solved)."""
-    from scipy.optimize import minimize_scalar
-
     freqs = np.asarray(freqs_hz, float)
-    amp = np.array([blade_amplitudes(np.stack([np.zeros_like(t), t]), rc.N)
-                    for t in (rc.tied_response(2 * np.pi * f) for f in freqs)])
-    solved = {float(f): a for f, a in zip(freqs, amp)}
 
-    def minus_peak(f):
+    def at(f):
         t = rc.tied_response(2 * np.pi * f)
-        a = blade_amplitudes(np.stack([np.zeros_like(t), t]), rc.N)
-        solved[float(f)] = a
-        return -float(a.max())
+        return blade_amplitudes(np.stack([np.zeros_like(t), t]), rc.N)
 
-    i = int(np.argmax(amp.max(axis=1)))
-    lo, hi = freqs[max(i - 1, 0)], freqs[min(i + 1, len(freqs) - 1)]
-    if refine and hi > lo:
-        minimize_scalar(minus_peak, bounds=(lo, hi), method="bounded", options={"xatol": PEAK_XTOL * freqs[i]})
-    f_pk = max(solved, key=lambda g: solved[g].max())
-    peak = {"hz": f_pk, "amplitude_m": float(solved[f_pk].max()), "blade": int(np.argmax(solved[f_pk]))}
-    return amp, peak, np.max(np.array(list(solved.values())), axis=0)
+    amp = np.array([at(f) for f in freqs])
+    solved = {float(f): a for f, a in zip(freqs, amp)}
+    search = search_blade_peaks(at, solved) if refine else None
+    return amp, peak_of(solved, search), np.max(np.array(list(solved.values())), axis=0)
 
 
 def amplification(mistuned_peak_m: float | None, tuned_peak_m: float | None) -> float | None:
@@ -252,7 +235,8 @@ def whitehead_bound(n_sectors: int) -> float:
 def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, samples: int, seed: int,
                 tuned_peak_m: float, tuned_tied_m: float, seeds=None, comm=None, log=None) -> list[dict]:
     """Amplification factors of ``samples`` patterns (:func:`pattern` with seeds ``seed + 1 + i``):
-    rows {"pattern", "seed", "af_tied", "af_friction", "peak_hz", "blade", "converged"}, each a
+    rows {"pattern", "seed", "af_tied", "af_friction", "peak_hz", "blade", "converged", "peak_resolved",
+    "tied_peak_resolved", "seconds"}, each a
     peak tracking on the grid ``freqs_hz`` refined (:func:`forced_response`), not a full sweep.
     ``make_rc(deviations)`` → the disk's whole-disk coordinates; ``tuned_*_m`` [m]: the tuned
     peaks the factors divide by. Patterns are shared over the ranks of ``comm`` (every rank
@@ -266,6 +250,7 @@ def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, 
         rows.append({"pattern": i, "seed": seed + 1 + i, "af_tied": amplification(r.tied_peak["amplitude_m"], tuned_tied_m),
                      "af_friction": amplification(r.peak["amplitude_m"], tuned_peak_m), "peak_hz": r.peak["hz"],
                      "blade": r.peak["blade"], "converged": bool(r.converged.all()),
+                     "peak_resolved": r.peak.get("resolved"), "tied_peak_resolved": r.tied_peak.get("resolved"),
                      "seconds": time.perf_counter() - t0})
         if log is not None:
             log(f"pattern {i}: AF tied {rows[-1]['af_tied']:.3f}, friction {rows[-1]['af_friction'] or float('nan'):.3f} "
