@@ -117,7 +117,9 @@ def test_dwell_follows_the_falling_resonance_and_wears_deeper_than_detuning(stud
     det, st = studies["detuning"], studies["dwell"]
     d = st.operating_point["dwell"]
     f = np.array(d["frequencies_hz"])
-    assert f[0] == det.operating_point["frequency_hz"] == st.operating_point["resonance_hz"]
+    # the new model's peak, searched once for each study: equal to round-off (one ulp apart on some CPUs)
+    assert f[0] == pytest.approx(det.operating_point["frequency_hz"], rel=1e-12)
+    assert f[0] == pytest.approx(st.operating_point["resonance_hz"], rel=1e-12)
     assert f[-1] < 0.92 * f[0]
     assert d["relocations"] == d["stages"] == len(d["history"]) >= 3
     W_det, W_dwell = det.histories["pseudo-time"].W, st.histories["pseudo-time"].W
