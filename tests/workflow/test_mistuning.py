@@ -176,7 +176,7 @@ def test_a_wrong_pattern_length_is_a_clear_error(sub):
         WholeDiskCoordinates(sub, np.zeros(N + 1))
 
 
-@pytest.mark.slow  # 40 s alone (75 s on a loaded machine): the lumped Monte Carlo and the two-blade time integrations of the checks
+@pytest.mark.slow  # 56 s alone: the lumped Monte Carlo and the two-blade time integrations of the checks, two patterns
 def test_stage_on_a_lumped_disk(tmp_path):
     """The mistuning stage end to end on the lumped 5-sector bundle: files, amplification
     factors, checks (tuned = cyclic, substructures = assembled disk, Whitehead, two blades)."""
@@ -199,7 +199,7 @@ def test_stage_on_a_lumped_disk(tmp_path):
     scene["cyclic"].engine_order = EO
     m = scene["mistuning"]
     m.stiffness, m.blade_modes, m.disk_modes, m.points, m.band = DEV.tolist(), 50, 50, 7, 0.08
-    m.wear = True
+    m.wear, m.samples = True, 2
 
     class Log:
         def info(self, msg):
@@ -212,6 +212,8 @@ def test_stage_on_a_lumped_disk(tmp_path):
     assert c["whitehead_bound_ok"] and c["two_blade_within_budget"]
     assert 1.0 < s["amplification"]["tied"] <= s["whitehead_bound"]
     assert len(s["blade_peaks_m"]) == N and s["amplification"]["friction"] > 0
+    mc = s["monte_carlo"]             # two patterns besides the scene's, each with its searches' verdicts
+    assert [r["pattern"] for r in mc] == [0, 1] and all(r["af_tied"] > 0 and "peak_resolved" in r for r in mc)
     for f in ("blades.csv", "blade_frf.csv", "blade_frf.png", "localisation.png", "wear_blades.csv", "wear_map.png"):
         assert (tmp_path / "out" / f).stat().st_size > 100
     w = s["wear"]

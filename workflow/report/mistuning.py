@@ -30,7 +30,12 @@ def plot_blade_frf(path: Path, resp, tuned_freqs, tuned_amp, tuned_tied) -> Path
         ax.plot(resp.freqs_hz[ok], resp.amplitude[ok, b], "-", lw=0.7, color="0.55")
     ax.plot(tuned_freqs, tuned_amp, "k-", lw=1.8, label="tuned (every blade)")
     if resp.peak.get("hz"):
-        ax.plot([resp.peak["hz"]], [resp.peak["amplitude_m"]], "ro", label=f"largest blade peak (blade {resp.peak['blade']})")
+        b = resp.peak["blade"]
+        if resp.solved_hz is not None and len(resp.solved_hz) > int(ok.sum()):
+            # the grid's few points fall between the blades' peaks: the peak blade at every point solved
+            ax.plot(resp.solved_hz, resp.solved_amplitude[:, b], ".-", ms=3, lw=0.8, color="tab:red", alpha=0.6,
+                    label=f"blade {b}, grid and peak search")
+        ax.plot([resp.peak["hz"]], [resp.peak["amplitude_m"]], "ro", label=f"largest blade peak (blade {b})")
     ax.plot([], [], "-", color="0.55", label="mistuned, one line a blade")
     finish_axes(ax, "frequency (Hz)", "tip amplitude (m)", f"friction-damped, HBM Nh = {resp.nh}")
     ax = axs[1]

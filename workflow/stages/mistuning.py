@@ -127,7 +127,8 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     if mt.samples:
         mc_rows = ms.monte_carlo(lambda d: WholeDiskCoordinates(sub, d, mass), law_w, v, freqs, n_sectors=N,
                                  std=mt.std, samples=mt.samples, seed=mt.seed, tuned_peak_m=a_t, tuned_tied_m=a_tied,
-                                 seeds=seeds, comm=world(), log=log.note if hasattr(log, "note") else None)
+                                 seeds=seeds, comm=world(), log=log.note if hasattr(log, "note") else None,
+                                 tol=hb.tol, maxiter=hb.max_iterations)
         af["tied_p95"] = ms.percentile([r["af_tied"] for r in mc_rows])
         af["friction_p95"] = ms.percentile([r["af_friction"] for r in mc_rows])
         log.info(f"Monte Carlo, {len(mc_rows)} patterns at σ = {mt.std:g}: p95 amplification tied "

@@ -82,7 +82,7 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
     ``budget`` evaluations. ``evaluate(f)`` → (N,) amplitudes [m] or None (unconverged: not tried
     again). The peak is the largest over every solved point, never below the grid's. Returns
     {"evaluations", "predicted_gain": how far the highest prediction left open lies above the peak
-    found (relative, ≥ 0), "resolved": none left open}."""
+    found (relative, ≥ 0; inf where its parabola has no positive minimum), "resolved": none left open}."""
     n, failed = 0, []
 
     def run(g):

@@ -118,6 +118,9 @@ class MistunedResponse:
     evaluations: int = 0
     #: (Nh+1, 3pN) relative harmonics [m] at ``peak["hz"]`` (a wear march starts from them)
     peak_U: np.ndarray | None = None
+    #: every friction-damped frequency solved, grid and search, sorted [Hz], and its (n_s, N) blade amplitudes [m]
+    solved_hz: np.ndarray | None = None
+    solved_amplitude: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
 
 
@@ -201,7 +204,9 @@ def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "ne
                             peak=peak,
                             blade_peaks_m=blade_peaks, tied_peak=tied_peak, tied_blade_peaks_m=tied_blades,
                             seconds=time.perf_counter() - t0, seconds_per_point=t_points / max(n_points, 1),
-                            nh=variant.nh, nit=variant.nit, evaluations=n_points, peak_U=peak_U)
+                            nh=variant.nh, nit=variant.nit, evaluations=n_points, peak_U=peak_U,
+                            solved_hz=np.array(sorted(solved)),
+                            solved_amplitude=np.array([solved[f] for f in sorted(solved)]).reshape(-1, rc.N))
 
 
 def tied_response(rc, freqs_hz, refine: bool = True):
@@ -233,20 +238,21 @@ def whitehead_bound(n_sectors: int) -> float:
 
 
 def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, samples: int, seed: int,
-                tuned_peak_m: float, tuned_tied_m: float, seeds=None, comm=None, log=None) -> list[dict]:
+                tuned_peak_m: float, tuned_tied_m: float, seeds=None, comm=None, log=None, **solve) -> list[dict]:
     """Amplification factors of ``samples`` patterns (:func:`pattern` with seeds ``seed + 1 + i``):
     rows {"pattern", "seed", "af_tied", "af_friction", "peak_hz", "blade", "converged", "peak_resolved",
     "tied_peak_resolved", "seconds"}, each a
     peak tracking on the grid ``freqs_hz`` refined (:func:`forced_response`), not a full sweep.
     ``make_rc(deviations)`` → the disk's whole-disk coordinates; ``tuned_*_m`` [m]: the tuned
-    peaks the factors divide by. Patterns are shared over the ranks of ``comm`` (every rank
+    peaks the factors divide by; ``solve``: :func:`forced_response`'s ``tol``, ``maxiter``, … (the
+    scene's, as for its own pattern). Patterns are shared over the ranks of ``comm`` (every rank
     gets every row)."""
     size, rank = (1, 0) if comm is None else (comm.Get_size(), comm.Get_rank())
     rows = []
     for i in range(rank, int(samples), size):
         t0 = time.perf_counter()
         dev = pattern(n_sectors, std, seed + 1 + i)
-        r = forced_response(make_rc(dev), law, variant, freqs_hz, seeds=seeds)
+        r = forced_response(make_rc(dev), law, variant, freqs_hz, seeds=seeds, **solve)
         rows.append({"pattern": i, "seed": seed + 1 + i, "af_tied": amplification(r.tied_peak["amplitude_m"], tuned_tied_m),
                      "af_friction": amplification(r.peak["amplitude_m"], tuned_peak_m), "peak_hz": r.peak["hz"],
                      "blade": r.peak["blade"], "converged": bool(r.converged.all()),
