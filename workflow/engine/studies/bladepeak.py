@@ -97,6 +97,9 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
     for g in map(float, candidates):
         if n < budget and min(abs(h - g) for h in list(solved) + failed) > xtol * g:
             run(g)
+    def dist(x, pts):
+        return np.min(np.abs(x[:, None] - np.asarray(pts, float)[None]), axis=1)
+
     gain, open_ = 0.0, np.zeros(0, bool)
     while True:
         f = np.array(sorted(solved))
@@ -105,7 +108,6 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
         A = np.array([solved[g] for g in f])
         fs, As, fk, wide, _ = resonance_vertices(f, A)
         h = np.abs(wide)
-        dist = lambda x, pts: np.min(np.abs(x[:, None] - np.asarray(pts, float)[None]), axis=1)  # noqa: E731
         valid = np.isfinite(fs)
         at_solved = valid & (dist(fs, f) <= xtol * fs)
         tight = h <= bracket * fk
@@ -124,7 +126,8 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
 
 def peak_of(solved: dict, search: dict | None) -> dict:
     """{"hz", "amplitude_m", "blade"} of the largest blade amplitude over ``solved`` ({f [Hz]: (N,)
-    amplitudes [m]}), with the search's ``predicted_gain`` and ``evaluations`` (:func:`search_blade_peaks`)."""
+    amplitudes [m]}), with the search's ``predicted_gain``, ``resolved`` and its evaluations as
+    ``search_points`` (:func:`search_blade_peaks`; None, None, 0 without a search)."""
     f_pk = max(solved, key=lambda g: np.max(solved[g]))
     a_pk = solved[f_pk]
     search = search or {}

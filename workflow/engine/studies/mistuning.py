@@ -26,7 +26,7 @@ from workflow.engine.errors import SceneError
 from workflow.engine.studies.bladepeak import peak_of, search_blade_peaks, tied_candidates
 
 #: the tied response's grid is this many times denser than the friction-damped one: a tied point
-#: is one linear solve (0.1 s on the 752-pair disk, iterative, against ~20 s a friction-damped
+#: is one linear solve (0.1 s on the 752-pair disk, iterative, against 6–20 s a friction-damped
 #: point), and mistuned blades peak between the friction grid's points
 TIED_REFINEMENT = 4
 #: a standard deviation's patterns are truncated here: a stiffness factor 1 + δ must stay > 0
@@ -240,9 +240,9 @@ def whitehead_bound(n_sectors: int) -> float:
 def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, samples: int, seed: int,
                 tuned_peak_m: float, tuned_tied_m: float, seeds=None, comm=None, log=None, **solve) -> list[dict]:
     """Amplification factors of ``samples`` patterns (:func:`pattern` with seeds ``seed + 1 + i``):
-    rows {"pattern", "seed", "af_tied", "af_friction", "peak_hz", "blade", "converged", "peak_resolved",
-    "tied_peak_resolved", "seconds"}, each a
-    peak tracking on the grid ``freqs_hz`` refined (:func:`forced_response`), not a full sweep.
+    rows {"pattern", "seed", "af_tied", "af_friction", "peak_hz", "blade", "converged",
+    "peak_resolved", "tied_peak_resolved", "seconds"}, each a peak tracking on the grid
+    ``freqs_hz`` refined (:func:`forced_response`), not a full sweep.
     ``make_rc(deviations)`` → the disk's whole-disk coordinates; ``tuned_*_m`` [m]: the tuned
     peaks the factors divide by; ``solve``: :func:`forced_response`'s ``tol``, ``maxiter``, … (the
     scene's, as for its own pattern). Patterns are shared over the ranks of ``comm`` (every rank
