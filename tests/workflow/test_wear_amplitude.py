@@ -164,10 +164,10 @@ def test_where_the_built_load_does_not_solve_the_held_amplitude_starts_from_a_sm
     tolerance (1e-8 of ‖F‖) on the scale; the marches take the same steps from states that
     agree to it (measured 0 difference in W at 1e-12 of δ₀)."""
     from workflow.engine.errors import SolverError
-    from workflow.engine.studies import wearstudy
+    from workflow.engine.studies.wearstudy import unworn
 
     direct = held_at_x
-    real, scales = wearstudy.unworn_point, []
+    real, scales = unworn.unworn_point, []
 
     def fails_as_built(hb, *args):
         scales.append(_load_scale(hb))
@@ -175,7 +175,7 @@ def test_where_the_built_load_does_not_solve_the_held_amplitude_starts_from_a_sm
             raise SolverError("made to fail under the load as built")
         return real(hb, *args)
 
-    monkeypatch.setattr(wearstudy, "unworn_point", fails_as_built)
+    monkeypatch.setattr(unworn, "unworn_point", fails_as_built)     # where _unworn_start looks it up
     held = _study("amplitude", tip_amplitude_m=JENKINS.X)
     assert scales == pytest.approx([1.0, 0.1])
     s0, s1 = (st.operating_point["control"]["load_scale_new"] for st in (direct, held))

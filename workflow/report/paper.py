@@ -111,7 +111,7 @@ def cpu_ratio_52(wear: dict) -> dict | None:
 
     The reference is the implicit DLFT march when the scene ran it (the paper's
     "implicit method with DLFT", 100 %), else the explicit one: the wear
-    engine's rule (workflow/engine/studies/wearstudy.py). Times [s] are the wear
+    engine's rule (workflow/engine/studies/wearstudy/steady.py). Times [s] are the wear
     study's wall-clock seconds per method; the paper's are CPU shares."""
     r = (wear or {}).get("cpu_ratio_pseudo_over_reference")
     if r is None:
