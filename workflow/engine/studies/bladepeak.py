@@ -34,11 +34,11 @@ def resonance_vertices(freqs_hz, amplitudes):
     ``freqs_hz`` (n,) sorted; ``amplitudes`` (n, N) [m]. Returns (m,) arrays over the m maxima:
     the vertex f* [Hz] (kept inside the band), its A* [m], the maximum's frequency f_k [Hz], the
     wider side of its bracket [Hz], signed (> 0 above f_k; the parabola is as good as that side is
-    small against the peak's width), and the blade. A* = inf where the parabola has no positive
-    minimum (the model does not hold: f* is then the middle of the wider half, to be evaluated)."""
+    small against the peak's width). A* = inf where the parabola has no positive minimum (the
+    model does not hold: f* is then the middle of the wider half, to be evaluated)."""
     f, A = np.asarray(freqs_hz, float), np.asarray(amplitudes, float)
     if f.size < 3:
-        return (np.zeros(0),) * 4 + (np.zeros(0, int),)
+        return (np.zeros(0),) * 4
     mid = A[1:-1]
     kk, blade = np.nonzero((mid >= A[:-2]) & (mid >= A[2:]) & (mid > 0))
     lo, hi = np.flatnonzero((A[0] >= A[1]) & (A[0] > 0)), np.flatnonzero((A[-1] >= A[-2]) & (A[-1] > 0))
@@ -59,7 +59,7 @@ def resonance_vertices(freqs_hz, amplitudes):
     below = np.where(k > 0, f[k] - f[np.maximum(k - 1, 0)], 0.0)
     above = np.where(k < n - 1, f[np.minimum(k + 1, n - 1)] - f[k], 0.0)
     wide = np.where(above >= below, above, -below)
-    return np.where(model, fs, f[k] + 0.5 * wide), As, f[k], wide, blade
+    return np.where(model, fs, f[k] + 0.5 * wide), As, f[k], wide
 
 
 def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
@@ -107,7 +107,7 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
         if f.size < 3:
             break
         A = np.array([solved[g] for g in f])
-        fs, As, fk, wide, _ = resonance_vertices(f, A)
+        fs, As, fk, wide = resonance_vertices(f, A)
         h = np.abs(wide)
         valid = np.isfinite(fs)
         at_solved = valid & (dist(fs, f) <= xtol * fs)
@@ -145,7 +145,7 @@ def tied_candidates(freqs_hz, tied, k: int = PEAK_CANDIDATES) -> list:
     against a 201-point tied one: the seven highest blades in the same order, each friction peak
     within one scan step, 0.06 Hz, of its tied peak), while the friction grid's few points fall
     between them."""
-    fs, As, _, _, _ = resonance_vertices(freqs_hz, tied)
+    fs, As, _, _ = resonance_vertices(freqs_hz, tied)
     out = []
     for i in np.argsort(np.where(np.isfinite(As), As, -np.inf))[::-1]:
         if len(out) == int(k) or not np.isfinite(As[i]):
