@@ -374,6 +374,35 @@ def test_a_peak_search_out_of_budget_or_failing_says_so():
     assert max(a.max() for a in solved.values()) == best
 
 
+def test_a_blade_peaking_below_the_grid_is_found_within_the_limits_or_flagged_at_them():
+    """A mistuned disk's highest blade can peak below the band its grid was laid on (on the quick
+    disk, 3 of 30 patterns' highest tied peaks). With ``limits`` the search starts from the
+    candidate a wider tied scan gives (here 0.05 Hz off the peak) and follows it out of the grid to
+    a dense scan's peak; within the grid (the old clipped search, whose tied scan could only offer
+    the grid's end) it reports another blade's peak, 3 % low. Where the limits themselves are too
+    narrow, the blade rises up to one of them, and peak_of says the peak is at the band's edge, not
+    resolved."""
+    f0 = np.array([203.0, 209.2, 212.3, 212.9])
+    level = np.array([1.03, 1.0, 1.0, 1.0])
+    at = _blades(f0, level)
+    grid = np.linspace(206.0, 219.0, 5)
+    dense = np.linspace(199.5, 225.5, 400001)
+    A = at(dense[:, None])
+    solved = {float(f): at(f) for f in grid}
+    out = bladepeak.search_blade_peaks(at, solved, candidates=[203.05], limits=(199.5, 225.5))
+    pk = bladepeak.peak_of(solved, out, (199.5, 225.5))
+    assert pk["blade"] == 0 and out["resolved"] and pk["resolved"] and not pk["at_band_edge"]
+    assert pk["amplitude_m"] >= (1 - bladepeak.PEAK_BRACKET) * A.max()
+    solved = {float(f): at(f) for f in grid}
+    out = bladepeak.search_blade_peaks(at, solved, candidates=[grid[0]])
+    assert bladepeak.peak_of(solved, out, (grid[0], grid[-1]))["amplitude_m"] < 0.98 * A.max()
+    at = _blades(f0, np.array([1.1, 1.0, 1.0, 1.0]))
+    solved = {float(f): at(f) for f in grid}
+    out = bladepeak.search_blade_peaks(at, solved, candidates=[203.2], limits=(203.2, 225.5))
+    pk = bladepeak.peak_of(solved, out, (203.2, 225.5))
+    assert pk["hz"] == 203.2 and pk["blade"] == 0 and pk["at_band_edge"] and pk["resolved"] is False
+
+
 def test_the_tied_peak_search_reaches_a_dense_scan_of_the_lumped_disk(sub):
     """The tied (linear) largest blade peak of mistuned lumped disks from the forced response's
     tied grid (TIED_REFINEMENT × 4 steps over ±3 %) and the search, against an 801-point scan of
@@ -390,3 +419,21 @@ def test_the_tied_peak_search_reaches_a_dense_scan_of_the_lumped_disk(sub):
         _, pk, _ = ms.tied_response(rc, f0 * np.linspace(0.97, 1.03, 4 * ms.TIED_REFINEMENT + 1))
         dense, _, _ = ms.tied_response(rc, f0 * np.linspace(0.97, 1.03, 801), refine=False)
         assert pk["amplitude_m"] >= (1 - bladepeak.PEAK_BRACKET) * dense.max() and pk["resolved"]
+
+
+def test_an_unresolved_or_band_edge_peak_is_a_warning_naming_the_key():
+    """The stage says which largest blade peak is not resolved and why: at the band's edge it names
+    mistuning.band; the Monte Carlo's patterns are counted, edge and unresolved apart."""
+    from types import SimpleNamespace
+
+    from workflow.stages.mistuning import _peak_warnings
+
+    ok = {"hz": 207.0, "amplitude_m": 4e-3, "resolved": True, "at_band_edge": False}
+    edge = {"hz": 206.1, "amplitude_m": 4e-3, "resolved": False, "at_band_edge": True}
+    assert _peak_warnings(SimpleNamespace(peak=ok, tied_peak=ok), []) == []
+    w = _peak_warnings(SimpleNamespace(peak=edge, tied_peak=ok), [])
+    assert len(w) == 1 and "friction-damped" in w[0] and "mistuning.band" in w[0]
+    rows = [{"peak_resolved": False, "peak_at_band_edge": True}, {"peak_resolved": False, "peak_at_band_edge": False},
+            {"peak_resolved": True, "peak_at_band_edge": False}]
+    w = _peak_warnings(SimpleNamespace(peak=ok, tied_peak=ok), rows)
+    assert len(w) == 2 and w[0].startswith("mistuning: 1 of 3") and "mistuning.band" in w[0] and "1 of 3" in w[1]

@@ -142,6 +142,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     if not resp.converged.all():
         warnings.append(f"mistuning: {int((~resp.converged).sum())} of {len(resp.converged)} whole-disk "
                         "frequencies did not converge")
+    warnings += _peak_warnings(resp, mc_rows)
     return clean({"amplification": af, "whitehead_bound": bound,
                   "tied_ratio_to_bound": af["tied"] / bound if af["tied"] else None,
                   "blade_peaks_m": resp.blade_peaks_m.tolist(), "blade_tied_peaks_m": resp.tied_blade_peaks_m.tolist(),
@@ -159,6 +160,28 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                   "files": {"blades": "blades.csv", "blade_frf": "blade_frf.csv",
                             "figures": [Path(f).name for f in figures]},
                   "seconds": round(time.perf_counter() - t0, 3)})
+
+
+def _peak_warnings(resp, mc_rows) -> list:
+    """What is not resolved among the largest blade peaks: the pattern's (friction-damped, tied)
+    and the Monte Carlo's; a peak at the tied band's edge needs a wider ``mistuning.band``."""
+    out = []
+    for name, pk in (("friction-damped", resp.peak), ("tied", resp.tied_peak)):
+        if pk.get("hz") is None or pk.get("resolved") is not False:
+            continue
+        why = ("at the edge of the searched band: widen mistuning.band" if pk.get("at_band_edge") else
+               f"its search left a peak up to {pk.get('predicted_gain') or float('inf'):.2g} higher open")
+        out.append(f"mistuning: the largest {name} blade peak ({pk['amplitude_m']:.4g} m at {pk['hz']:.3f} Hz) "
+                   f"is not resolved, {why}")
+    edge = sum(bool(r.get("peak_at_band_edge")) for r in mc_rows)
+    loose = sum(r.get("peak_resolved") is False for r in mc_rows) - edge
+    if edge:
+        out.append(f"mistuning: {edge} of {len(mc_rows)} Monte Carlo patterns peak at the edge of the searched "
+                   "band (their amplification is a lower bound): widen mistuning.band")
+    if loose:
+        out.append(f"mistuning: {loose} of {len(mc_rows)} Monte Carlo patterns' largest blade peaks are not "
+                   "resolved (monte_carlo.csv peak_resolved)")
+    return out
 
 
 def _pattern(mt, N: int):

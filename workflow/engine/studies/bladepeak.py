@@ -25,7 +25,7 @@ PEAK_BRACKET = 1e-4
 PEAK_CANDIDATES = 3
 
 
-def resonance_vertices(freqs_hz, amplitudes):
+def resonance_vertices(freqs_hz, amplitudes, limits=None):
     """Every blade's predicted peaks, one for each local maximum of its solved amplitudes (a
     blade takes part in its neighbours' modes too, so its curve has several; a maximum at an end
     of the band counts, the blade may peak just inside it): near a resonance 1/A² is a parabola
@@ -35,10 +35,16 @@ def resonance_vertices(freqs_hz, amplitudes):
     the vertex f* [Hz] (kept inside the band), its A* [m], the maximum's frequency f_k [Hz], the
     wider side of its bracket [Hz], signed (> 0 above f_k; the parabola is as good as that side is
     small against the peak's width). A* = inf where the parabola has no positive minimum (the
-    model does not hold: f* is then the middle of the wider half, to be evaluated)."""
+    model does not hold: f* is then the middle of the wider half, to be evaluated).
+
+    ``limits`` (lo, hi) [Hz] (None: the solved band's ends): how far a maximum at an end of the
+    solved points may lie from its peak. Beyond that end the bracket reaches the limit, unexplored:
+    the vertex may lie out there, and the wider side is that unexplored span until a point is solved
+    at the limit (a mistuned disk's highest blade can peak outside the grid it was first solved on)."""
     f, A = np.asarray(freqs_hz, float), np.asarray(amplitudes, float)
     if f.size < 3:
         return (np.zeros(0),) * 4
+    lo_f, hi_f = (f[0], f[-1]) if limits is None else (min(float(limits[0]), f[0]), max(float(limits[1]), f[-1]))
     mid = A[1:-1]
     kk, blade = np.nonzero((mid >= A[:-2]) & (mid >= A[2:]) & (mid > 0))
     lo, hi = np.flatnonzero((A[0] >= A[1]) & (A[0] > 0)), np.flatnonzero((A[-1] >= A[-2]) & (A[-1] > 0))
@@ -52,19 +58,20 @@ def resonance_vertices(freqs_hz, amplitudes):
         d1, d2 = (y[1] - y[0]) / (x[1] - x[0]), (y[2] - y[1]) / (x[2] - x[1])
         c = (d2 - d1) / (x[2] - x[0])
         fs = 0.5 * (x[0] + x[1]) - 0.5 * d1 / c
-        fs = np.clip(fs, f[np.maximum(k - 1, 0)], f[np.minimum(k + 1, n - 1)])   # inside the bracket
+        f_lo = np.where(k > 0, f[np.maximum(k - 1, 0)], lo_f)                 # the bracket, to the limits
+        f_hi = np.where(k < n - 1, f[np.minimum(k + 1, n - 1)], hi_f)
+        fs = np.clip(fs, f_lo, f_hi)
         qs = y[0] + d1 * (fs - x[0]) + c * (fs - x[0]) * (fs - x[1])
         model = (c > 0) & (qs > 0) & np.isfinite(fs)
         As = np.where(model, 1.0 / np.sqrt(np.where(model, qs, 1.0)), np.inf)
-    below = np.where(k > 0, f[k] - f[np.maximum(k - 1, 0)], 0.0)
-    above = np.where(k < n - 1, f[np.minimum(k + 1, n - 1)] - f[k], 0.0)
+    below, above = f[k] - f_lo, f_hi - f[k]
     wide = np.where(above >= below, above, -below)
     return np.where(model, fs, f[k] + 0.5 * wide), As, f[k], wide
 
 
 def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
                        bracket: float = PEAK_BRACKET, margin: float = PEAK_MARGIN, budget: int = PEAK_BUDGET,
-                       candidates=()) -> dict:
+                       candidates=(), limits=None) -> dict:
     """Refine the largest blade peak among ``solved`` ({f [Hz]: (N,) blade amplitudes [m]}, the
     grid) in place, by every blade's own resonance (:func:`resonance_vertices`).
 
@@ -80,8 +87,9 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
     (relative) on both sides; its parabola is then trusted, and it is open while its vertex is not
     yet solved and lies above the best solved amplitude. With a wider bracket it is open while its
     prediction is within ``margin`` of the best (or above). Stops when none is open, or after
-    ``budget`` evaluations. ``evaluate(f)`` → (N,) amplitudes [m] or None (unconverged: not tried
-    again). The peak is the largest over every solved point, never below the grid's. Returns
+    ``budget`` evaluations. ``limits`` (lo, hi) [Hz]: how far beyond the solved points a peak may be
+    sought (:func:`resonance_vertices`; None: within them). ``evaluate(f)`` → (N,) amplitudes [m]
+    or None (unconverged: not tried again). The peak is the largest over every solved point, never below the grid's. Returns
     {"evaluations", "predicted_gain": how far the highest prediction left open lies above the peak
     found (relative, ≥ 0; inf where its parabola has no positive minimum), "resolved": none left open}."""
     n, failed = 0, []
@@ -107,7 +115,7 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
         if f.size < 3:
             break
         A = np.array([solved[g] for g in f])
-        fs, As, fk, wide = resonance_vertices(f, A)
+        fs, As, fk, wide = resonance_vertices(f, A, limits)
         h = np.abs(wide)
         valid = np.isfinite(fs)
         at_solved = valid & (dist(fs, f) <= xtol * fs)
@@ -125,16 +133,20 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
     return {"evaluations": n, "predicted_gain": gain, "resolved": not open_.any()}
 
 
-def peak_of(solved: dict, search: dict | None) -> dict:
+def peak_of(solved: dict, search: dict | None, limits=None) -> dict:
     """{"hz", "amplitude_m", "blade"} of the largest blade amplitude over ``solved`` ({f [Hz]: (N,)
     amplitudes [m]}), with the search's ``predicted_gain``, ``resolved`` and its evaluations as
-    ``search_points`` (:func:`search_blade_peaks`; None, None, 0 without a search)."""
+    ``search_points`` (:func:`search_blade_peaks`; None, None, 0 without a search), and
+    ``at_band_edge``: the peak lies at one of ``limits`` (lo, hi) [Hz] (within ``PEAK_XTOL``), where
+    the blade may still rise beyond — then it is not ``resolved``, whatever the search said."""
     f_pk = max(solved, key=lambda g: np.max(solved[g]))
     a_pk = solved[f_pk]
     search = search or {}
+    edge = limits is not None and min(abs(f_pk - float(g)) for g in limits) <= PEAK_XTOL * f_pk
+    resolved = search.get("resolved")
     return {"hz": f_pk, "amplitude_m": float(np.max(a_pk)), "blade": int(np.argmax(a_pk)),
-            "predicted_gain": search.get("predicted_gain"), "resolved": search.get("resolved"),
-            "search_points": search.get("evaluations", 0)}
+            "predicted_gain": search.get("predicted_gain"), "resolved": False if edge else resolved,
+            "at_band_edge": bool(edge), "search_points": search.get("evaluations", 0)}
 
 
 def tied_candidates(freqs_hz, tied, k: int = PEAK_CANDIDATES) -> list:

@@ -29,6 +29,11 @@ from workflow.engine.studies.bladepeak import peak_of, search_blade_peaks, tied_
 #: is one linear solve (0.1 s on the 752-pair disk, iterative, against 6–20 s a friction-damped
 #: point), and mistuned blades peak between the friction grid's points
 TIED_REFINEMENT = 4
+#: the tied response spans this many times the friction-damped grid's band (about its centre), and the
+#: friction-damped peak search may go as far: a mistuned disk's highest blade can peak outside the band
+#: its grid was laid on (the quick disk at σ = 0.02, 30 patterns: 3 highest tied peaks below the
+#: ±3 % band about the tuned peak, at −3.1 … −3.0 %, where the search was clipped; all within −3.2 %)
+TIED_BAND = 2.0
 #: a standard deviation's patterns are truncated here: a stiffness factor 1 + δ must stay > 0
 MAX_DEVIATION = 0.5
 
@@ -96,8 +101,10 @@ class MistunedResponse:
 
     ``freqs_hz`` (n_f,); ``amplitude`` (n_f, N) friction-damped first-harmonic tip amplitude [m]
     (NaN where unconverged); ``tied`` (n_t, N) with the interface tied [m] on ``tied_freqs_hz``
-    (:data:`TIED_REFINEMENT` × denser: a tied point is one linear solve); ``peak`` {"hz",
-    "amplitude_m", "blade"} the refined largest blade peak, ``blade_peaks_m`` (N,) each blade's
+    (:data:`TIED_REFINEMENT` × denser over :data:`TIED_BAND` × the band: a tied point is one linear
+    solve); ``peak`` {"hz", "amplitude_m", "blade", "resolved", "at_band_edge", …} the refined largest
+    blade peak (:func:`~workflow.engine.studies.bladepeak.peak_of`; at the tied band's edge it is not
+    resolved: the band is too narrow for the pattern), ``blade_peaks_m`` (N,) each blade's
     largest amplitude over the points solved (grid and search), ``tied_peak`` likewise for the
     tied response; ``seconds_per_point`` the mean wall time [s] of one friction-damped frequency
     (condensation included); ``nh``, ``nit``, ``converged`` (n_f,)."""
@@ -186,15 +193,17 @@ def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "ne
         states[float(f)] = U[0]
         return a[0]
 
-    tied_freqs = np.linspace(freqs[0], freqs[-1], TIED_REFINEMENT * (len(freqs) - 1) + 1) if tied else freqs[:0]
+    tied_freqs = tied_band(freqs) if tied else freqs[:0]
     tied_amp = np.full((len(tied_freqs), rc.N), np.nan)
     tied_peak, tied_blades, candidates = {"hz": None, "amplitude_m": None, "blade": None}, np.full(rc.N, np.nan), []
+    limits = (tied_freqs[0], tied_freqs[-1]) if tied else None
     if tied:
         tied_amp, tied_peak, tied_blades = tied_response(rc, tied_freqs, refine=refine)
         candidates = tied_candidates(tied_freqs, tied_amp)
-    search = search_blade_peaks(blade_peaks_at, solved, candidates=candidates) if refine and solved else None
+    search = (search_blade_peaks(blade_peaks_at, solved, candidates=candidates, limits=limits)
+              if refine and solved else None)
     if solved:
-        peak = peak_of(solved, search)
+        peak = peak_of(solved, search, limits)
         blade_peaks = np.max(np.array(list(solved.values())), axis=0)
         peak_U = np.asarray(states[peak["hz"]])
     else:
@@ -221,7 +230,16 @@ def tied_response(rc, freqs_hz, refine: bool = True):
     amp = np.array([at(f) for f in freqs])
     solved = {float(f): a for f, a in zip(freqs, amp)}
     search = search_blade_peaks(at, solved) if refine else None
-    return amp, peak_of(solved, search), np.max(np.array(list(solved.values())), axis=0)
+    return amp, peak_of(solved, search, (freqs[0], freqs[-1])), np.max(np.array(list(solved.values())), axis=0)
+
+
+def tied_band(freqs_hz) -> np.ndarray:
+    """The tied response's frequencies [Hz] for a friction-damped grid ``freqs_hz`` (sorted):
+    :data:`TIED_BAND` × its span about its centre, :data:`TIED_REFINEMENT` × its spacing."""
+    f = np.asarray(freqs_hz, float)
+    mid, half = 0.5 * (f[0] + f[-1]), 0.5 * TIED_BAND * (f[-1] - f[0])
+    n = int(round(TIED_BAND * TIED_REFINEMENT * (len(f) - 1))) + 1
+    return np.linspace(max(mid - half, 0.5 * f[0]), mid + half, n)      # never down to 0 Hz
 
 
 def amplification(mistuned_peak_m: float | None, tuned_peak_m: float | None) -> float | None:
@@ -241,7 +259,7 @@ def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, 
                 tuned_peak_m: float, tuned_tied_m: float, seeds=None, comm=None, log=None, **solve) -> list[dict]:
     """Amplification factors of ``samples`` patterns (:func:`pattern` with seeds ``seed + 1 + i``):
     rows {"pattern", "seed", "af_tied", "af_friction", "peak_hz", "blade", "converged",
-    "peak_resolved", "tied_peak_resolved", "seconds"}, each a peak tracking on the grid
+    "peak_resolved", "tied_peak_resolved", "peak_at_band_edge", "seconds"}, each a peak tracking on the grid
     ``freqs_hz`` refined (:func:`forced_response`), not a full sweep.
     ``make_rc(deviations)`` → the disk's whole-disk coordinates; ``tuned_*_m`` [m]: the tuned
     peaks the factors divide by; ``solve``: :func:`forced_response`'s ``tol``, ``maxiter``, … (the
@@ -257,6 +275,7 @@ def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, 
                      "af_friction": amplification(r.peak["amplitude_m"], tuned_peak_m), "peak_hz": r.peak["hz"],
                      "blade": r.peak["blade"], "converged": bool(r.converged.all()),
                      "peak_resolved": r.peak.get("resolved"), "tied_peak_resolved": r.tied_peak.get("resolved"),
+                     "peak_at_band_edge": r.peak.get("at_band_edge"),
                      "seconds": time.perf_counter() - t0})
         if log is not None:
             log(f"pattern {i}: AF tied {rows[-1]['af_tied']:.3f}, friction {rows[-1]['af_friction'] or float('nan'):.3f} "
