@@ -31,8 +31,8 @@ from workflow.engine.studies.bladepeak import peak_of, search_blade_peaks, tied_
 TIED_REFINEMENT = 4
 #: the tied response spans this many times the friction-damped grid's band (about its centre), and the
 #: friction-damped peak search may go as far: a mistuned disk's highest blade can peak outside the band
-#: its grid was laid on (the quick disk at σ = 0.02, 30 patterns: 3 highest tied peaks below the
-#: ±3 % band about the tuned peak, at −3.1 … −3.0 %, where the search was clipped; all within −3.2 %)
+#: its grid was laid on (the quick disk at σ = 0.02, 101 patterns: 5 highest tied peaks below the
+#: ±3 % band about the tuned peak, at −3.1 … −3.0 %, where the search was clipped; none beyond −3.2 %)
 TIED_BAND = 2.0
 #: a standard deviation's patterns are truncated here: a stiffness factor 1 + δ must stay > 0
 MAX_DEVIATION = 0.5
