@@ -169,8 +169,10 @@ def _peak_warnings(resp, mc_rows) -> list:
     for name, pk in (("friction-damped", resp.peak), ("tied", resp.tied_peak)):
         if pk.get("hz") is None or pk.get("resolved") is not False:
             continue
+        gain = pk.get("predicted_gain")
+        gain = f"{100 * gain:.2g} %" if gain is not None and np.isfinite(gain) else "an unbounded amount"
         why = ("at the edge of the searched band: widen mistuning.band" if pk.get("at_band_edge") else
-               f"its search left a peak up to {pk.get('predicted_gain') or float('inf'):.2g} higher open")
+               f"its search left a peak predicted up to {gain} higher open")
         out.append(f"mistuning: the largest {name} blade peak ({pk['amplitude_m']:.4g} m at {pk['hz']:.3f} Hz) "
                    f"is not resolved, {why}")
     edge = sum(bool(r.get("peak_at_band_edge")) for r in mc_rows)

@@ -32,8 +32,8 @@ def resonance_vertices(freqs_hz, amplitudes, limits=None):
     in f (a single mode, ``|k − mω² + icω|²`` expanded about ω₀), so the parabola through the
     three values of 1/A² at the maximum and its two nearest points has its vertex at the peak.
     ``freqs_hz`` (n,) sorted; ``amplitudes`` (n, N) [m]. Returns (m,) arrays over the m maxima:
-    the vertex f* [Hz] (kept inside the band), its A* [m], the maximum's frequency f_k [Hz], the
-    wider side of its bracket [Hz], signed (> 0 above f_k; the parabola is as good as that side is
+    the vertex f* [Hz] (kept inside its bracket: the neighbours, or a limit), its A* [m], the
+    maximum's frequency f_k [Hz], the wider side of its bracket [Hz], signed (> 0 above f_k; the parabola is as good as that side is
     small against the peak's width). A* = inf where the parabola has no positive minimum (the
     model does not hold: f* is then the middle of the wider half, to be evaluated).
 
@@ -89,9 +89,10 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
     prediction is within ``margin`` of the best (or above). Stops when none is open, or after
     ``budget`` evaluations. ``limits`` (lo, hi) [Hz]: how far beyond the solved points a peak may be
     sought (:func:`resonance_vertices`; None: within them). ``evaluate(f)`` → (N,) amplitudes [m]
-    or None (unconverged: not tried again). The peak is the largest over every solved point, never below the grid's. Returns
-    {"evaluations", "predicted_gain": how far the highest prediction left open lies above the peak
-    found (relative, ≥ 0; inf where its parabola has no positive minimum), "resolved": none left open}."""
+    or None (unconverged: not tried again). The peak is the largest over every solved point, never
+    below the grid's. Returns {"evaluations", "predicted_gain": how far the highest prediction left
+    open lies above the peak found (relative, ≥ 0; inf where its parabola has no positive minimum),
+    "resolved": none left open}."""
     n, failed = 0, []
 
     def run(g):
