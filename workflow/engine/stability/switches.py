@@ -51,8 +51,9 @@ class _Pieces:
     """The contact law along the period on the monodromy's pieces (:func:`_switch_pieces`):
     per piece the DLFT sample it takes its tangent from — ``state`` (n, p) (already
     :func:`_tangent_state`), ``lam`` (n, p, 3) N, ``lam_x_T`` and ``prev`` (n, p, 2) N, ``dt``
-    (n,) s (the slip rate's backward difference) — and ``h`` (n,) s its duration (sum T);
-    ``ref_T`` (p, 2) N; ``switches`` the sample intervals refined; ``samples`` the DLFT's."""
+    (n,) or (n, p) s (the slip rate's backward difference; per pair on the pairs' own grids) — and
+    ``h`` (n,) s its duration (sum T); ``ref_T`` (p, 2) N; ``switches`` the uniform sample intervals
+    with a switch; ``samples`` the DLFT's (refined: the union of the pairs' grids)."""
 
     state: np.ndarray
     lam: np.ndarray
@@ -80,21 +81,32 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine) -> _Pieces:
     with the switching instants located inside the sample intervals.
 
     The DLFT on nit uniform samples knows a stick/slip/separation switch to an interval
-    (τ_{k−1}, τ_k]. Each interval where some pair's :func:`_tangent_state` changes is cut into
+    (τ_{k−1}, τ_k]. Each pair's intervals where its :func:`_tangent_state` changes are cut into
     ``refine`` sub-intervals, the DLFT predictor λ_u (a Fourier series: its harmonics
-    evaluated at any instant) is sampled there too, and the DLFT runs again on the
+    evaluated at any instant) is sampled there too, and the DLFT runs again on the pair's
     non-uniform grid (same law, same passes, from the uniform one's reference); ``refine`` a
-    sequence (r₁, r₂, …): again inside the sub-intervals that hold a switch, level by level
-    (:func:`_refined`) — the same location, T/(nit·r₁·r₂…), at a fraction of the samples. Each
-    sample stands for its cell (midway to its neighbours), so a switch sits midway between the
-    two sub-samples it falls between: to ±T/(2·nit·Πr), without bias, and a smooth coefficient
-    is taken at the middle of its cell. Consecutive sub-samples of one interval in the same
-    state are merged into one piece (the first one's tangent): the monodromy pays one step per
-    switch more than per sample, not ``refine``. ``refine`` ≤ 1: the uniform samples, a piece
-    each (a switch then known to T/nit)."""
+    sequence (r₁, r₂, …): again inside the sub-intervals that hold the pair's switch, level by
+    level (:func:`_refined`) — the same location, T/(nit·r₁·r₂…), at a fraction of the samples.
+    Every pair on its own grid, because the DLFT couples nothing across pairs: with 128 pairs
+    some pair switches in most sample intervals, and one grid for all put ~1100 samples under
+    every pair where its own switches need ~80. Each sample stands for its cell (midway to its
+    neighbours), so a switch sits midway between the two sub-samples it falls between: to
+    ±T/(2·nit·Πr), without bias, and a smooth coefficient is taken at the middle of its cell. The
+    monodromy's pieces lie on the union of the pairs' grids, each pair at its nearest own sample
+    (:func:`_union_pieces`); consecutive union samples of one interval where no pair changes are
+    merged into one piece (the first one's tangent): the monodromy pays one step per switch more
+    than per sample, not ``refine``. ``refine`` ≤ 1: the uniform samples, a piece each (a switch
+    then known to T/nit)."""
     prob, xx = _dlft_problem(hb, x, nit, hbm=True)
     a = prob._predictor(xx)                                   # real Fourier coefficients of λ_u (N)
-    res = prob._dlft(a, jacobian=False)
+    return _pieces_of(prob, a, prob._dlft(a, jacobian=False), omega, refine)
+
+
+def _pieces_of(prob, a, res, omega: float, refine) -> _Pieces:
+    """:func:`_switch_pieces` from the DLFT problem ``prob`` (its ``nh``, ``law.mu``,
+    ``max_passes``, ``pass_tol``), λ_u's real Fourier coefficients ``a`` (2Nh+1, 3p) N and their
+    DLFT ``res`` on the uniform samples."""
+    nit = res.state.shape[0]
     T = 2 * np.pi / omega
     tau = 2 * np.pi * np.arange(nit) / nit
     prev = np.concatenate([res.ref_T[None], res.lam_x_T[:-1]], axis=0)
@@ -105,43 +117,118 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine) -> _Pieces:
     if not factors or sw.size == 0:
         return _Pieces(ts, res.lam, res.lam_x_T, prev, np.full(nit, T / nit), np.full(nit, T / nit), res.ref_T,
                        0, nit)
-    grid = (tau, np.ones(nit, bool), sig, None, None)
+    from workflow.engine import fourier
+
+    p = sig.shape[1]
+    lam_u = (fourier.trig_matrix(prob.nh, tau) @ a).reshape(nit, p, 3)
+    grid = _PairGrids(np.repeat(tau[:, None], p, axis=1), np.ones((nit, p), bool), np.full(p, nit), sig, lam_u)
     for r in factors:
         grid = _refined(prob, a, res.ref_T, grid, r)
-    tau_f, coarse, sig, fine, (ts_f, prev_f) = grid
-    back = np.diff(np.concatenate([[tau_f[-1] - 2 * np.pi], tau_f]))          # rad, to the previous sample
-    cell = 0.5 * (back + np.roll(back, -1))                                     # rad, the sample's cell
-    start = np.flatnonzero(coarse | np.any(sig != np.roll(sig, 1, axis=0), axis=1))
-    h = np.add.reduceat(cell, start) / omega
-    return _Pieces(ts_f[start], fine.lam[start], fine.lam_x_T[start], prev_f[start], back[start] / omega, h,
-                   fine.ref_T, int(sw.size), len(tau_f))
+    return _union_pieces(grid, omega, int(sw.size))
 
 
-def _refined(prob, a, ref_T, grid, r: int):
-    """One level of :func:`_switch_pieces`' refinement: ``grid`` (τ (n,) rad sorted in [0, 2π),
-    ``coarse`` (n,) the uniform samples, the switch signature (n, p), DLFT or None, its
-    (:func:`_tangent_state`, references before each sample) or None) → the same with every interval
-    (τ_{k−1}, τ_k] that holds a switch, and its two neighbours, cut into ``r``, and the DLFT (λ_u's
-    harmonics ``a``, from the reference ``ref_T``) run again on the new grid."""
+@dataclass
+class _PairGrids:
+    """Every pair's own samples of the period (:func:`_refined`), as columns padded to one length:
+    ``tau`` (n, p) rad sorted in [0, 2π) (rows ≥ ``count`` repeat the pair's last sample: the DLFT
+    is idempotent on a repeated predictor), ``coarse`` (n, p) the uniform samples, ``count`` (p,)
+    each pair's samples, ``sig`` (n, p) the switch signature (:func:`_signature`; padding repeats
+    the last sample's), ``lam_u`` (n, p, 3) N the DLFT predictor there, and after a DLFT on them ``fine`` (its :class:`DLFTResult`), ``ts`` (n, p)
+    :func:`_tangent_state`, ``prev`` (n, p, 2) N the references before each sample."""
+
+    tau: np.ndarray
+    coarse: np.ndarray
+    count: np.ndarray
+    sig: np.ndarray
+    lam_u: np.ndarray
+    fine: object = None
+    ts: np.ndarray | None = None
+    prev: np.ndarray | None = None
+
+
+def _refined(prob, a, ref_T, g: _PairGrids, r: int) -> _PairGrids:
+    """One level of :func:`_switch_pieces`' refinement, pair by pair: every interval
+    (τ_{k−1}, τ_k] of a pair's grid that holds its switch, and its two neighbours, cut into
+    ``r``, and the DLFT (λ_u's harmonics ``a``, from the reference ``ref_T``) run again on every
+    pair's new grid at once."""
     from workflow.engine import fourier
     from workflow.engine.contact import dlft_pass
 
-    tau, coarse, sig = grid[:3]
-    n = len(tau)
-    sw = np.flatnonzero(np.any(sig != np.roll(sig, 1, axis=0), axis=1))
+    n, p = g.tau.shape
+    cols = np.arange(p)
+    rows = np.arange(n)[:, None]
+    before = np.concatenate([g.sig[g.count - 1, cols][None], g.sig[:-1]], axis=0)
+    k, i = np.nonzero((g.sig != before) & (rows < g.count))                    # pair i switches in row k
     # the intervals before and after too: the DLFT sees a slip → stick reversal by the sign of the
     # predictor's increment over a sample interval, up to a sample late (the reversal may lie in
     # (τ_{k−2}, τ_{k−1}]), and the refined anchors may move a switch across a sample
-    ivl = np.unique((sw[:, None] + np.arange(-2, 1)[None, :]) % n)                 # interval (τ_i, τ_{i+1}]
-    lo = tau[ivl]
-    hi = np.where(ivl + 1 < n, tau[(ivl + 1) % n], 2 * np.pi)
-    extra = lo[:, None] + (hi - lo)[:, None] * np.arange(1, r)[None, :] / r
-    tau_f = np.concatenate([tau, extra.ravel()])
-    order = np.argsort(tau_f, kind="stable")
-    tau_f = tau_f[order]
-    coarse = np.concatenate([coarse, np.zeros(extra.size, bool)])[order]
-    lam_u = (fourier.trig_matrix(prob.nh, tau_f) @ a).reshape(len(tau_f), prob.p, 3)
-    fine = dlft_pass(lam_u, prob.law.mu, ref_T, periodic=True, max_passes=prob.max_passes, tol=prob.pass_tol)
-    prev_f = np.concatenate([fine.ref_T[None], fine.lam_x_T[:-1]], axis=0)
-    ts = _tangent_state(fine.state, fine.lam_x_T, prev_f)
-    return tau_f, coarse, _signature(ts, fine.lam, fine.lam_x_T, prev_f), fine, (ts, prev_f)
+    j = ((k[:, None] + np.arange(-2, 1)[None, :]) % g.count[i][:, None]).ravel()
+    ii = np.repeat(i, 3)
+    j, ii = np.unique(np.stack([j, ii]), axis=1)                              # interval (τ_j, τ_{j+1}] of pair ii
+    lo = g.tau[j, ii]
+    hi = np.where(j + 1 < g.count[ii], g.tau[np.minimum(j + 1, n - 1), ii], g.tau[0, ii] + 2 * np.pi)
+    extra = (lo[:, None] + (hi - lo)[:, None] * np.arange(1, r)[None, :] / r).ravel()
+    valid = rows < g.count
+    vals = np.concatenate([g.tau[valid], extra])
+    new_owner = np.repeat(ii, r - 1)
+    owner = np.concatenate([np.broadcast_to(cols, (n, p))[valid], new_owner])
+    coarse = np.concatenate([g.coarse[valid], np.zeros(extra.size, bool)])
+    # λ_u at the new instants only (the others are carried): its harmonics at each one's pair
+    E = fourier.trig_matrix(prob.nh, extra)
+    a3 = a.reshape(E.shape[1], p, 3)
+    lu = np.concatenate([g.lam_u[valid], np.einsum("kj,jkc->kc", E, a3[:, new_owner])])
+    order = np.lexsort((vals, owner))
+    vals, owner, coarse, lu = vals[order], owner[order], coarse[order], lu[order]
+    count = np.bincount(owner, minlength=p)
+    pos = np.arange(vals.size) - np.concatenate([[0], np.cumsum(count)[:-1]])[owner]
+    m = int(count.max())
+    tau = np.empty((m, p))
+    tau[pos, owner] = vals
+    tau = np.where(np.arange(m)[:, None] < count, tau, tau[count - 1, cols])     # padding: the last sample again
+    fl = np.zeros((m, p), bool)
+    fl[pos, owner] = coarse
+    lam_u = np.empty((m, p, 3))
+    lam_u[pos, owner] = lu
+    lam_u = np.where((np.arange(m)[:, None] < count)[..., None], lam_u, lam_u[count - 1, cols][None])
+    # from the previous level's periodic references: the refinement moves an anchor only until
+    # the pair's next slip, so the passes start next to their fixed point
+    start = ref_T if g.fine is None else g.fine.ref_T
+    fine = dlft_pass(lam_u, prob.law.mu, start, periodic=True, max_passes=prob.max_passes, tol=prob.pass_tol)
+    prev = np.concatenate([fine.ref_T[None], fine.lam_x_T[:-1]], axis=0)
+    ts = _tangent_state(fine.state, fine.lam_x_T, prev)
+    sig = _signature(ts, fine.lam, fine.lam_x_T, prev)
+    sig = np.where(np.arange(m)[:, None] < count, sig, sig[count - 1, cols])
+    return _PairGrids(tau, fl, count, sig, lam_u, fine, ts, prev)
+
+
+def _union_pieces(g: _PairGrids, omega: float, switches: int) -> _Pieces:
+    """The monodromy's pieces from the pairs' own grids (:func:`_refined`): the union of their
+    samples, each pair taken at its nearest own sample (cyclic; so its switch sits midway between
+    its two samples around it), a piece starting at every uniform sample and wherever some pair's
+    signature changes. ``dt`` per piece and pair: the pair's own sample spacing (its slip rate's
+    backward difference)."""
+    m, p = g.tau.shape
+    cols = np.arange(p)
+    valid = np.arange(m)[:, None] < g.count
+    U = np.unique(g.tau[valid])
+    coarse_u = np.isin(U, g.tau[g.coarse])
+    # nearest own sample: candidates just before and at/after each union instant, cyclic
+    L = 4 * np.pi
+    own = (g.tau + L * cols).T[valid.T]                                            # column-major, sorted
+    first = np.concatenate([[0], np.cumsum(g.count)[:-1]])
+    q = (U[None, :] + L * cols[:, None])                                            # (p, nU)
+    after = np.searchsorted(own, q.ravel()).reshape(p, -1) - first[:, None]        # local index, 0..count
+    bef = after - 1
+    t_after = np.where(after < g.count[:, None], g.tau[np.minimum(after, m - 1), cols[:, None]],
+                       g.tau[0, cols][:, None] + 2 * np.pi)
+    t_bef = np.where(bef >= 0, g.tau[np.maximum(bef, 0), cols[:, None]], g.tau[g.count - 1, cols][:, None] - 2 * np.pi)
+    near = np.where(t_after - U[None, :] <= U[None, :] - t_bef, after % g.count[:, None], bef % g.count[:, None]).T
+    back_own = g.tau - np.concatenate([g.tau[g.count - 1, cols][None] - 2 * np.pi, g.tau[:-1]], axis=0)   # rad
+    sig = g.sig[near, cols]
+    back = np.diff(np.concatenate([[U[-1] - 2 * np.pi], U]))                     # rad, to the previous sample
+    cell = 0.5 * (back + np.roll(back, -1))                                         # rad, the sample's cell
+    start = np.flatnonzero(coarse_u | np.any(sig != np.roll(sig, 1, axis=0), axis=1))
+    h = np.add.reduceat(cell, start) / omega
+    rows = near[start]
+    return _Pieces(g.ts[rows, cols], g.fine.lam[rows, cols], g.fine.lam_x_T[rows, cols], g.prev[rows, cols],
+                   back_own[rows, cols] / omega, h, g.fine.ref_T, switches, len(U))

@@ -84,7 +84,7 @@ def tangent_blocks(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, m
     λ_x^T (nit, p, 2) N, its start reference ref_T (p, 2) N; ε_N, ε_T (p,) N/m of the tangent;
     μ (p,); ω rad/s; ``eps_dlft_t`` (p,) N/m the DLFT's own ε_T (λ_x^T = ε_DLFT·w; default
     ``eps_t``). ``prev`` (nit, p, 2) N: the stick reference before each sample, and ``dt``
-    (nit,) s: the time since that reference (the slip rate's backward difference); default the
+    (nit,) or (nit, p) s: the time since that reference (the slip rate's backward difference); default the
     uniform grid τ_k = 2πk/nit (``prev`` the previous sample's, ref_T before the first;
     dt = T/nit). With memory the tangent takes :func:`_tangent_state`.
 
@@ -123,7 +123,8 @@ def tangent_blocks(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, m
     Kp[:, :, 1:, 1:] = np.where(contact[:, :, None, None], eps_t[None, :, None, None] * I2, 0.0)
     # slip rate |ẇ| = |Δλ_x^T|/(ε_DLFT Δt) (backward difference): κ = |ẇ| ε_T / (μ|λ_N|)
     dt = np.full(nit, 2 * np.pi / omega / nit) if dt is None else np.asarray(dt, dtype=float)
-    wdot = np.linalg.norm(lam_x_T - prev, axis=2) / dt[:, None] / (eps_t if eps_dlft_t is None else eps_dlft_t)[None, :]
+    dt = dt[:, None] if dt.ndim == 1 else dt
+    wdot = np.linalg.norm(lam_x_T - prev, axis=2) / dt / (eps_t if eps_dlft_t is None else eps_dlft_t)[None, :]
     # κ only matters while a pair slips (μ|λ_N| > 0); elsewhere 0, not an overflow the masks then drop
     cone = mu[None, :] * np.abs(lam[:, :, 0])
     kappa = np.divide(wdot * eps_t[None, :], cone, out=np.zeros_like(cone), where=cone > 0)[:, idx, None, None]
