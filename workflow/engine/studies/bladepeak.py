@@ -33,8 +33,9 @@ def resonance_vertices(freqs_hz, amplitudes, limits=None):
     three values of 1/A² at the maximum and its two nearest points has its vertex at the peak.
     ``freqs_hz`` (n,) sorted; ``amplitudes`` (n, N) [m]. Returns (m,) arrays over the m maxima:
     the vertex f* [Hz] (kept inside its bracket: the neighbours, or a limit), its A* [m], the
-    maximum's frequency f_k [Hz], the wider side of its bracket [Hz], signed (> 0 above f_k; the parabola is as good as that side is
-    small against the peak's width). A* = inf where the parabola has no positive minimum (the
+    maximum's frequency f_k [Hz], the wider side of its bracket [Hz], signed (> 0 above f_k; the
+    parabola is as good as that side is small against the peak's width), and the narrower side's
+    width [Hz]. A* = inf where the parabola has no positive minimum (the
     model does not hold: f* is then the middle of the wider half, to be evaluated).
 
     ``limits`` (lo, hi) [Hz] (None: the solved band's ends): how far a maximum at an end of the
@@ -43,7 +44,7 @@ def resonance_vertices(freqs_hz, amplitudes, limits=None):
     at the limit (a mistuned disk's highest blade can peak outside the grid it was first solved on)."""
     f, A = np.asarray(freqs_hz, float), np.asarray(amplitudes, float)
     if f.size < 3:
-        return (np.zeros(0),) * 4
+        return (np.zeros(0),) * 5
     lo_f, hi_f = (f[0], f[-1]) if limits is None else (min(float(limits[0]), f[0]), max(float(limits[1]), f[-1]))
     mid = A[1:-1]
     kk, blade = np.nonzero((mid >= A[:-2]) & (mid >= A[2:]) & (mid > 0))
@@ -66,7 +67,7 @@ def resonance_vertices(freqs_hz, amplitudes, limits=None):
         As = np.where(model, 1.0 / np.sqrt(np.where(model, qs, 1.0)), np.inf)
     below, above = f[k] - f_lo, f_hi - f[k]
     wide = np.where(above >= below, above, -below)
-    return np.where(model, fs, f[k] + 0.5 * wide), As, f[k], wide
+    return np.where(model, fs, f[k] + 0.5 * wide), As, f[k], wide, np.minimum(below, above)
 
 
 def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
@@ -81,9 +82,11 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
     the blades converges to any of their peaks. ``candidates`` [Hz] are evaluated first (the tied
     response's highest blade peaks, :func:`tied_candidates`). Then, one evaluation at a time, the
     predicted peak highest among those still open is evaluated at its vertex, or, where its vertex
-    already lies within ``xtol`` (relative) of a solved point, a quarter into its bracket's wider
-    side (the parabola's vertex through distant points can sit beside the peak: 7e-4 low on a
-    lumped disk). A peak's bracket is tight when its solved neighbours lie within ``bracket``
+    already lies within ``xtol`` (relative) of a solved point, into its bracket's wider side as far
+    as its narrower side reaches (a quarter of the wider at most; the parabola's vertex through
+    distant points can sit beside the peak: 7e-4 low on a lumped disk). That probe brackets the
+    peak or finds a higher point: on the quick disk the quarter steps it replaces took 4–6 solves
+    to close a 6 Hz side. A peak's bracket is tight when its solved neighbours lie within ``bracket``
     (relative) on both sides; its parabola is then trusted, and it is open while its vertex is not
     yet solved and lies above the best solved amplitude. With a wider bracket it is open while its
     prediction is within ``margin`` of the best (or above). Stops when none is open, or after
@@ -116,7 +119,7 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
         if f.size < 3:
             break
         A = np.array([solved[g] for g in f])
-        fs, As, fk, wide = resonance_vertices(f, A, limits)
+        fs, As, fk, wide, narrow = resonance_vertices(f, A, limits)
         h = np.abs(wide)
         valid = np.isfinite(fs)
         at_solved = valid & (dist(fs, f) <= xtol * fs)
@@ -126,7 +129,10 @@ def search_blade_peaks(evaluate, solved: dict, *, xtol: float = PEAK_XTOL,
         settled = tight & (at_solved | (As <= best))
         open_ = valid & ~settled & (As >= best * np.where(tight, 1.0, 1.0 - margin))
         gain = max(float(np.max(As[open_]) / best - 1.0), 0.0) if open_.any() else 0.0
-        point = np.where(at_solved, fk + 0.25 * wide, fs)
+        # a vertex on a solved point with one side still wide: probe that side as close as the
+        # narrow one (the peak is then bracketed, or a higher point found), a quarter of it at most
+        step = np.minimum(0.25 * h, np.maximum(narrow, bracket * fk))
+        point = np.where(at_solved, fk + np.sign(wide) * step, fs)
         todo = open_ & (dist(point, list(f) + failed) > xtol * point)
         if not todo.any() or n >= budget:
             break
@@ -158,7 +164,7 @@ def tied_candidates(freqs_hz, tied, k: int = PEAK_CANDIDATES) -> list:
     against a 201-point tied one: the seven highest blades in the same order, each friction peak
     within one scan step, 0.06 Hz, of its tied peak), while the friction grid's few points fall
     between them."""
-    fs, As, _, _ = resonance_vertices(freqs_hz, tied)
+    fs, As = resonance_vertices(freqs_hz, tied)[:2]
     out = []
     for i in np.argsort(np.where(np.isfinite(As), As, -np.inf))[::-1]:
         if len(out) == int(k) or not np.isfinite(As[i]):
