@@ -514,7 +514,8 @@ class Mistuning:
     harmonics: int = param(3, "", "Nh of the whole disk's HB", min=1)
     time_samples: int = param(0, "", "nit (0: the smallest multiple of N/gcd(N, EO) at or above the engine's "
                                      "default, so that every sector's delay is whole samples)", min=0)
-    band: float = param(0.03, "", "half-width of the band around the tuned friction-damped peak (relative)",
+    band: float = param(0.03, "", "half-width of the friction grid's band around the tuned friction-damped "
+                                  "peak (relative); the tied response and the peak search span twice it",
                         min=0.0, min_exclusive=True, max=0.5)
     points: int = param(7, "", "frequencies of the whole disk's grid (its largest blade peak refined between "
                                "them)", min=3)
