@@ -133,8 +133,9 @@ class _PairGrids:
     ``tau`` (n, p) rad sorted in [0, 2π) (rows ≥ ``count`` repeat the pair's last sample: the DLFT
     is idempotent on a repeated predictor), ``coarse`` (n, p) the uniform samples, ``count`` (p,)
     each pair's samples, ``sig`` (n, p) the switch signature (:func:`_signature`; padding repeats
-    the last sample's), ``lam_u`` (n, p, 3) N the DLFT predictor there, and after a DLFT on them ``fine`` (its :class:`DLFTResult`), ``ts`` (n, p)
-    :func:`_tangent_state`, ``prev`` (n, p, 2) N the references before each sample."""
+    the last sample's), ``lam_u`` (n, p, 3) N the DLFT predictor there, and after a DLFT on them
+    ``fine`` (its :class:`DLFTResult`), ``ts`` (n, p) :func:`_tangent_state`, ``prev`` (n, p, 2) N
+    the references before each sample."""
 
     tau: np.ndarray
     coarse: np.ndarray
