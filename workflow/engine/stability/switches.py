@@ -89,8 +89,8 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine) -> _Pieces:
     level (:func:`_refined`) — the same location, T/(nit·r₁·r₂…), at a fraction of the samples.
     Every pair on its own grid, because the DLFT couples nothing across pairs: with 128 pairs
     some pair switches in most sample intervals, and one grid for all put ~1100 samples under
-    every pair, where their own grids hold 265 on average (the 128-pair sector at nit = 256). Each sample stands for its cell (midway to its
-    neighbours), so a switch sits midway between the two sub-samples it falls between: to
+    every pair, where their own grids hold 265 on average (the 128-pair sector at nit = 256).
+    Each sample stands for its cell (midway to its neighbours), so a switch sits midway between the two sub-samples it falls between: to
     ±T/(2·nit·Πr), without bias, and a smooth coefficient is taken at the middle of its cell. The
     monodromy's pieces lie on the union of the pairs' grids, each pair at its nearest own sample
     (:func:`_union_pieces`); consecutive union samples of one interval where no pair changes are
