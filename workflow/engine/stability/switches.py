@@ -89,8 +89,9 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine) -> _Pieces:
     level (:func:`_refined`) — the same location, T/(nit·r₁·r₂…), at a fraction of the samples.
     Every pair on its own grid, because the DLFT couples nothing across pairs: with 128 pairs
     some pair switches in most sample intervals, and one grid for all put ~1100 samples under
-    every pair, where their own grids hold 265 on average (the 128-pair sector at nit = 256).
-    Each sample stands for its cell (midway to its neighbours), so a switch sits midway between the two sub-samples it falls between: to
+    every pair, where their own grids hold 265 on average (the 128-pair sector at nit = 256), and
+    a pair that never switches keeps its uniform samples. Each sample stands for its cell (midway
+    to its neighbours), so a switch sits midway between the two sub-samples it falls between: to
     ±T/(2·nit·Πr), without bias, and a smooth coefficient is taken at the middle of its cell. The
     monodromy's pieces lie on the union of the pairs' grids, each pair at its nearest own sample
     (:func:`_union_pieces`); consecutive union samples of one interval where no pair changes are
@@ -121,37 +122,42 @@ def _pieces_of(prob, a, res, omega: float, refine) -> _Pieces:
 
     p = sig.shape[1]
     lam_u = (fourier.trig_matrix(prob.nh, tau) @ a).reshape(nit, p, 3)
-    grid = _PairGrids(np.repeat(tau[:, None], p, axis=1), np.ones((nit, p), bool), np.full(p, nit), sig, lam_u)
+    grid = _PairGrids(np.repeat(tau[:, None], p, axis=1), np.ones((nit, p), bool), np.full(p, nit), lam_u,
+                      res.lam, res.lam_x_T, res.state, res.ref_T, ts, prev, sig)
     for r in factors:
-        grid = _refined(prob, a, res.ref_T, grid, r)
+        grid = _refined(prob, a, grid, r)
     return _union_pieces(grid, omega, int(sw.size))
 
 
 @dataclass
 class _PairGrids:
-    """Every pair's own samples of the period (:func:`_refined`), as columns padded to one length:
-    ``tau`` (n, p) rad sorted in [0, 2π) (rows ≥ ``count`` repeat the pair's last sample: the DLFT
-    is idempotent on a repeated predictor), ``coarse`` (n, p) the uniform samples, ``count`` (p,)
-    each pair's samples, ``sig`` (n, p) the switch signature (:func:`_signature`; padding repeats
-    the last sample's), ``lam_u`` (n, p, 3) N the DLFT predictor there, and after a DLFT on them
-    ``fine`` (its :class:`DLFTResult`), ``ts`` (n, p) :func:`_tangent_state`, ``prev`` (n, p, 2) N
-    the references before each sample."""
+    """Every pair's own samples of the period and its DLFT there (:func:`_refined`), as columns
+    padded to one length: ``tau`` (n, p) rad sorted in [0, 2π) (rows ≥ ``count`` repeat the pair's
+    last sample: the DLFT is idempotent on a repeated predictor), ``coarse`` (n, p) the uniform
+    samples, ``count`` (p,) each pair's samples, ``lam_u`` (n, p, 3) N the DLFT predictor there;
+    the DLFT's ``lam`` (n, p, 3), ``lam_x_T`` (n, p, 2) N, ``state`` (n, p), ``ref_T`` (p, 2) N;
+    ``ts`` (n, p) :func:`_tangent_state`, ``prev`` (n, p, 2) N the references before each sample,
+    ``sig`` (n, p) the switch signature (:func:`_signature`; padding repeats the last sample's)."""
 
     tau: np.ndarray
     coarse: np.ndarray
     count: np.ndarray
-    sig: np.ndarray
     lam_u: np.ndarray
-    fine: object = None
-    ts: np.ndarray | None = None
-    prev: np.ndarray | None = None
+    lam: np.ndarray
+    lam_x_T: np.ndarray
+    state: np.ndarray
+    ref_T: np.ndarray
+    ts: np.ndarray
+    prev: np.ndarray
+    sig: np.ndarray
 
 
-def _refined(prob, a, ref_T, g: _PairGrids, r: int) -> _PairGrids:
+def _refined(prob, a, g: _PairGrids, r: int) -> _PairGrids:
     """One level of :func:`_switch_pieces`' refinement, pair by pair: every interval
     (τ_{k−1}, τ_k] of a pair's grid that holds its switch, and its two neighbours, cut into
-    ``r``, and the DLFT (λ_u's harmonics ``a``, from the reference ``ref_T``) run again on every
-    pair's new grid at once."""
+    ``r``, and the DLFT (λ_u's harmonics ``a``) run again on the new grids of the pairs that
+    switch, all at once, from their references of the level before; a pair that never switches
+    keeps its grid and its DLFT (at 128 pairs more than half of them)."""
     from workflow.engine import fourier
     from workflow.engine.contact import dlft_pass
 
@@ -160,6 +166,7 @@ def _refined(prob, a, ref_T, g: _PairGrids, r: int) -> _PairGrids:
     rows = np.arange(n)[:, None]
     before = np.concatenate([g.sig[g.count - 1, cols][None], g.sig[:-1]], axis=0)
     k, i = np.nonzero((g.sig != before) & (rows < g.count))                    # pair i switches in row k
+    moving = np.unique(i)                                                       # the pairs refined
     # the intervals before and after too: the DLFT sees a slip → stick reversal by the sign of the
     # predictor's increment over a sample interval, up to a sample late (the reversal may lie in
     # (τ_{k−2}, τ_{k−1}]), and the refined anchors may move a switch across a sample
@@ -169,37 +176,51 @@ def _refined(prob, a, ref_T, g: _PairGrids, r: int) -> _PairGrids:
     lo = g.tau[j, ii]
     hi = np.where(j + 1 < g.count[ii], g.tau[np.minimum(j + 1, n - 1), ii], g.tau[0, ii] + 2 * np.pi)
     extra = (lo[:, None] + (hi - lo)[:, None] * np.arange(1, r)[None, :] / r).ravel()
-    valid = rows < g.count
-    vals = np.concatenate([g.tau[valid], extra])
-    new_owner = np.repeat(ii, r - 1)
-    owner = np.concatenate([np.broadcast_to(cols, (n, p))[valid], new_owner])
-    coarse = np.concatenate([g.coarse[valid], np.zeros(extra.size, bool)])
+    # the moving pairs' samples, old and new, sorted pair by pair (local pair index 0 … len(moving))
+    valid = (rows < g.count)[:, moving]
+    new_owner = np.repeat(np.searchsorted(moving, ii), r - 1)
+    vals = np.concatenate([g.tau[:, moving][valid], extra])
+    owner = np.concatenate([np.broadcast_to(np.arange(moving.size), valid.shape)[valid], new_owner])
+    coarse = np.concatenate([g.coarse[:, moving][valid], np.zeros(extra.size, bool)])
     # λ_u at the new instants only (the others are carried): its harmonics at each one's pair
     E = fourier.trig_matrix(prob.nh, extra)
     a3 = a.reshape(E.shape[1], p, 3)
-    lu = np.concatenate([g.lam_u[valid], np.einsum("kj,jkc->kc", E, a3[:, new_owner])])
+    lu = np.concatenate([g.lam_u[:, moving][valid], np.einsum("kj,jkc->kc", E, a3[:, moving[new_owner]])])
     order = np.lexsort((vals, owner))
     vals, owner, coarse, lu = vals[order], owner[order], coarse[order], lu[order]
-    count = np.bincount(owner, minlength=p)
-    pos = np.arange(vals.size) - np.concatenate([[0], np.cumsum(count)[:-1]])[owner]
+    count_m = np.bincount(owner, minlength=moving.size)
+    pos = np.arange(vals.size) - np.concatenate([[0], np.cumsum(count_m)[:-1]])[owner]
+    count = g.count.copy()
+    count[moving] = count_m
     m = int(count.max())
-    tau = np.empty((m, p))
-    tau[pos, owner] = vals
-    tau = np.where(np.arange(m)[:, None] < count, tau, tau[count - 1, cols])     # padding: the last sample again
-    fl = np.zeros((m, p), bool)
-    fl[pos, owner] = coarse
-    lam_u = np.empty((m, p, 3))
-    lam_u[pos, owner] = lu
-    lam_u = np.where((np.arange(m)[:, None] < count)[..., None], lam_u, lam_u[count - 1, cols][None])
-    # from the previous level's periodic references: the refinement moves an anchor only until
-    # the pair's next slip, so the passes start next to their fixed point
-    start = ref_T if g.fine is None else g.fine.ref_T
-    fine = dlft_pass(lam_u, prob.law.mu, start, periodic=True, max_passes=prob.max_passes, tol=prob.pass_tol)
-    prev = np.concatenate([fine.ref_T[None], fine.lam_x_T[:-1]], axis=0)
-    ts = _tangent_state(fine.state, fine.lam_x_T, prev)
-    sig = _signature(ts, fine.lam, fine.lam_x_T, prev)
-    sig = np.where(np.arange(m)[:, None] < count, sig, sig[count - 1, cols])
-    return _PairGrids(tau, fl, count, sig, lam_u, fine, ts, prev)
+    last = np.arange(m)[:, None] < count                                         # not padding
+
+    def grown(x, fill=None):
+        """x (n, p, …) to m rows, the new rows repeating the last; the moving pairs' columns set."""
+        y = np.concatenate([x, np.repeat(x[-1:], m - n, axis=0)]) if m > n else x.copy()
+        if fill is not None:
+            z = np.empty((m, moving.size) + x.shape[2:], x.dtype)
+            z[pos, owner] = fill
+            y[:, moving] = z
+        return y
+
+    tau = grown(g.tau, vals)
+    coarse_all = grown(g.coarse, coarse) & last
+    lam_u = grown(g.lam_u, lu)
+    tau = np.where(last, tau, tau[count - 1, cols])                              # padding: the last sample again
+    lam_u = np.where(last[..., None], lam_u, lam_u[count - 1, cols][None])
+    mu = np.broadcast_to(np.asarray(prob.law.mu, float), (p,))[moving]
+    fine = dlft_pass(lam_u[:, moving], mu, g.ref_T[moving], periodic=True, max_passes=prob.max_passes,
+                     tol=prob.pass_tol)
+    lam, lam_x_T, state = grown(g.lam), grown(g.lam_x_T), grown(g.state)
+    lam[:, moving], lam_x_T[:, moving], state[:, moving] = fine.lam, fine.lam_x_T, fine.state
+    ref_T = g.ref_T.copy()
+    ref_T[moving] = fine.ref_T
+    prev = np.concatenate([ref_T[None], lam_x_T[:-1]], axis=0)
+    ts = _tangent_state(state, lam_x_T, prev)
+    sig = _signature(ts, lam, lam_x_T, prev)
+    sig = np.where(last, sig, sig[count - 1, cols])
+    return _PairGrids(tau, coarse_all, count, lam_u, lam, lam_x_T, state, ref_T, ts, prev, sig)
 
 
 def _union_pieces(g: _PairGrids, omega: float, switches: int) -> _Pieces:
@@ -231,5 +252,5 @@ def _union_pieces(g: _PairGrids, omega: float, switches: int) -> _Pieces:
     start = np.flatnonzero(coarse_u | np.any(sig != np.roll(sig, 1, axis=0), axis=1))
     h = np.add.reduceat(cell, start) / omega
     rows = near[start]
-    return _Pieces(g.ts[rows, cols], g.fine.lam[rows, cols], g.fine.lam_x_T[rows, cols], g.prev[rows, cols],
-                   back_own[rows, cols] / omega, h, g.fine.ref_T, switches, len(U))
+    return _Pieces(g.ts[rows, cols], g.lam[rows, cols], g.lam_x_T[rows, cols], g.prev[rows, cols],
+                   back_own[rows, cols] / omega, h, g.ref_T, switches, len(U))
