@@ -138,7 +138,9 @@ def _propagate(M, C, K, B, tan: dict, h: np.ndarray, subs, order: np.ndarray, co
             if _pieces_numba is not None:
                 _pieces_numba(Z, ops["Av"], ops["hs"], ops["ptr"], ops.get("rows", _NO_ROWS),
                               ops.get("D", _NO_D), ops.get("P", np.zeros((0, m))),
-                              np.ascontiguousarray(ptr[lo:lo + len(ops["hs"]) + 1]), rows, slaved, int(sub), m)
+                              np.ascontiguousarray(ptr[lo:lo + len(ops["hs"]) + 1]), rows, slaved,
+                              ops.get("wptr", np.zeros(len(ops["hs"]) + 1, np.int64)), ops.get("wrows", _NO_ROWS),
+                              int(sub), m)
                 continue
             for j in range(len(ops["hs"])):
                 k = lo + j
@@ -170,13 +172,16 @@ def _slave(Z, which: np.ndarray, BT: np.ndarray, m: int) -> None:
 
 def _law_blocks(K, Bp, tan: dict, sel: np.ndarray) -> dict:
     """The parts of :func:`_step_operators` on the pieces ``sel`` that do not depend on the step:
-    ``KB`` (n, m, m) N/m = K + BᵀK_u B, and of the anchors ``L`` (n, m, pa, 2) N/m = BᵀK_w per pair,
-    and the entries (piece, pair) whose 2×2 block must be solved (``ke``, ``ae``): not stuck (a stuck
-    pair's E_w = I, A_w = A_u = 0 give D = I, P = 0 exactly) and in contact or pushing (a separated
-    pair's rows are slaved, and with K_w = 0 it adds nothing: 80 % of them at 128 pairs), with their
-    ``Ew``, ``Aw`` (1/s), ``AuB`` = A_u B_a (e, 2, m), ``Le`` (e, m, 2), ``slip`` (in contact: their
-    rows are carried). Only the nonzero law is multiplied out: per pair the components of K_u that
-    are nonzero somewhere (memory: the diagonal), K_w where ≠ 0 (in contact)."""
+    ``KB`` (n, m, m) N/m = K + BᵀK_u B; of the anchors, the entries (piece, pair) that push (K_w ≠ 0:
+    in contact; a separated pair adds nothing, 80 % of them at 128 pairs) in order of piece, piece
+    k's in [``wptr[k]``, ``wptr[k+1]``), their state rows ``wrows`` (:func:`_index_rows`), pieces
+    ``kf`` and force on δq ``Lf`` (e, m, 2) N/m = B_aᵀK_w; and the entries whose 2×2 block must be
+    solved (``ke``, ``ae``): not stuck (a stuck pair's E_w = I, A_w = A_u = 0 give D = I, P = 0
+    exactly) and in contact or pushing (a separated pair's rows are slaved), with their ``Ew``,
+    ``Aw`` (1/s), ``AuB`` = A_u B_a (e, 2, m), ``slip`` (in contact: their rows are carried), and
+    ``hit`` those that push, at ``epos`` among the pushing ones. Only the nonzero law is
+    multiplied out: per pair the components of K_u that are nonzero somewhere (memory: the
+    diagonal), K_w where ≠ 0."""
     m = K.shape[0]
     Kp = tan["Kp"][sel]
     n, p = Kp.shape[:2]
@@ -185,20 +190,21 @@ def _law_blocks(K, Bp, tan: dict, sel: np.ndarray) -> dict:
     W = (Bp[:, ci, :, None] * Bp[:, cj, None, :]).reshape(p * len(comp), m * m)     # B_iᵀ B_j per pair
     KB = K + (Kp.reshape(n, p, 9)[:, :, comp].reshape(n, -1) @ W).reshape(n, m, m)
     idx = tan.get("idx", np.zeros(0, int))
-    out = {"KB": KB, "pa": len(idx)}
-    if not len(idx):
+    pa = len(idx)
+    out = {"KB": KB, "pa": pa}
+    if not pa:
         return out
     Ba = Bp[idx]                                                             # (pa, 3, m)
     Kw, Ew, Aw, Au = (tan[k][sel] for k in ("Kw", "Ew", "Aw", "Au"))
     push = np.any(Kw != 0, axis=(2, 3))
-    kf, af = np.nonzero(push)
-    L = np.zeros((n, m, len(idx), 2))
-    L[kf, :, af] = np.matmul(Ba[af].transpose(0, 2, 1), Kw[kf, af])         # the anchors' force BᵀK_w
+    wptr, wrows, af = _index_rows(push, m)
+    kf = np.repeat(np.arange(n), np.diff(wptr))
     stuck = np.all(Ew == np.eye(2), axis=(2, 3)) & ~np.any(Aw, axis=(2, 3)) & ~np.any(Au, axis=(2, 3))
     contact = tan["contact"][sel]
     ke, ae = np.nonzero(~stuck & (contact | push))
-    out.update(L=L, ke=ke, ae=ae, Ew=Ew[ke, ae], Aw=Aw[ke, ae], AuB=np.matmul(Au[ke, ae], Ba[ae]),
-               Le=L[ke, :, ae], slip=contact[ke, ae])
+    out.update(wptr=wptr, wrows=wrows, kf=kf, Lf=np.matmul(Ba[af].transpose(0, 2, 1), Kw[kf, af]),
+               ke=ke, ae=ae, Ew=Ew[ke, ae], Aw=Aw[ke, ae], AuB=np.matmul(Au[ke, ae], Ba[ae]),
+               slip=contact[ke, ae], hit=push[ke, ae], epos=np.searchsorted(kf * pa + af, ke * pa + ae))
     return out
 
 
@@ -210,9 +216,11 @@ def _step_operators(M, C, law: dict, hs: np.ndarray) -> dict:
     never singular), so w₁ = D w₀ + P q₁ with D = G⁻¹E_w, P = hs G⁻¹A_u B_a; the velocity rows are
     then the m×m system ``S v₁ = M v₀ − hs K_eff q₀ − hs L D w₀``, S = M + hs C + hs² K_eff,
     K_eff = K + BᵀK_u B + L P, L = BᵀK_w. Only the pairs not stuck are solved (a stuck pair's
-    D = I, P = 0). Per piece: ``Av`` (m, n) with v₁ = Av z₀; of the pairs in slip (a separated one's
-    rows are slaved, :func:`_propagate`) ``ptr`` (n+1,), ``rows`` (2e,), ``D`` (e, 2, 2), ``P`` (2e, m),
-    piece k's entries e ∈ [ptr[k], ptr[k+1]) (:func:`_index_rows`); ``hs``."""
+    D = I, P = 0). Per piece: ``Av`` (m, 2m + 2c) with v₁ = Av [q₀, v₀, w₀ of the c pairs that
+    push] (:func:`_law_blocks`' ``wptr``, ``wrows``: L is zero for the others, which are packed
+    out); of the pairs in slip (a separated one's rows are slaved, :func:`_propagate`) ``ptr``
+    (n+1,), ``rows`` (2e,), ``D`` (e, 2, 2), ``P`` (2e, m), piece k's entries e ∈ [ptr[k], ptr[k+1])
+    (:func:`_index_rows`); ``hs``."""
     m = M.shape[0]
     npc = len(hs)
     hs3 = hs[:, None, None]
@@ -220,20 +228,27 @@ def _step_operators(M, C, law: dict, hs: np.ndarray) -> dict:
     L = np.zeros((npc, m, 0))
     ops = {"hs": hs, "ptr": np.zeros(npc + 1, int)}
     if pa:
-        ke, ae = law["ke"], law["ae"]
+        ke, ae, hit = law["ke"], law["ae"], law["hit"]
         he = hs[ke, None, None]
         Gi = np.linalg.inv(law["Ew"] - he * law["Aw"])
         D, P = np.matmul(Gi, law["Ew"]), he * np.matmul(Gi, law["AuB"])
+        epos = law["epos"][hit]
+        Le = law["Lf"][epos]
         Keff = Keff.copy()
-        np.add.at(Keff, ke, np.matmul(law["Le"], P))                # + L P of the pairs solved
-        LD = law["L"].copy()
-        LD[ke, :, ae] = np.matmul(law["Le"], D)                     # L D (a stuck pair's D = I)
-        L = LD.reshape(npc, m, 2 * pa)
+        np.add.at(Keff, ke[hit], np.matmul(Le, P[hit]))             # + L P of the pairs solved
+        LD = law["Lf"].copy()
+        LD[epos] = np.matmul(Le, D[hit])                             # L D (a stuck pair's D = I)
+        wptr, kf = law["wptr"], law["kf"]
+        width = int(np.diff(wptr).max())
+        Lc = np.zeros((npc, m, width, 2))
+        Lc[kf, :, np.arange(len(kf)) - wptr[kf]] = LD               # packed: piece k's pushing pairs first
+        L = Lc.reshape(npc, m, 2 * width)
         s = law["slip"]
         ptr, rows, _ = _index_rows(_entries_mask(ke[s], ae[s], npc, pa), m)
-        ops.update(ptr=ptr, rows=rows, D=D[s], P=P[s].reshape(-1, m))
-    X = np.linalg.solve(M + hs3 * C + hs3 ** 2 * Keff,
-                        np.concatenate([Keff, np.broadcast_to(M, Keff.shape), L], axis=2))   # S⁻¹[K_eff, M, L D]
+        ops.update(ptr=ptr, rows=rows, D=D[s], P=P[s].reshape(-1, m), wptr=wptr, wrows=law["wrows"])
+    # S⁻¹[K_eff, M, L D]: the inverse of the small S then a product, not a solve with its 2m + 2c
+    # right-hand sides (numpy's stacked solve took 9× as long at 128 pairs, m = 7)
+    X = np.linalg.inv(M + hs3 * C + hs3 ** 2 * Keff) @ np.concatenate([Keff, np.broadcast_to(M, Keff.shape), L], axis=2)
     ops["Av"] = np.concatenate([-hs3 * X[:, :, :m], X[:, :, m:2 * m], -hs3 * X[:, :, 2 * m:]], axis=2)
     return ops
 
@@ -249,7 +264,8 @@ def _step(Z, v1, ops: dict, k: int, m: int) -> None:
     """One backward-Euler step of piece k (:func:`_step_operators`) applied to the columns of Z, in
     place (``v1`` (m, ncol) scratch): the rows of the anchors that slip in the piece are updated, a
     stuck pair's stay (D = I, P = 0) and a separated one's are slaved (:func:`_propagate`)."""
-    np.matmul(ops["Av"][k], Z, out=v1)                 # from the old state
+    w = ops["wrows"][2 * ops["wptr"][k]:2 * ops["wptr"][k + 1]] if "wptr" in ops else _NO_ROWS
+    np.matmul(ops["Av"][k][:, :2 * m + len(w)], np.concatenate([Z[:2 * m], Z[w]]), out=v1)   # from the old state
     Z[:m] += ops["hs"][k] * v1                          # q₁
     Z[m:2 * m] = v1
     lo, hi = ops["ptr"][k], ops["ptr"][k + 1]
@@ -259,16 +275,17 @@ def _step(Z, v1, ops: dict, k: int, m: int) -> None:
         Z[rows] = (ops["D"][lo:hi] @ w0.reshape(-1, 2, Z.shape[1])).reshape(len(rows), -1) + ops["P"][2 * lo:2 * hi] @ Z[:m]
 
 
-def _pieces_loops(Z, Av, hs, ptr, rows, D, P, tptr, trows, slaved, sub, m):
+def _pieces_loops(Z, Av, hs, ptr, rows, D, P, tptr, trows, slaved, wptr, wrows, sub, m):
     """The pieces of one chunk of :func:`_propagate`, ``sub`` steps each, as loops for numba:
     per piece the anchors that touch again set to their slaved value (``tptr``, ``trows``,
-    ``slaved``: :func:`_index_rows` of the chunk), then :func:`_step` ``sub`` times. A Python
+    ``slaved``: :func:`_index_rows` of the chunk), then :func:`_step` ``sub`` times, ``Av``'s
+    anchor columns those of the pairs that push (``wptr``, ``wrows``: :func:`_step_operators`). A Python
     call per step costs more than the step (7 × 238 by 18 columns at 128 pairs). The product
     ``Av[j] @ Z`` is a loop too, compiled with fastmath so that its sums vectorise: numba's
     ``np.dot`` took 5.3 of the 6.3 s of its compilation, which a fresh checkout (CI) pays once
     a process; now 2.5 s, and the steps of a 50-point stability at 128 pairs take 0.33 s instead
     of 0.57 s (1.5 s as a plain loop; 2026-11-29, one thread)."""
-    nc, nz = Z.shape[1], Z.shape[0]
+    nc = Z.shape[1]
     v1 = np.empty((m, nc))
     for j in range(Av.shape[0]):
         for r in range(2 * tptr[j], 2 * tptr[j + 1]):
@@ -279,12 +296,16 @@ def _pieces_loops(Z, Av, hs, ptr, rows, D, P, tptr, trows, slaved, sub, m):
                     acc += slaved[r, i] * Z[i, c]
                 Z[row, c] = acc
         for _ in range(sub):
-            for i in range(m):
-                for c in range(nc):
-                    acc = 0.0
-                    for q in range(nz):
-                        acc += Av[j, i, q] * Z[q, c]
-                    v1[i, c] = acc
+            v1[:] = 0.0
+            for i in range(m):      # the columns innermost: contiguous, they vectorise
+                for q in range(2 * m):
+                    x = Av[j, i, q]
+                    for c in range(nc):
+                        v1[i, c] += x * Z[q, c]
+                for r in range(2 * wptr[j], 2 * wptr[j + 1]):
+                    x = Av[j, i, 2 * (m - wptr[j]) + r]
+                    for c in range(nc):
+                        v1[i, c] += x * Z[wrows[r], c]
             for i in range(m):
                 for c in range(nc):
                     Z[i, c] += hs[j] * v1[i, c]
@@ -292,14 +313,14 @@ def _pieces_loops(Z, Av, hs, ptr, rows, D, P, tptr, trows, slaved, sub, m):
             for e in range(ptr[j], ptr[j + 1]):
                 a, b = rows[2 * e], rows[2 * e + 1]
                 for c in range(nc):
-                    pa = 0.0
-                    pb = 0.0
-                    for i in range(m):
-                        pa += P[2 * e, i] * Z[i, c]
-                        pb += P[2 * e + 1, i] * Z[i, c]
                     wa, wb = Z[a, c], Z[b, c]
-                    Z[a, c] = D[e, 0, 0] * wa + D[e, 0, 1] * wb + pa
-                    Z[b, c] = D[e, 1, 0] * wa + D[e, 1, 1] * wb + pb
+                    Z[a, c] = D[e, 0, 0] * wa + D[e, 0, 1] * wb
+                    Z[b, c] = D[e, 1, 0] * wa + D[e, 1, 1] * wb
+                for i in range(m):
+                    xa, xb = P[2 * e, i], P[2 * e + 1, i]
+                    for c in range(nc):
+                        Z[a, c] += xa * Z[i, c]
+                        Z[b, c] += xb * Z[i, c]
 
 
 #: the compiled :func:`_pieces_loops`, or None: :func:`_step` a call a step (the test oracle)

@@ -66,13 +66,13 @@ class _Pieces:
     samples: int
 
 
-def _signature(ts, lam, lam_x_T, prev) -> np.ndarray:
+def _signature(ts, lam, lam_x_T, prev, top: float = 0.0) -> np.ndarray:
     """The states whose changes are switches of the tangent (nit, p): :func:`_tangent_state` for
     a pair with an anchor state (:func:`contact_tangent`'s ``active``), contact or separation
     for the others (their tangent is stick in contact: a pair that shook down onto the cone and
     slips by round-off now and then has no switch to locate)."""
     contact = ts != SEPARATION
-    active = np.any(_moved(lam, lam_x_T, prev) | ~contact, axis=0)
+    active = np.any(_moved(lam, lam_x_T, prev, top) | ~contact, axis=0)
     return np.where(active[None, :], ts, np.where(contact, STICK, SEPARATION)).astype(ts.dtype)
 
 
@@ -106,39 +106,65 @@ def _switch_pieces(hb, x, nit: int, omega: float, refine) -> _Pieces:
 def _pieces_of(prob, a, res, omega: float, refine) -> _Pieces:
     """:func:`_switch_pieces` from the DLFT problem ``prob`` (its ``nh``, ``law.mu``,
     ``max_passes``, ``pass_tol``), λ_u's real Fourier coefficients ``a`` (2Nh+1, 3p) N and their
-    DLFT ``res`` on the uniform samples."""
+    DLFT ``res`` on the uniform samples. Only the pairs that switch get grids of their own
+    (:class:`_PairGrids`); the others keep the uniform samples (at 128 pairs 7 of 128 on average
+    switch, and bookkeeping every pair on the refined grids cost more than the DLFT there)."""
     nit = res.state.shape[0]
     T = 2 * np.pi / omega
     tau = 2 * np.pi * np.arange(nit) / nit
     prev = np.concatenate([res.ref_T[None], res.lam_x_T[:-1]], axis=0)
     ts = _tangent_state(res.state, res.lam_x_T, prev)
     sig = _signature(ts, res.lam, res.lam_x_T, prev)
-    sw = np.flatnonzero(np.any(sig != np.roll(sig, 1, axis=0), axis=1))     # a switch in (τ_{k−1}, τ_k]
+    change = sig != np.roll(sig, 1, axis=0)
+    sw = np.flatnonzero(np.any(change, axis=1))                             # a switch in (τ_{k−1}, τ_k]
     factors = [int(r) for r in np.atleast_1d(refine) if int(r) > 1]
     if not factors or sw.size == 0:
         return _Pieces(ts, res.lam, res.lam_x_T, prev, np.full(nit, T / nit), np.full(nit, T / nit), res.ref_T,
                        0, nit)
     from workflow.engine import fourier
 
-    p = sig.shape[1]
-    lam_u = (fourier.trig_matrix(prob.nh, tau) @ a).reshape(nit, p, 3)
-    grid = _PairGrids(np.repeat(tau[:, None], p, axis=1), np.ones((nit, p), bool), np.full(p, nit), lam_u,
-                      res.lam, res.lam_x_T, res.state, res.ref_T, ts, prev, sig)
+    uniform = _Uniform(tau, res.lam, res.lam_x_T, ts, prev)
+    pairs = np.flatnonzero(np.any(change, axis=0))                          # the pairs that switch
+    q = pairs.size
+    lam_u = np.einsum("kj,jic->kic", fourier.trig_matrix(prob.nh, tau), a.reshape(a.shape[0], -1, 3)[:, pairs])
+    rest = np.delete(res.lam, pairs, axis=1)
+    top = max(float(rest.max()), -float(rest.min())) if rest.size else 0.0
+    grid = _PairGrids(pairs, top, np.repeat(tau[:, None], q, axis=1), np.ones((nit, q), bool), np.full(q, nit), lam_u,
+                      res.lam[:, pairs], res.lam_x_T[:, pairs], res.state[:, pairs], res.ref_T[pairs], ts[:, pairs],
+                      prev[:, pairs], sig[:, pairs])
     for r in factors:
         grid = _refined(prob, a, grid, r)
-    return _union_pieces(grid, omega, int(sw.size))
+    ref_T = res.ref_T.copy()
+    ref_T[pairs] = grid.ref_T
+    return _union_pieces(grid, uniform, ref_T, omega, int(sw.size))
+
+
+@dataclass
+class _Uniform:
+    """The DLFT on the uniform samples ``tau`` (nit,) rad, of every pair: ``lam`` (nit, p, 3),
+    ``lam_x_T`` (nit, p, 2) N, ``ts`` (nit, p) :func:`_tangent_state`, ``prev`` (nit, p, 2) N."""
+
+    tau: np.ndarray
+    lam: np.ndarray
+    lam_x_T: np.ndarray
+    ts: np.ndarray
+    prev: np.ndarray
 
 
 @dataclass
 class _PairGrids:
-    """Every pair's own samples of the period and its DLFT there (:func:`_refined`), as columns
-    padded to one length: ``tau`` (n, p) rad sorted in [0, 2π) (rows ≥ ``count`` repeat the pair's
-    last sample: the DLFT is idempotent on a repeated predictor), ``coarse`` (n, p) the uniform
-    samples, ``count`` (p,) each pair's samples, ``lam_u`` (n, p, 3) N the DLFT predictor there;
-    the DLFT's ``lam`` (n, p, 3), ``lam_x_T`` (n, p, 2) N, ``state`` (n, p), ``ref_T`` (p, 2) N;
-    ``ts`` (n, p) :func:`_tangent_state`, ``prev`` (n, p, 2) N the references before each sample,
-    ``sig`` (n, p) the switch signature (:func:`_signature`; padding repeats the last sample's)."""
+    """The own samples of the period of the pairs ``pairs`` (q,) that switch and their DLFT there
+    (:func:`_refined`), as columns padded to one length: ``tau`` (n, q) rad sorted in [0, 2π) (rows
+    ≥ ``count`` repeat the pair's last sample: the DLFT is idempotent on a repeated predictor),
+    ``coarse`` (n, q) the uniform samples, ``top`` N max|λ| of the other pairs (the scale of
+    :func:`_signature`, as with every pair on the grid), ``count`` (q,) each pair's samples, ``lam_u`` (n, q, 3) N
+    the DLFT predictor there; the DLFT's ``lam`` (n, q, 3), ``lam_x_T`` (n, q, 2) N, ``state``
+    (n, q), ``ref_T`` (q, 2) N; ``ts`` (n, q) :func:`_tangent_state`, ``prev`` (n, q, 2) N the
+    references before each sample, ``sig`` (n, q) the switch signature (:func:`_signature`;
+    padding repeats the last sample's)."""
 
+    pairs: np.ndarray
+    top: float
     tau: np.ndarray
     coarse: np.ndarray
     count: np.ndarray
@@ -184,8 +210,8 @@ def _refined(prob, a, g: _PairGrids, r: int) -> _PairGrids:
     coarse = np.concatenate([g.coarse[:, moving][valid], np.zeros(extra.size, bool)])
     # λ_u at the new instants only (the others are carried): its harmonics at each one's pair
     E = fourier.trig_matrix(prob.nh, extra)
-    a3 = a.reshape(E.shape[1], p, 3)
-    lu = np.concatenate([g.lam_u[:, moving][valid], np.einsum("kj,jkc->kc", E, a3[:, moving[new_owner]])])
+    a3 = a.reshape(E.shape[1], -1, 3)
+    lu = np.concatenate([g.lam_u[:, moving][valid], np.einsum("kj,jkc->kc", E, a3[:, g.pairs[moving[new_owner]]])])
     order = np.lexsort((vals, owner))
     vals, owner, coarse, lu = vals[order], owner[order], coarse[order], lu[order]
     count_m = np.bincount(owner, minlength=moving.size)
@@ -209,7 +235,7 @@ def _refined(prob, a, g: _PairGrids, r: int) -> _PairGrids:
     lam_u = grown(g.lam_u, lu)
     tau = np.where(last, tau, tau[count - 1, cols])                              # padding: the last sample again
     lam_u = np.where(last[..., None], lam_u, lam_u[count - 1, cols][None])
-    mu = np.broadcast_to(np.asarray(prob.law.mu, float), (p,))[moving]
+    mu = np.broadcast_to(np.asarray(prob.law.mu, float), (a3.shape[1],))[g.pairs[moving]]
     fine = dlft_pass(lam_u[:, moving], mu, g.ref_T[moving], periodic=True, max_passes=prob.max_passes,
                      tol=prob.pass_tol)
     lam, lam_x_T, state = grown(g.lam), grown(g.lam_x_T), grown(g.state)
@@ -218,39 +244,57 @@ def _refined(prob, a, g: _PairGrids, r: int) -> _PairGrids:
     ref_T[moving] = fine.ref_T
     prev = np.concatenate([ref_T[None], lam_x_T[:-1]], axis=0)
     ts = _tangent_state(state, lam_x_T, prev)
-    sig = _signature(ts, lam, lam_x_T, prev)
+    sig = _signature(ts, lam, lam_x_T, prev, g.top)
     sig = np.where(last, sig, sig[count - 1, cols])
-    return _PairGrids(tau, coarse_all, count, lam_u, lam, lam_x_T, state, ref_T, ts, prev, sig)
+    return _PairGrids(g.pairs, g.top, tau, coarse_all, count, lam_u, lam, lam_x_T, state, ref_T, ts, prev, sig)
 
 
-def _union_pieces(g: _PairGrids, omega: float, switches: int) -> _Pieces:
-    """The monodromy's pieces from the pairs' own grids (:func:`_refined`): the union of their
-    samples, each pair taken at its nearest own sample (cyclic; so its switch sits midway between
-    its two samples around it), a piece starting at every uniform sample and wherever some pair's
-    signature changes. ``dt`` per piece and pair: the pair's own sample spacing (its slip rate's
-    backward difference)."""
-    m, p = g.tau.shape
-    cols = np.arange(p)
-    valid = np.arange(m)[:, None] < g.count
-    U = np.unique(g.tau[valid])
-    coarse_u = np.isin(U, g.tau[g.coarse])
-    # nearest own sample: candidates just before and at/after each union instant, cyclic
-    L = 4 * np.pi
-    own = (g.tau + L * cols).T[valid.T]                                            # column-major, sorted
-    first = np.concatenate([[0], np.cumsum(g.count)[:-1]])
-    q = (U[None, :] + L * cols[:, None])                                            # (p, nU)
-    after = np.searchsorted(own, q.ravel()).reshape(p, -1) - first[:, None]        # local index, 0..count
-    bef = after - 1
-    t_after = np.where(after < g.count[:, None], g.tau[np.minimum(after, m - 1), cols[:, None]],
-                       g.tau[0, cols][:, None] + 2 * np.pi)
-    t_bef = np.where(bef >= 0, g.tau[np.maximum(bef, 0), cols[:, None]], g.tau[g.count - 1, cols][:, None] - 2 * np.pi)
-    near = np.where(t_after - U[None, :] <= U[None, :] - t_bef, after % g.count[:, None], bef % g.count[:, None]).T
-    back_own = g.tau - np.concatenate([g.tau[g.count - 1, cols][None] - 2 * np.pi, g.tau[:-1]], axis=0)   # rad
-    sig = g.sig[near, cols]
+def _union_pieces(g: _PairGrids, u: _Uniform, ref_T: np.ndarray, omega: float, switches: int) -> _Pieces:
+    """The monodromy's pieces from the switching pairs' own grids ``g`` (:func:`_refined`) and the
+    uniform samples ``u`` of the others: the union of their samples, each pair taken at its
+    nearest own sample (cyclic; so its switch sits midway between its two samples around it), a
+    piece starting at every uniform sample and wherever some pair's signature changes. ``dt``
+    per piece and pair: the pair's own sample spacing (its slip rate's backward difference);
+    ``ref_T`` (p, 2) N every pair's reference."""
+    U = np.unique(np.concatenate([u.tau, g.tau[np.arange(g.tau.shape[0])[:, None] < g.count]]))
+    coarse_u = np.isin(U, u.tau)
+    one = np.ones(1, int)
+    near_u = _nearest(u.tau[:, None], one * len(u.tau), U)[:, 0]            # (nU,) of every uniform pair
+    near = _nearest(g.tau, g.count, U)                                       # (nU, q)
+    nit = len(u.tau)
+    sig = g.sig[near, np.arange(g.pairs.size)]              # the other pairs' signatures never change
+    start = np.flatnonzero(coarse_u | np.any(sig != np.roll(sig, 1, axis=0), axis=1))
     back = np.diff(np.concatenate([[U[-1] - 2 * np.pi], U]))                     # rad, to the previous sample
     cell = 0.5 * (back + np.roll(back, -1))                                         # rad, the sample's cell
-    start = np.flatnonzero(coarse_u | np.any(sig != np.roll(sig, 1, axis=0), axis=1))
     h = np.add.reduceat(cell, start) / omega
-    rows = near[start]
-    return _Pieces(g.ts[rows, cols], g.lam[rows, cols], g.lam_x_T[rows, cols], g.prev[rows, cols],
-                   back_own[rows, cols] / omega, h, g.ref_T, switches, len(U))
+    ku, kg = near_u[start], near[start]                                            # (n,), (n, q)
+    cols = np.arange(g.pairs.size)
+    back_u = np.diff(np.concatenate([[u.tau[-1] - 2 * np.pi], u.tau]))
+    back_g = g.tau - np.concatenate([g.tau[g.count - 1, cols][None] - 2 * np.pi, g.tau[:-1]], axis=0)
+
+    def pieces(uni, own):
+        """(n, p, …): every pair's value at its piece's sample, the switching pairs' from ``own``."""
+        out = uni[ku].copy()
+        out[:, g.pairs] = own[kg, cols]
+        return out
+
+    dt = pieces(np.broadcast_to(back_u[:, None], (nit, ref_T.shape[0])), back_g) / omega
+    return _Pieces(pieces(u.ts, g.ts), pieces(u.lam, g.lam), pieces(u.lam_x_T, g.lam_x_T), pieces(u.prev, g.prev),
+                   dt, h, ref_T, switches, len(U))
+
+
+def _nearest(tau: np.ndarray, count: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """(nU, q): for every instant of ``U`` (rad, sorted) each column's nearest own sample (cyclic,
+    the later one on a tie) of ``tau`` (n, q) rad, sorted, its first ``count`` (q,) rows valid."""
+    m, q = tau.shape
+    cols = np.arange(q)
+    valid = np.arange(m)[:, None] < count
+    L = 4 * np.pi
+    own = (tau + L * cols).T[valid.T]                                              # column-major, sorted
+    first = np.concatenate([[0], np.cumsum(count)[:-1]])
+    after = np.searchsorted(own, (U[None, :] + L * cols[:, None]).ravel()).reshape(q, -1) - first[:, None]
+    bef = after - 1
+    t_after = np.where(after < count[:, None], tau[np.minimum(after, m - 1), cols[:, None]],
+                       tau[0, cols][:, None] + 2 * np.pi)
+    t_bef = np.where(bef >= 0, tau[np.maximum(bef, 0), cols[:, None]], tau[count - 1, cols][:, None] - 2 * np.pi)
+    return np.where(t_after - U[None, :] <= U[None, :] - t_bef, after % count[:, None], bef % count[:, None]).T

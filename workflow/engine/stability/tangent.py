@@ -52,13 +52,14 @@ from workflow.engine.contact import SEPARATION, SLIP, STICK
 ANCHOR_TOL = 1e-9
 
 
-def _moved(lam, lam_x_T, prev) -> np.ndarray:
+def _moved(lam, lam_x_T, prev, top: float = 0.0) -> np.ndarray:
     """(nit, p) bool: the DLFT moved the pair's stick reference at the sample (from ``prev``,
-    the reference before it, N), by more than :data:`ANCHOR_TOL` of max|λ|."""
+    the reference before it, N), by more than :data:`ANCHOR_TOL` of max|λ| (or of ``top`` N if
+    larger: the max over pairs not passed in)."""
     d = lam_x_T - prev
     # ‖d‖ as np.linalg.norm takes it, and max|λ| without |λ|'s copy: the same bits at a third of the
     # time (the refined grids' signatures, 2026-11-29 round 2)
-    top = max(float(lam.max()), -float(lam.min()))
+    top = max(float(lam.max()), -float(lam.min()), top)
     return np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]) > ANCHOR_TOL * max(top, 1e-300)
 
 
@@ -100,14 +101,14 @@ def tangent_blocks(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, m
     if memory:
         state = _tangent_state(state, lam_x_T, prev)
     contact, stick, slip = state != SEPARATION, state == STICK, state == SLIP
-    lamT = lam[:, :, 1:]
-    nT = np.linalg.norm(lamT, axis=2)
-    t = lamT / np.maximum(nT, 1e-300)[:, :, None]                       # slip direction
-    tt = np.einsum("kia,kib->kiab", t, t)
     I2 = np.eye(2)
     Kp = np.zeros((nit, p, 3, 3))
     Kp[:, :, 0, 0] = np.where(contact, eps_n, 0.0)
     if not memory:
+        lamT = lam[:, :, 1:]
+        nT = np.linalg.norm(lamT, axis=2)
+        t = lamT / np.maximum(nT, 1e-300)[:, :, None]                   # slip direction
+        tt = np.einsum("kia,kib->kiab", t, t)
         # λ_pre = λ^k + λ_x^k − λ_x^{k−1}: fac = ‖λ_T‖/‖λ_pre^T‖ (1 when touching the cone)
         fac = nT / np.maximum(np.linalg.norm(lamT + lam_x_T - prev, axis=2), 1e-300)
         Kp[:, :, 1:, 1:] = np.where(stick[:, :, None, None], eps_t[None, :, None, None] * I2,
@@ -120,27 +121,36 @@ def tangent_blocks(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, m
     # parameter of a family of periodic solutions — a neutral multiplier 1, left out
     active = np.any(_moved(lam, lam_x_T, prev) | ~contact, axis=0)
     idx = np.flatnonzero(active)
-    Kp[:, :, 1:, 1:] = np.where(contact[:, :, None, None], eps_t[None, :, None, None] * I2, 0.0)
+    pa = len(idx)
+    Kp[:, :, 1, 1] = Kp[:, :, 2, 2] = np.where(contact, eps_t, 0.0)
+    ct, sep = contact[:, idx], ~contact[:, idx]
+    Kw = np.zeros((nit, pa, 3, 2))
+    Kw[:, :, 1, 0] = Kw[:, :, 2, 1] = np.where(ct, -eps_t[idx], 0.0)
+    Ew, Aw, Au = np.zeros((nit, pa, 2, 2)), np.zeros((nit, pa, 2, 2)), np.zeros((nit, pa, 2, 3))
+    Ew[stick[:, idx]] = I2
+    Aw[sep] = -I2
+    Au[sep] = np.concatenate([np.zeros((2, 1)), I2], axis=1)
+    # what depends on the slip direction and rate, on the entries that slip only (a few % of them)
+    k, a = np.nonzero(slip[:, idx])
+    i = idx[a]
+    lt = lam[k, i, 1:]
+    t = lt / np.maximum(np.sqrt(lt[:, 0] * lt[:, 0] + lt[:, 1] * lt[:, 1]), 1e-300)[:, None]    # slip direction
+    n = np.stack([-t[:, 1], t[:, 0]], axis=-1)                          # ⊥ t in the tangent plane
+    tt, nn = t[:, :, None] * t[:, None, :], n[:, :, None] * n[:, None, :]
     # slip rate |ẇ| = |Δλ_x^T|/(ε_DLFT Δt) (backward difference): κ = |ẇ| ε_T / (μ|λ_N|)
     dt = np.full(nit, 2 * np.pi / omega / nit) if dt is None else np.asarray(dt, dtype=float)
-    dt = dt[:, None] if dt.ndim == 1 else dt
-    wdot = np.linalg.norm(lam_x_T - prev, axis=2) / dt / (eps_t if eps_dlft_t is None else eps_dlft_t)[None, :]
-    # κ only matters while a pair slips (μ|λ_N| > 0); elsewhere 0, not an overflow the masks then drop
-    cone = mu[None, :] * np.abs(lam[:, :, 0])
-    kappa = np.divide(wdot * eps_t[None, :], cone, out=np.zeros_like(cone), where=cone > 0)[:, idx, None, None]
-    st, sl, sep, ct = (s[:, idx, None, None] for s in (stick, slip, ~contact, contact))
-    ti, tti = t[:, idx], tt[:, idx]
-    ni = np.stack([-ti[..., 1], ti[..., 0]], axis=-1)                    # ⊥ t in the tangent plane
-    nn = np.einsum("kia,kib->kiab", ni, ni)
-    Kw = np.zeros((nit, len(idx), 3, 2))
-    Kw[:, :, 1:, :] = np.where(ct, -eps_t[idx, None, None] * I2, 0.0)
-    Ew = np.where(st, I2, np.where(sl, nn, 0.0))
+    d = lam_x_T[k, i] - prev[k, i]
+    wdot = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) / (dt[k] if dt.ndim == 1 else dt[k, i]) / \
+        (eps_t if eps_dlft_t is None else eps_dlft_t)[i]
+    # κ only matters while a pair slips (μ|λ_N| > 0); elsewhere 0, not an overflow
+    cone = mu[i] * np.abs(lam[k, i, 0])
+    kappa = np.divide(wdot * eps_t[i], cone, out=np.zeros_like(cone), where=cone > 0)[:, None, None]
     # slip: t-row tᵀ(δu_T − δw) + μ (ε_N/ε_T) δu_N = 0 (divided by ε_T); n-row nᵀδẇ = κ nᵀ(δu_T − δw)
-    Aw = np.where(sl, -(tti + kappa * nn), np.where(sep, -I2, 0.0))
-    slipAu = np.concatenate([(ti * (mu * eps_n / eps_t)[idx, None])[..., None], tti + kappa * nn], axis=-1)
-    sepAu = np.concatenate([np.zeros((2, 1)), I2], axis=1)
-    Au = np.where(sl, slipAu, np.where(sep, sepAu, 0.0))
-    return {"Kp": Kp, "active": active, "idx": idx, "Kw": Kw, "Ew": Ew, "Aw": Aw, "Au": Au, "contact": contact[:, idx]}
+    Ew[k, a] = nn
+    Aw[k, a] = -(tt + kappa * nn)
+    Au[k, a, :, 0] = t * (mu * eps_n / eps_t)[i, None]
+    Au[k, a, :, 1:] = tt + kappa * nn
+    return {"Kp": Kp, "active": active, "idx": idx, "Kw": Kw, "Ew": Ew, "Aw": Aw, "Au": Au, "contact": ct}
 
 
 def contact_tangent(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, memory: bool = True,
