@@ -199,9 +199,8 @@ def _law_blocks(K, Bp, tan: dict, sel: np.ndarray) -> dict:
     push = np.any(Kw != 0, axis=(2, 3))
     wptr, wrows, af = _index_rows(push, m)
     kf = np.repeat(np.arange(n), np.diff(wptr))
-    stuck = np.all(Ew == np.eye(2), axis=(2, 3)) & ~np.any(Aw, axis=(2, 3)) & ~np.any(Au, axis=(2, 3))
     contact = tan["contact"][sel]
-    ke, ae = np.nonzero(~stuck & (contact | push))
+    ke, ae = np.nonzero(~tan["stick"][sel] & (contact | push))
     out.update(wptr=wptr, wrows=wrows, kf=kf, Lf=np.matmul(Ba[af].transpose(0, 2, 1), Kw[kf, af]),
                ke=ke, ae=ae, Ew=Ew[ke, ae], Aw=Aw[ke, ae], AuB=np.matmul(Au[ke, ae], Ba[ae]),
                slip=contact[ke, ae], hit=push[ke, ae], epos=np.searchsorted(kf * pa + af, ke * pa + ae))
@@ -235,7 +234,10 @@ def _step_operators(M, C, law: dict, hs: np.ndarray) -> dict:
         epos = law["epos"][hit]
         Le = law["Lf"][epos]
         Keff = Keff.copy()
-        np.add.at(Keff, ke[hit], np.matmul(Le, P[hit]))             # + L P of the pairs solved
+        kh = ke[hit]                                                 # sorted: the pieces' sums of L P
+        first = np.flatnonzero(np.diff(kh, prepend=-1))
+        if len(first):
+            Keff[kh[first]] += np.add.reduceat(np.matmul(Le, P[hit]), first, axis=0)   # + L P of the pairs solved
         LD = law["Lf"].copy()
         LD[epos] = np.matmul(Le, D[hit])                             # L D (a stuck pair's D = I)
         wptr, kf = law["wptr"], law["kf"]
@@ -280,13 +282,15 @@ def _pieces_loops(Z, Av, hs, ptr, rows, D, P, tptr, trows, slaved, wptr, wrows, 
     per piece the anchors that touch again set to their slaved value (``tptr``, ``trows``,
     ``slaved``: :func:`_index_rows` of the chunk), then :func:`_step` ``sub`` times, ``Av``'s
     anchor columns those of the pairs that push (``wptr``, ``wrows``: :func:`_step_operators`). A Python
-    call per step costs more than the step (7 × 238 by 18 columns at 128 pairs). The product
-    ``Av[j] @ Z`` is a loop too, compiled with fastmath so that its sums vectorise: numba's
-    ``np.dot`` took 5.3 of the 6.3 s of its compilation, which a fresh checkout (CI) pays once
-    a process; now 2.5 s, and the steps of a 50-point stability at 128 pairs take 0.33 s instead
-    of 0.57 s (1.5 s as a plain loop; 2026-11-29, one thread)."""
+    call per step costs more than the step (7 × (14 + 2·5) by 18 columns at 128 pairs). The
+    product ``Av[j] @ Z`` is a loop too, compiled with fastmath so that its sums vectorise:
+    numba's ``np.dot`` took 5.3 of the 6.3 s of its compilation, which a fresh checkout (CI) pays
+    once a process. The ~99 000 steps of a 50-point stability at 128 pairs take 0.11 s (one
+    thread, 2026-11-29)."""
     nc = Z.shape[1]
     v1 = np.empty((m, nc))
+    sums = np.empty(nc)
+    Zw = np.empty((Av.shape[2], nc))
     for j in range(Av.shape[0]):
         for r in range(2 * tptr[j], 2 * tptr[j + 1]):
             row = trows[r]
@@ -296,16 +300,26 @@ def _pieces_loops(Z, Av, hs, ptr, rows, D, P, tptr, trows, slaved, wptr, wrows, 
                     acc += slaved[r, i] * Z[i, c]
                 Z[row, c] = acc
         for _ in range(sub):
-            v1[:] = 0.0
-            for i in range(m):      # the columns innermost: contiguous, they vectorise
+            # the pushing anchors' rows gathered first, and the columns innermost into a local sum:
+            # contiguous, they vectorise (twice as fast as summing into v1 row by row)
+            nw = 2 * (wptr[j + 1] - wptr[j])
+            for r in range(nw):
+                row = wrows[2 * wptr[j] + r]
+                for c in range(nc):
+                    Zw[r, c] = Z[row, c]
+            for i in range(m):
+                for c in range(nc):
+                    sums[c] = 0.0
                 for q in range(2 * m):
                     x = Av[j, i, q]
                     for c in range(nc):
-                        v1[i, c] += x * Z[q, c]
-                for r in range(2 * wptr[j], 2 * wptr[j + 1]):
-                    x = Av[j, i, 2 * (m - wptr[j]) + r]
+                        sums[c] += x * Z[q, c]
+                for r in range(nw):
+                    x = Av[j, i, 2 * m + r]
                     for c in range(nc):
-                        v1[i, c] += x * Z[wrows[r], c]
+                        sums[c] += x * Zw[r, c]
+                for c in range(nc):
+                    v1[i, c] = sums[c]
             for i in range(m):
                 for c in range(nc):
                     Z[i, c] += hs[j] * v1[i, c]
