@@ -135,8 +135,8 @@ class HB:
                                          "the Nh- and ε-checks, which start from it, cannot see")
     stability: bool = param(False, "", "Floquet stability of every converged point (monodromy of the linearised "
                                        "HB solution with the stick anchors as states; frf.csv stable, floquet_max; "
-                                       "unstable points circled on the FRF figures); 0.3–0.6 s a point on the quick "
-                                       "sector, several times the sweep (docs/stability-and-modes.md)")
+                                       "unstable points circled on the FRF figures); about a fifth of the sweep's "
+                                       "time (docs/stability-and-modes.md)")
     time_check: bool = param(True, "", "integrate the headline peak in physical time from its HB state (rigid "
                                        "Coulomb contact, the reduced model) and fail the run (exit 3) if it is "
                                        "not a periodic orbit within the check's tolerance: a spurious HB root is "
