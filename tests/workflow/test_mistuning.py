@@ -218,10 +218,10 @@ def test_stage_on_a_lumped_disk(tmp_path):
         assert (tmp_path / "out" / f).stat().st_size > 100
     w = s["wear"]
     assert len(w["blade_max_m"]) == N and min(w["blade_max_m"]) >= 0 and w["tuned_max_m"] > 0
-    # two marches of one wear system under the same local error control (pseudotime.wear_rtol =
-    # 1e-3), their vibrations converged to hb.tol each: they agree to the march's global error
-    # (1.4e-3 measured here, where the pairs slip grossly and the march stops at persistent slip)
-    assert c["worn_tuned_vs_cyclic"] <= 5 * scene["pseudotime"].wear_rtol
+    # the tuned whole disk marched on the sector's own steps: two models of one wear system on one
+    # path, so they agree to round-off (2.6e-12 measured; 1.4e-3 with each march's own step
+    # control, whose accept/reject decisions round-off flips); held to the 1e-6
+    assert c["worn_tuned_vs_cyclic"] <= 1e-6
 
 
 def test_whole_disk_wear_refuses_a_length_scale(sub):

@@ -321,6 +321,27 @@ def test_reference_and_pseudo_time_profiles_agree_and_pseudo_time_needs_fewer_so
     assert hp.iterations <= 0.5 * hr.iterations
 
 
+def test_a_march_replayed_on_its_own_steps_takes_its_path(worn):
+    """``step_lengths``: a march given another's accepted steps takes each of them (no step
+    control) and ends where that march ended — on the same problem, its own path to round-off,
+    steady by the same test; the steps changed, another path (a check of two models, not of
+    the march)."""
+    h, _, wp = worn["pseudo"]
+    steps = np.diff(h.cycles)
+    x0 = wp.hb.solve(tol=1e-10).x
+    kw = dict(cycles_per_block=5e5, steady_tol=1e-4, tol=1e-9)
+    wp.set_wear(np.zeros(wp.p))
+    again = pseudo_time_wear(wp, x0, step_lengths=steps, **kw)
+    assert again.iterations == len(steps) and again.steady == h.steady
+    np.testing.assert_allclose(again.cycles, h.cycles, rtol=1e-14)
+    assert np.abs(again.W - h.W).max() <= 1e-12 * np.abs(h.W).max()
+    wp.set_wear(np.zeros(wp.p))
+    coarse = pseudo_time_wear(wp, x0, step_lengths=[steps[:5].sum()] + list(steps[5:]), **kw)
+    wp.set_wear(np.asarray(h.W))                        # the module's fixture as it was
+    assert coarse.iterations == len(steps) - 4          # the first step 5× the error control's, accepted
+    assert np.abs(coarse.W - h.W).max() > 1e-9 * np.abs(h.W).max()
+
+
 def test_implicit_reference_agrees_with_explicit():
     hb = hb_problem(20.0, nh=2, nit=32)
     x0 = hb.solve(tol=1e-10).x

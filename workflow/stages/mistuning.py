@@ -273,7 +273,8 @@ def _wear_point(w) -> None:
 def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, ref, log, checks: dict) -> dict | None:
     """The worn steady state of every blade at the largest blade's friction-damped peak, the
     tuned sector's at its own peak (what the wear amplification divides by) and, with the
-    checks, the tuned whole disk's against the sector's (``checks["worn_tuned_vs_cyclic"]``)."""
+    checks, the tuned whole disk's, marched on the sector's steps, against the sector's
+    (``checks["worn_tuned_vs_cyclic"]``)."""
     from dataclasses import replace
 
     from reduction.mistuned import WholeDiskCoordinates
@@ -297,8 +298,9 @@ def _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t: float, ref, log, checks
              f"{disk.history.seconds:.1f} s")
     if checks:
         U0 = ms.travelling_wave(_sector_solution(ref, f_t), N, int(scene["cyclic"].engine_order))
+        # on the sector's own steps: the two models compared, not the step control's round-off decisions
         tw = ms.worn_blades(WholeDiskCoordinates(sub), law_w, v, 2 * np.pi * f_t, area, opt, n_sectors=N, U0=U0,
-                            log=note)
+                            log=note, step_lengths=np.diff(sector.history.cycles))
         checks["worn_tuned_vs_cyclic"] = float(np.abs(tw.W - sector.W).max() / max(w_t, 1e-300))
         log.info(f"check: tuned whole disk's worn state against the sector's {checks['worn_tuned_vs_cyclic']:.1e}")
     summary = {"hz": float(resp.peak["hz"]), "blade_max_m": disk.blade_max_m.tolist(),

@@ -320,7 +320,8 @@ def held_blade(rc, wp, x, omega: float, opt, n_sectors: int):
     return ap, res.x, {"blade": b, "tip_amplitude_m": ap.target, "load_scale_new": float(res.x[-1])}
 
 
-def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0=None, log=None) -> WornDisk:
+def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0=None, log=None,
+                step_lengths=None) -> WornDisk:
     """Fretting wear of every blade's pairs at ω [rad/s] to the worn steady state: the sector's
     wear law and march (:class:`workflow.engine.wear.WearProblem`, pseudo-time, eq. 22) on the
     whole disk's relative coordinates, every pair its own wear depth.
@@ -334,7 +335,9 @@ def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0
     (the forced response's); if it is not converged here the solver cascade starts from it and
     from the stuck guess. The node-wise law only: a length scale (``opt.length_m`` > 0) couples
     the pairs, and the march would form the whole disk's J. With ``opt.control`` "amplitude"
-    the most vibrating blade's tip is held (:func:`held_blade`) and the load follows."""
+    the most vibrating blade's tip is held (:func:`held_blade`) and the load follows.
+    ``step_lengths`` (cycles): the march's steps given — another march's, replayed on the same
+    path (:func:`~workflow.engine.wear.pseudo_time_wear`): the tuned disk against the sector."""
     from workflow.engine import penalty
     from workflow.engine.cascade import solve_point
     from workflow.engine.errors import SolverError
@@ -374,7 +377,7 @@ def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0
                                            f"{control['tip_amplitude_m']:.4g} m")
         log(f"wear of {N} blades × {blade_area.size} pairs at {omega / 2 / np.pi:.3f} Hz (Nh = {variant.nh}, "
             f"nit = {variant.nit}{held}): pseudo-time march")
-    h = march(wp, z, "pseudo-time", opt, track, opt.block_tol, report=log)
+    h = march(wp, z, "pseudo-time", opt, track, opt.block_tol, report=log, step_lengths=step_lengths)
     if control is not None:
         control["load_scale_worn"] = float(h.x[-1])
     W = np.asarray(h.W, float).reshape(N, -1)

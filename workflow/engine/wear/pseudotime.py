@@ -33,9 +33,13 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
                      steady_tol: float = 1e-3, tol: float = 1e-9, max_steps: int = 400,
                      rtol: float = 1e-3, track: int = 1, x_tol: float = 1e-3, x_corrections: int = 3,
                      dt_max_blocks: float = 0.0, order: int = 2, max_cycles: float = math.inf,
-                     max_increment: float = math.inf, report=None) -> WearHistory:
+                     max_increment: float = math.inf, report=None, step_lengths=None) -> WearHistory:
     """Integrate the augmented system (eq. 22a–b) along the wear trajectory to zero wear rates.
     ``report(message)``: the march's progress every :data:`REPORT_STEPS` accepted steps.
+    ``step_lengths`` (cycles): take these steps in order, each accepted whatever its error, then
+    stop (steady or not by the same test): another model's march replayed on its own path, so
+    that two models of one system are compared without the step control's decisions, which
+    round-off can flip (a check of the models, not of the march).
 
     Unknowns ``z = [x; W]``. The vibration is the fast part of the dual
     time scales (pseudo-time mass θ J → 0: it is slaved to W), the wear
@@ -75,20 +79,27 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     steady, reason = False, f"max steps ({max_steps})"
     failed = 0          # consecutive steps refused by the vibration (not by the wear error)
     while steps + rejected < max_steps:
-        steady, why = _steady_or_persistent(hist, N, steady_tol) if steps else (False, None)
+        if step_lengths is not None and steps == len(step_lengths):
+            steady, why = _steady_or_persistent(hist, N, steady_tol)
+            reason = why or "the given steps taken"
+            break
+        steady, why = _steady_or_persistent(hist, N, steady_tol) if steps and step_lengths is None else (False, None)
         if why is None and failed == 2:
             (x, st, why), failed = _resolve_vibration(wp, x, st, W, tol, count), 0
         if why:
             reason, hist.persistent_slip, hist.vibration_lost = why, why.endswith(PERSISTENT), why.startswith(UNSOLVABLE)
             break
-        h, end = _stage_end(h, t, W - hist.W_history[0], st.rate, max_cycles, max_increment)
-        if end:
-            reason = end
-            break
+        if step_lengths is None:
+            h, end = _stage_end(h, t, W - hist.W_history[0], st.rate, max_cycles, max_increment)
+            if end:
+                reason = end
+                break
+        else:
+            h = float(step_lengths[steps])
         xn, Wn, stn, ok = _wear_step(wp, x, W, st, h, x_tol, x_corrections, count)
         err, ws, fac = _local_error(h, st, stn, _wscale(Wn, pen), rtol)
         failed = 0 if ok else failed + 1
-        if ok and err <= rtol * ws:
+        if ok and (err <= rtol * ws or step_lengths is not None):
             if order == 2:
                 xn, Wn, stn = _trapezoidal(wp, W, st, xn, Wn, stn, h, count)
             elif not stn.has_jacobian:

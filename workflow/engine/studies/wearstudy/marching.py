@@ -10,10 +10,11 @@ from workflow.engine.studies.wearstudy.options import WearOptions
 
 
 def march(wp, x, method: str, opt: WearOptions, track: int, block_tol: float, W0=None,
-           max_cycles: float = math.inf, max_increment: float = math.inf, report=None):
+           max_cycles: float = math.inf, max_increment: float = math.inf, report=None, step_lengths=None):
     """One march of ``wp`` by ``method`` from x and the wear W0 [m] (None: unworn), to the worn
     steady state — or, a stage, to ``max_cycles`` cycles or ``max_increment`` [m] more wear.
-    ``report``: the pseudo-time march's progress messages (:func:`~workflow.engine.wear.pseudo_time_wear`)."""
+    ``report``: the pseudo-time march's progress messages; ``step_lengths`` (cycles): its steps
+    given, another march replayed (:func:`~workflow.engine.wear.pseudo_time_wear`)."""
     from workflow.engine.wear import march_reference, pseudo_time_wear
 
     common = dict(cycles_per_block=opt.cycles_per_block, steady_tol=opt.steady_tol, tol=opt.tol, track=track,
@@ -21,7 +22,9 @@ def march(wp, x, method: str, opt: WearOptions, track: int, block_tol: float, W0
     wp.set_wear(np.zeros(wp.p) if W0 is None else W0)
     if method == "pseudo-time":
         return pseudo_time_wear(wp, x, max_steps=opt.max_steps, rtol=opt.rtol, dt_max_blocks=opt.dt_max_blocks,
-                                report=report, **common)
+                                report=report, step_lengths=step_lengths, **common)
+    if step_lengths is not None:
+        raise ValueError(f"march: step_lengths is for the pseudo-time march, not {method!r}")
     return march_reference(wp, x, scheme=method, max_blocks=opt.max_blocks, block_tol=block_tol, **common)
 
 
