@@ -79,32 +79,22 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     steady, reason = False, f"max steps ({max_steps})"
     failed = 0          # consecutive steps refused by the vibration (not by the wear error)
     while steps + rejected < max_steps:
-        if step_lengths is not None and steps == len(step_lengths):
-            steady, why = _steady_or_persistent(hist, N, steady_tol)
-            reason = why or "the given steps taken"
-            break
-        steady, why = _steady_or_persistent(hist, N, steady_tol) if steps and step_lengths is None else (False, None)
+        steady, why = _stop(hist, N, steady_tol, steps, step_lengths)
         if why is None and failed == 2:
             (x, st, why), failed = _resolve_vibration(wp, x, st, W, tol, count), 0
         if why:
             reason, hist.persistent_slip, hist.vibration_lost = why, why.endswith(PERSISTENT), why.startswith(UNSOLVABLE)
             break
-        if step_lengths is None:
-            h, end = _stage_end(h, t, W - hist.W_history[0], st.rate, max_cycles, max_increment)
-            if end:
-                reason = end
-                break
-        else:
-            h = float(step_lengths[steps])
+        h, end = (_stage_end(h, t, W - hist.W_history[0], st.rate, max_cycles, max_increment)
+                  if step_lengths is None else (float(step_lengths[steps]), None))
+        if end:
+            reason = end
+            break
         xn, Wn, stn, ok = _wear_step(wp, x, W, st, h, x_tol, x_corrections, count)
         err, ws, fac = _local_error(h, st, stn, _wscale(Wn, pen), rtol)
         failed = 0 if ok else failed + 1
         if ok and (err <= rtol * ws or step_lengths is not None):
-            if order == 2:
-                xn, Wn, stn = _trapezoidal(wp, W, st, xn, Wn, stn, h, count)
-            elif not stn.has_jacobian:
-                stn = wp.evaluate(xn, Wn, jacobian=True)
-            x, W, st = xn, Wn, stn
+            x, W, st = _accepted(wp, W, st, xn, Wn, stn, h, order, count)
             t += h
             steps += 1
             _record(hist, wp, t, x, W, st.rate, track)
@@ -115,11 +105,37 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             rejected += 1
             h *= min(0.5, max(0.1, fac)) if ok else 0.25
     _finish(hist, wp, x, W, st, steady, reason, count, (N, steady_tol, tol))
+    return _tally(hist, steps, rejected, count, t0)
+
+
+def _accepted(wp: WearProblem, W, st: WearState, xn, Wn, stn: WearState, h: float, order: int, count: dict):
+    """(x, W, state) after an accepted step from (W, st) to (xn, Wn, stn) of h cycles: its
+    trapezoidal correction (``order`` 2, :func:`_trapezoidal`), or the state with its Jacobian."""
+    if order == 2:
+        return _trapezoidal(wp, W, st, xn, Wn, stn, h, count)
+    return xn, Wn, (stn if stn.has_jacobian else wp.evaluate(xn, Wn, jacobian=True))
+
+
+def _tally(hist: WearHistory, steps: int, rejected: int, count: dict, t0: float) -> WearHistory:
+    """``hist`` with the march's steps, rejections, vibration corrections and re-solves in its
+    reason, its ``iterations`` and its wall ``seconds`` since t0."""
     hist.reason += (f" ({steps} steps, {rejected} rejected, {count['corrections']} vibration corrections, "
                     f"{count['reanchored']} vibration re-solves)")
     hist.iterations = steps
     hist.seconds = time.perf_counter() - t0
     return hist
+
+
+def _stop(hist: WearHistory, cycles_per_block: float, steady_tol: float, steps: int, step_lengths):
+    """(steady, stop reason or None) before the next step of :func:`pseudo_time_wear`: steady or
+    persistent slip (:func:`_steady_or_persistent`) from the first step on; with ``step_lengths``
+    only once they are all taken, and then always a reason."""
+    if step_lengths is None:
+        return _steady_or_persistent(hist, cycles_per_block, steady_tol) if steps else (False, None)
+    if steps < len(step_lengths):
+        return False, None
+    steady, why = _steady_or_persistent(hist, cycles_per_block, steady_tol)
+    return steady, why or "the given steps taken"
 
 
 def _march_start(wp: WearProblem, x0, tol: float, track: int):
