@@ -258,8 +258,7 @@ def _union_pieces(g: _PairGrids, u: _Uniform, ref_T: np.ndarray, omega: float, s
     ``ref_T`` (p, 2) N every pair's reference."""
     U = np.unique(np.concatenate([u.tau, g.tau[np.arange(g.tau.shape[0])[:, None] < g.count]]))
     coarse_u = np.isin(U, u.tau)
-    one = np.ones(1, int)
-    near_u = _nearest(u.tau[:, None], one * len(u.tau), U)[:, 0]            # (nU,) of every uniform pair
+    near_u = _nearest(u.tau[:, None], np.array([len(u.tau)]), U)[:, 0]     # (nU,): every uniform pair's
     near = _nearest(g.tau, g.count, U)                                       # (nU, q)
     nit = len(u.tau)
     sig = g.sig[near, np.arange(g.pairs.size)]              # the other pairs' signatures never change

@@ -94,7 +94,8 @@ def tangent_blocks(state, lam, lam_x_T, ref_T, eps_n, eps_t, mu, omega: float, m
     some instant), ``idx`` their indices (pa,); per active pair a, on its own δu and δw only,
     ``Kw`` (nit, pa, 3, 2) N/m, ``Ew``, ``Aw`` (nit, pa, 2, 2) (Aw 1/s), ``Au`` (nit, pa, 2, 3)
     (the anchor equations ``E_w δẇ = A_u δu + A_w δw``), ``contact`` (nit, pa) bool (not separated:
-    a separated pair's anchor is slaved, δw = δu_T), ``stick`` (nit, pa) bool (E_w = I, A_w = A_u = 0). :func:`contact_tangent` assembles them."""
+    a separated pair's anchor is slaved, δw = δu_T), ``stick`` (nit, pa) bool (E_w = I, A_w = A_u = 0).
+    :func:`contact_tangent` assembles them."""
     nit, p = state.shape
     if prev is None:
         prev = np.concatenate([ref_T[None], lam_x_T[:-1]], axis=0)
