@@ -593,8 +593,11 @@ class WholeDiskCoordinates:
         block (s, t) = N⁻¹ Σ_k e^{ik(s−t)α} B_k, one FFT over the NDs."""
         N, n = self.N, self.n_rel // self.N
         circ = np.fft.ifft(blocks, axis=0)
-        s = np.arange(N)
-        return circ[(s[:, None] - s[None, :]) % N].transpose(0, 2, 1, 3).reshape(N * n, N * n)
+        out = np.empty((N * n, N * n), circ.dtype)
+        t = np.arange(N)
+        for s in range(N):      # block row by block row: no transposed copy of the whole matrix
+            out[s * n:(s + 1) * n].reshape(n, N, n)[:] = circ[(s - t) % N].transpose(1, 0, 2)
+        return out
 
     def _disk(self, j: int, omega: float):
         """(S̃_d physical (3pN, 3pN), g̃_d (N, 3p)) of the disk at harmonic j."""
@@ -642,17 +645,23 @@ class WholeDiskCoordinates:
             return (SU - np.einsum("sab,sb->sa", Sb, solve(SU.ravel()).reshape(N, n))).ravel()
         return stiffness
 
-    def _harmonic(self, j: int, omega: float):
+    def _harmonic(self, j: int, omega: float, out=None):
+        """(Z_r, F_r, kept) of harmonic j at ω [rad/s] in the stiffness form: Z_r written into
+        ``out`` (3pN, 3pN) complex if given."""
         import scipy.linalg as sla
 
         Sb, gb, aux = self._blade(j, omega)
         Sd, gd = self._disk(j, omega)
         N, n = self.N, self.n_rel // self.N
         Ainv = sla.inv(_add_blade_blocks(Sd, Sb), overwrite_a=True, check_finite=False)
-        # S_b A⁻¹ S_b with S_b block diagonal: blocks of rows and columns, no dense product
-        T = Ainv.reshape(N, n, N, n).transpose(0, 2, 1, 3)                  # (s, t) blocks
-        Zr = _add_blade_blocks(-np.matmul(np.matmul(Sb[:, None], T), Sb[None]).transpose(0, 2, 1, 3)
-                               .reshape(N * n, N * n), Sb)
+        # S_b A⁻¹ S_b with S_b block diagonal: one BLAS product per block column, then per block
+        # row (0.08 s a harmonic at 752 pairs, against 0.3 s for numpy's stacked 48 × 48 products)
+        Zr = np.empty_like(Ainv) if out is None else out
+        for t in range(N):
+            np.matmul(Ainv[:, t * n:(t + 1) * n], Sb[t], out=Zr[:, t * n:(t + 1) * n])
+        for t in range(N):
+            Zr[t * n:(t + 1) * n] = Sb[t] @ Zr[t * n:(t + 1) * n]
+        Zr = _add_blade_blocks(np.negative(Zr, out=Zr), Sb)
         y = Ainv @ (gb + gd).ravel()
         Fr = gb.ravel() - np.einsum("sab,sb->sa", Sb, y.reshape(N, n)).ravel()
         return Zr, Fr, (Ainv, Sb, gb + gd, aux)
@@ -673,7 +682,10 @@ class WholeDiskCoordinates:
             if j == 0 and self._zero is not None:
                 Zr[0], Fr[0], kept[0] = self._zero
                 continue
-            Zr[j], Fr[j], kept[j] = self._compliant_harmonic(j, omega) if compliance and j else self._harmonic(j, omega)
+            if compliance and j:
+                Zr[j], Fr[j], kept[j] = self._compliant_harmonic(j, omega)
+            else:
+                _, Fr[j], kept[j] = self._harmonic(j, omega, out=Zr[j])
             if j == 0:
                 self._zero = (Zr[0].copy(), Fr[0].copy(), kept[0])
         self._kept = (float(omega), kept)
