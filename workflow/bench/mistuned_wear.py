@@ -1,7 +1,7 @@
 """Every blade's worn steady state on the whole disk against the cyclic sector's (issue 50).
 
-``python -m workflow.bench.mistuned_wear [--scene mistuning] [--hz 0] [--std 0] [--own-steps] [--set SECTION.KEY=VALUE ...]
-[--out results/bench]``
+``python -m workflow.bench.mistuned_wear [--scene mistuning] [--hz 0] [--std 0] [--own-steps]
+[--set SECTION.KEY=VALUE ...] [--out results/bench]``
 
 The scene's sector bundle is built through the pipeline (cached like any run), split into its
 blade and disk-per-ND substructures, and the tuned sector's friction-damped HB solution at
