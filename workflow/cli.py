@@ -99,7 +99,8 @@ def main(argv: list[str] | None = None) -> int:
 
 #: Seconds Ctrl-C waits for the main thread to stop by itself before the process ends at once.
 INTERRUPT_GRACE = 5.0
-INTERRUPTED = "interrupted; completed stages stay cached, the next run resumes from them"
+INTERRUPTED = ("interrupted; completed stages stay cached (and a Monte Carlo's finished patterns), "
+               "the next run resumes from them")
 
 
 @contextlib.contextmanager

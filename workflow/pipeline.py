@@ -21,7 +21,11 @@ Cache
     damaged one (truncated, edited, deleted file) is recomputed with a
     warning. Several runs may share a cache: each holds a shared lock, and
     two runs computing the same entry each write it whole (the last rename
-    wins; both are the same result).
+    wins; both are the same result). While it computes, a stage may keep
+    finished pieces of its work in ``<cache>/<stage>/<key>.progress/``
+    (:mod:`workflow.progress`: a Monte Carlo's patterns), which a run
+    interrupted inside it leaves for the next; the folder is removed once
+    the entry is written.
 
 Unconverged results
     A stage's summary may hold ``"unconverged": [str, …]``, one line per
@@ -67,7 +71,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Iterator
 
-from workflow import mpi
+from workflow import mpi, progress
 from workflow import stages as registry
 from workflow.errors import OutputError, SceneError
 from workflow.io import atomic_dir, manifest, verify_manifest, write_json
@@ -481,6 +485,12 @@ def _finish(scene, p, out, cache_root, status, timings, summaries, log, t_start,
     return summary
 
 
+def progress_folder(entry: Path) -> Path:
+    """Where the stage computing ``entry`` keeps its finished pieces until the entry is committed
+    (:mod:`workflow.progress`): beside the entry, named by its key."""
+    return entry.parent / f"{entry.name}.progress"
+
+
 def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: str, log: RunLog, grp=None) -> dict:
     """Run one stage into a fresh temporary folder that becomes ``entry`` whole.
 
@@ -497,7 +507,8 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
     tmp = grp.on_root(lambda: (log.note(f"{name}: computing (collective, {grp.size} ranks)"), cm.__enter__())[1])
     t0 = time.monotonic()
     try:
-        with heartbeat(log, name) if grp.root else contextlib.nullcontext():
+        with heartbeat(log, name) if grp.root else contextlib.nullcontext(), \
+                progress.stage_progress(progress_folder(entry), key):
             summary = grp.together(module.run, scene, dict(inputs), tmp, log.child(name))
     except BaseException as exc:
         if grp.root:
@@ -516,6 +527,7 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
             cm.__exit__(type(exc), exc, exc.__traceback__)
             raise
         cm.__exit__(None, None, None)
+        _remove(progress_folder(entry))
         log.info(f"{name}: computed in {got['seconds']:.1f} s on {grp.size} ranks")
         return json.loads((entry / STAGE_FILE).read_text())
 
@@ -527,7 +539,7 @@ def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, k
     name = module.NAME
     log.note(f"{name}: computing")
     t0 = time.monotonic()
-    with atomic_dir(entry) as tmp, heartbeat(log, name):
+    with atomic_dir(entry) as tmp, heartbeat(log, name), progress.stage_progress(progress_folder(entry), key):
         summary = module.run(scene, dict(inputs), tmp, log.child(name))
         seconds = time.monotonic() - t0
         got = {"stage": name, "key": key, "summary": summary if summary is not None else {},
@@ -537,6 +549,7 @@ def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, k
         # Last file written: an entry without it is never trusted.
         got["files"] = manifest(tmp)
         write_json(tmp / STAGE_FILE, got)
+    _remove(progress_folder(entry))
     log.info(f"{name}: computed in {seconds:.1f} s")
     return json.loads((entry / STAGE_FILE).read_text())
 

@@ -3,7 +3,8 @@
 Each fake has the real stage's NAME/SECTIONS/NEEDS/PRODUCES shape, checks
 that its inputs exist, writes a small file (plus a PNG and a CSV for the
 report), appends its name to the file ``$FAKE_TRACE`` (what ran, in order)
-and can be told to crash half-way through with ``$FAKE_CRASH=<stage>:interrupt``
+and keeps its first half in the pipeline's progress folder (``<stage>.resumed`` beside
+``$FAKE_TRACE`` when a later run found it there), and can be told to crash half-way through with ``$FAKE_CRASH=<stage>:interrupt``
 (KeyboardInterrupt) or ``<stage>:exit`` (``os._exit``: no clean-up at all).
 """
 from __future__ import annotations
@@ -48,6 +49,12 @@ def run(scene, inputs, out, log):
     with open(os.environ["FAKE_TRACE"], "a") as fh:
         fh.write(NAME + "\\n")
     (out / "part1.txt").write_text("first half")
+    from workflow import progress
+    store = progress.current()          # the first half kept for a run after an interruption
+    if store is not None:
+        if store.get("first-half") == {{"stage": NAME}}:
+            (Path(os.environ["FAKE_TRACE"]).parent / (NAME + ".resumed")).write_text("")
+        store.put("first-half", {{"stage": NAME}})
     crash = os.environ.get("FAKE_CRASH", "")
     if crash == NAME + ":interrupt":
         raise KeyboardInterrupt

@@ -128,12 +128,43 @@ def test_interrupt_inside_stage_leaves_no_partial_entry(tmp_path, fakes, monkeyp
         go(tmp_path, sc)
     cache = tmp_path / "cache"
     assert [p.name for p in (cache / "geometry").iterdir()] != []           # geometry done, kept
-    assert not (cache / "assembly").exists() or not any((cache / "assembly").iterdir())
+    assert not (cache / "assembly").exists() or all(p.name.endswith(".progress")    # only what it finished
+                                                      for p in (cache / "assembly").iterdir())
     assert not (tmp_path / "out" / "summary.json").exists()
     monkeypatch.delenv("FAKE_CRASH")
     fakes.ran()
     s = go(tmp_path, sc)
     assert fakes.ran() == ["assembly", "modes"] and s["stages"]["geometry"] == "cached"
+
+
+def test_an_interrupted_stage_keeps_its_finished_pieces_for_the_next_run(tmp_path, fakes, monkeypatch):
+    """What a stage finished before an interruption (a Monte Carlo's patterns) is in its progress
+    folder, beside its entry and named by its key; the next run finds it, and the folder goes once
+    the entry is written. A damaged piece is not used."""
+    sc = scene(tmp_path, ["modes"])
+    monkeypatch.setenv("FAKE_CRASH", "assembly:interrupt")
+    with pytest.raises(KeyboardInterrupt):
+        go(tmp_path, sc)
+    kept = list((tmp_path / "cache" / "assembly").glob("*.progress/first-half.json"))
+    assert len(kept) == 1
+    monkeypatch.delenv("FAKE_CRASH")
+    s = go(tmp_path, sc)
+    key = kept[0].parent.name.removesuffix(".progress")
+    assert (tmp_path / "cache" / "assembly" / key / ".stage.json").is_file()        # the same computation's key
+    assert (tmp_path / "fakes" / "assembly.resumed").exists() and s["stages"]["modes"] == "computed"
+    assert not kept[0].parent.exists()                                               # gone with the entry written
+    assert not (tmp_path / "fakes" / "modes.resumed").exists()                       # never interrupted
+
+    # a damaged piece (its data edited, its checksum not) is computed again
+    monkeypatch.setenv("FAKE_CRASH", "modes:interrupt")
+    sc2 = scene(tmp_path, ["modes"], extra="[modes]\ncount = 7\n")
+    with pytest.raises(KeyboardInterrupt):
+        go(tmp_path, sc2)
+    piece = next((tmp_path / "cache" / "modes").glob("*.progress/first-half.json"))
+    piece.write_text(piece.read_text().replace('"stage": "modes"', '"stage": "mode5"'))
+    monkeypatch.delenv("FAKE_CRASH")
+    go(tmp_path, sc2)
+    assert not (tmp_path / "fakes" / "modes.resumed").exists()
 
 
 def test_killed_process_leaves_previous_entry_and_next_run_recovers(tmp_path, fakes):
@@ -154,7 +185,8 @@ def test_killed_process_leaves_previous_entry_and_next_run_recovers(tmp_path, fa
     assert fakes.ran() == ["modes"]
     leftovers = list((tmp_path / "cache" / "modes").glob(".*.tmp"))
     assert leftovers and (leftovers[0] / "part1.txt").exists()                # the half-written entry
-    entries = [p for p in (tmp_path / "cache" / "modes").iterdir() if not p.name.startswith(".")]
+    entries = [p for p in (tmp_path / "cache" / "modes").iterdir()
+               if not p.name.startswith(".") and not p.name.endswith(".progress")]
     assert len(entries) == 1                                                   # only the old complete one
     assert json.loads((tmp_path / "out" / "summary.json").read_text()) == before
     assert (tmp_path / "out" / "modes" / "data.txt").is_file()

@@ -1,7 +1,7 @@
 """The mistuned disk's largest blade peak, pattern by pattern, against a dense scan (issue 50).
 
 ``python -m workflow.bench.disk_peaks [--scene mistuning] [--std 0.02] [--seeds 1,2,3] [--dense 0]
-[--out results/bench]``
+[--out results/bench] [--set KEY=VALUE …]``
 
 For each pattern (:func:`workflow.engine.studies.mistuning.pattern` with that seed) the forced
 response on the scene's friction grid (± ``band`` in ``points``) with its peak search
@@ -35,8 +35,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", default="1,2,3", help="comma-separated pattern seeds")
     ap.add_argument("--dense", type=int, default=0, help="points of a dense friction-damped scan (0: none)")
     ap.add_argument("--out", type=Path, default=Path("results/bench"))
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a scene override (repeatable)")
     a = ap.parse_args(argv)
-    scene, sub = scene_disk(a.scene, [], a.out)
+    scene, sub = scene_disk(a.scene, a.set, a.out)
     mt, hb, eo, N = scene["mistuning"], scene["hb"], int(scene["cyclic"].engine_order), sub.n_sectors
     nh = int(mt.harmonics)
     v = engine.Variant("hbm", nh, int(mt.time_samples) or ms.time_samples(nh, N, eo))

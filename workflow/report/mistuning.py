@@ -68,13 +68,19 @@ def plot_localisation(path: Path, deviations, friction_peaks, tied_peaks, tuned_
 
 def plot_amplification(path: Path, rows, bound: float) -> Path:
     """Histograms of the Monte Carlo's amplification factors (tied, friction-damped) with
-    their 95th percentiles and Whitehead's bound."""
+    their 95th percentiles, each one's 95 % interval (:func:`~workflow.engine.studies.mistuning.percentile_interval`;
+    "?" where the samples are too few to bound it) and Whitehead's bound."""
+    from workflow.engine.studies.mistuning import percentile_interval
+
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     for key, label in (("af_tied", "tied"), ("af_friction", "friction-damped")):
         v = np.array([r[key] for r in rows if r[key] is not None], float)
         if v.size:
-            ax.hist(v, bins=max(5, v.size // 4), alpha=0.55, label=f"{label}: p95 {np.percentile(v, 95):.3f}")
+            ci = percentile_interval(v)
+            lo, hi = ("?" if x is None else f"{x:.3f}" for x in (ci["lo"], ci["hi"]))
+            ax.hist(v, bins=max(5, v.size // 4), alpha=0.55,
+                    label=f"{label}: p95 {np.percentile(v, 95):.3f} [{lo}, {hi}]")
     ax.axvline(bound, color="k", ls="--", lw=1, label=f"Whitehead (1 + √N)/2 = {bound:.2f}")
     finish_axes(ax, "amplification factor", "patterns", f"{len(rows)} mistuning patterns")
     return write_figure(fig, path)

@@ -6,7 +6,8 @@ Reads the cyclic sector bundle, builds its blade and disk-per-ND substructures
 the same substructures) and the mistuned whole disk with every blade's contact pairs
 (:mod:`workflow.engine.studies.mistuning`), and writes each blade's FRF and peak, the
 amplification factors (tied and friction-damped), the localisation figure, the checks and,
-with ``mistuning.samples``, a Monte Carlo over patterns. docs/mistuning.md.
+with ``mistuning.samples``, a Monte Carlo over patterns (each finished pattern kept in the
+stage's progress folder, :mod:`workflow.progress`, so an interrupted run resumes). docs/mistuning.md.
 """
 from __future__ import annotations
 
@@ -83,7 +84,7 @@ def _full_disk_tied(sub, dev, mass, omega: float) -> np.ndarray:
 def run(scene, inputs: dict, out: Path, log) -> dict:
     from reduction.bundle import read_bundle
     from reduction.mistuned import WholeDiskCoordinates, substructures
-    from workflow import engine
+    from workflow import engine, progress
     from workflow.engine.studies import mistuning as ms
     from workflow.mpi import rank, world
     from workflow.stages.assembly import bundle_folder
@@ -125,14 +126,18 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     worn = _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t, ref, log, checks) if mt.wear else None
     mc_rows = []
     if mt.samples:
+        store = progress.current()
         mc_rows = ms.monte_carlo(lambda d: WholeDiskCoordinates(sub, d, mass), law_w, v, freqs, n_sectors=N,
                                  std=mt.std, samples=mt.samples, seed=mt.seed, tuned_peak_m=a_t, tuned_tied_m=a_tied,
                                  seeds=seeds, comm=world(), log=log.note if hasattr(log, "note") else None,
-                                 tol=hb.tol, maxiter=hb.max_iterations)
-        af["tied_p95"] = ms.percentile([r["af_tied"] for r in mc_rows])
-        af["friction_p95"] = ms.percentile([r["af_friction"] for r in mc_rows])
-        log.info(f"Monte Carlo, {len(mc_rows)} patterns at σ = {mt.std:g}: p95 amplification tied "
-                 f"{af['tied_p95']:.3f}, friction {af['friction_p95'] or float('nan'):.3f}")
+                                 store=store, tol=hb.tol, maxiter=hb.max_iterations)
+        _log_kept(store, len(mc_rows), world(), log)
+        for kind in ("tied", "friction"):
+            values = [r[f"af_{kind}"] for r in mc_rows]
+            af[f"{kind}_p95"] = ms.percentile(values)
+            af[f"{kind}_p95_ci"] = ms.percentile_interval(values)
+        log.info(f"Monte Carlo, {len(mc_rows)} patterns at σ = {mt.std:g}: p95 amplification "
+                 f"tied {_p95_text(af, 'tied')}, friction {_p95_text(af, 'friction')}")
     bound = ms.whitehead_bound(N)
     figures = _write(out, sub, dev, mass, resp, ref, rcc, (a_t, a_tied), worn, mc_rows, bound) if rank() == 0 else []
     warnings = []
@@ -160,6 +165,28 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                   "files": {"blades": "blades.csv", "blade_frf": "blade_frf.csv",
                             "figures": [Path(f).name for f in figures]},
                   "seconds": round(time.perf_counter() - t0, 3)})
+
+
+def _log_kept(store, samples: int, comm, log) -> None:
+    """Say how many Monte Carlo patterns came from an interrupted run's progress folder (summed
+    over the ranks), and how many kept files were damaged and computed again."""
+    if store is None:
+        return
+    found, damaged = store.found, len(store.damaged)
+    if comm is not None:
+        found, damaged = comm.allreduce(found), comm.allreduce(damaged)
+    if found or damaged:
+        log.info(f"Monte Carlo: {found} of {samples} patterns kept from an interrupted run ({store.folder})"
+                 + (f"; {damaged} kept files damaged, computed again" if damaged else ""))
+
+
+def _p95_text(af: dict, kind: str) -> str:
+    """The Monte Carlo's p95 of one amplification factor with its 95 % interval, for the log."""
+    p, ci = af[f"{kind}_p95"], af[f"{kind}_p95_ci"]
+    if p is None:
+        return "none"
+    bound = lambda x: "?" if x is None else f"{x:.3f}"  # noqa: E731
+    return f"{p:.3f} (95 % interval {bound(ci['lo'])} … {bound(ci['hi'])})"
 
 
 def _peak_warnings(resp, mc_rows) -> list:

@@ -256,7 +256,8 @@ def whitehead_bound(n_sectors: int) -> float:
 
 
 def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, samples: int, seed: int,
-                tuned_peak_m: float, tuned_tied_m: float, seeds=None, comm=None, log=None, **solve) -> list[dict]:
+                tuned_peak_m: float, tuned_tied_m: float, seeds=None, comm=None, log=None, store=None,
+                **solve) -> list[dict]:
     """Amplification factors of ``samples`` patterns (:func:`pattern` with seeds ``seed + 1 + i``):
     rows {"pattern", "seed", "af_tied", "af_friction", "peak_hz", "blade", "converged",
     "peak_resolved", "tied_peak_resolved", "peak_at_band_edge", "seconds"}, each a peak tracking on the grid
@@ -264,10 +265,20 @@ def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, 
     ``make_rc(deviations)`` → the disk's whole-disk coordinates; ``tuned_*_m`` [m]: the tuned
     peaks the factors divide by; ``solve``: :func:`forced_response`'s ``tol``, ``maxiter``, … (the
     scene's, as for its own pattern). Patterns are shared over the ranks of ``comm`` (every rank
-    gets every row)."""
+    gets every row). ``store``: where finished rows are kept as they come and found again after an
+    interruption — ``get(name)`` → the row or None, ``put(name, row)`` (the pipeline's
+    :class:`workflow.progress.Progress`); a kept row whose seed is not its pattern's is computed
+    again."""
     size, rank = (1, 0) if comm is None else (comm.Get_size(), comm.Get_rank())
     rows = []
     for i in range(rank, int(samples), size):
+        name = f"pattern-{i}"
+        kept = None if store is None else store.get(name)
+        if isinstance(kept, dict) and kept.get("pattern") == i and kept.get("seed") == seed + 1 + i:
+            rows.append(kept)
+            if log is not None:
+                log(f"pattern {i}: kept from an interrupted run")
+            continue
         t0 = time.perf_counter()
         dev = pattern(n_sectors, std, seed + 1 + i)
         r = forced_response(make_rc(dev), law, variant, freqs_hz, seeds=seeds, **solve)
@@ -277,6 +288,8 @@ def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, 
                      "peak_resolved": r.peak.get("resolved"), "tied_peak_resolved": r.tied_peak.get("resolved"),
                      "peak_at_band_edge": r.peak.get("at_band_edge"),
                      "seconds": time.perf_counter() - t0})
+        if store is not None:
+            store.put(name, rows[-1])
         if log is not None:
             log(f"pattern {i}: AF tied {rows[-1]['af_tied']:.3f}, friction {rows[-1]['af_friction'] or float('nan'):.3f} "
                 f"({rows[-1]['seconds']:.1f} s)")
@@ -385,7 +398,37 @@ def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0
                     history=h, unworn_x=x, control=control)
 
 
+def _finite(values) -> np.ndarray:
+    return np.asarray([x for x in values if x is not None and np.isfinite(x)], float)
+
+
 def percentile(values, q: float = 95.0) -> float | None:
     """The q-th percentile of the finite values, or None."""
-    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], float)
+    v = _finite(values)
     return float(np.percentile(v, q)) if v.size else None
+
+
+def percentile_interval(values, q: float = 95.0, confidence: float = 0.95) -> dict:
+    """A distribution-free confidence interval of the q-th percentile ξ from the finite values
+    (a Monte Carlo's amplification factors): two order statistics x₍r₎ ≤ ξ < x₍s₎. The number K
+    of samples at or below ξ is binomial (n, q/100) whatever the distribution, so
+    P(x₍r₎ ≤ ξ < x₍s₎) = P(r ≤ K ≤ s − 1); r and s leave at most (1 − confidence)/2 in each tail.
+    Returns {"lo", "hi", "coverage", "n"}: ``lo`` None when too few samples bound ξ from below,
+    ``hi`` None from above (at q = 95 and 95 % confidence that takes n ≥ 72: below, even the
+    largest sample is under ξ more often than 2.5 %), ``coverage`` the interval's exact
+    probability (≥ ``confidence``; more, since K is discrete)."""
+    from scipy.stats import binom
+
+    v = np.sort(_finite(values))
+    n, p, tail = v.size, float(q) / 100.0, 0.5 * (1.0 - float(confidence))
+    if n == 0:
+        return {"lo": None, "hi": None, "coverage": 0.0, "n": 0}
+    F = binom.cdf(np.arange(n + 1), n, p)                  # F[k] = P(K ≤ k)
+    below = np.flatnonzero(F <= tail)                       # r − 1 = the largest such k
+    r = int(below[-1]) + 1 if below.size else 0
+    above = np.flatnonzero(F >= 1.0 - tail)                 # s − 1 = the smallest such k
+    s = int(above[0]) + 1 if above.size else n + 1
+    lo = float(v[r - 1]) if r >= 1 else None
+    hi = float(v[s - 1]) if s <= n else None
+    coverage = float((F[s - 1] if s <= n else 1.0) - (F[r - 1] if r >= 1 else 0.0))
+    return {"lo": lo, "hi": hi, "coverage": coverage, "n": int(n)}
