@@ -15,7 +15,9 @@ Exit status (also in ``bladewear --help`` and the README):
 * 3 — finished, with unconverged results: every file is written, and
   ``summary.json["unconverged"]`` (also the log and the report) says which
   results did not converge and why;
-* 130 — interrupted (Ctrl-C, SIGTERM): completed stages stay cached.
+* 130 — interrupted (Ctrl-C, SIGTERM): completed stages stay cached, and so
+  do the finished pieces of the stage it stopped in (a Monte Carlo's patterns,
+  :mod:`workflow.progress`).
 
 Other exceptions are bugs and keep their traceback (exit 1). Ctrl-C or
 SIGTERM stop the run between two writes: cache entries and the run folder's
@@ -43,7 +45,7 @@ EPILOG = """exit status:
   0    finished, every result converged
   2    error (bad scene key, bundle file, option or output folder; one line 'error: ...')
   3    finished, with unconverged results (listed in summary.json "unconverged", the log and the report)
-  130  interrupted (Ctrl-C / SIGTERM); completed stages stay cached
+  130  interrupted (Ctrl-C / SIGTERM); completed stages stay cached (and a Monte Carlo's finished patterns)
 """
 
 
@@ -297,7 +299,7 @@ def cmd_scenes(args) -> int:
 
 
 def cmd_show(args) -> int:
-    from workflow.pipeline import check_entry, default_cache, plan
+    from workflow.pipeline import check_entry, default_cache, plan, progress_folder
     from workflow.scene import format_scene, load_scene
 
     scene = load_scene(args.scene, args.overrides)
@@ -313,13 +315,23 @@ def cmd_show(args) -> int:
         got, damage = check_entry(cache / name / p.keys[name]) if getattr(module, "CACHE", True) else (None, None)
         state = "cached" if got is not None else "damaged" if damage else "to compute"
         reads = f"; reads [{'], ['.join(module.SECTIONS)}]" if module.SECTIONS else ""
+        kept = _kept_pieces(progress_folder(cache / name / p.keys[name])) if got is None else 0
         print(f"#   {name:<16} {state:<11} needs {', '.join(module.NEEDS) or '-'}{reads}"
-              + (f" (cache entry damaged: {damage}; will recompute)" if damage else ""))
+              + (f" (cache entry damaged: {damage}; will recompute)" if damage else "")
+              + (f" ({kept} finished piece{'s' if kept > 1 else ''} kept from an interrupted run)" if kept else ""))
     if "reduction" in p.stages and ("hb" in p.stages or "wear" in p.stages):
         entry = cache / "reduction" / p.keys["reduction"]
         got, _ = check_entry(entry)
         print("\n" + _penalty_line(scene, None if got is None else entry / "reduced.npz"))
     return 0
+
+
+def _kept_pieces(folder: Path) -> int:
+    """How many finished pieces an interrupted run left in a stage's progress folder."""
+    try:
+        return sum(1 for f in folder.iterdir() if f.suffix == ".json" and not f.name.startswith("."))
+    except OSError:
+        return 0
 
 
 def _penalty_line(scene, reduced) -> str:

@@ -137,7 +137,7 @@ def test_interrupt_inside_stage_leaves_no_partial_entry(tmp_path, fakes, monkeyp
     assert fakes.ran() == ["assembly", "modes"] and s["stages"]["geometry"] == "cached"
 
 
-def test_an_interrupted_stage_keeps_its_finished_pieces_for_the_next_run(tmp_path, fakes, monkeypatch):
+def test_an_interrupted_stage_keeps_its_finished_pieces_for_the_next_run(tmp_path, fakes, monkeypatch, capsys):
     """What a stage finished before an interruption (a Monte Carlo's patterns) is in its progress
     folder, beside its entry and named by its key; the next run finds it, and the folder goes once
     the entry is written. A damaged piece is not used."""
@@ -147,6 +147,11 @@ def test_an_interrupted_stage_keeps_its_finished_pieces_for_the_next_run(tmp_pat
         go(tmp_path, sc)
     kept = list((tmp_path / "cache" / "assembly").glob("*.progress/first-half.json"))
     assert len(kept) == 1
+    from workflow.cli import main
+
+    main(["show", str(tmp_path / "scene.toml"), "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "out")])
+    shown = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("#   assembly")]
+    assert shown and "(1 finished piece kept from an interrupted run)" in shown[0]
     monkeypatch.delenv("FAKE_CRASH")
     s = go(tmp_path, sc)
     key = kept[0].parent.name.removesuffix(".progress")
