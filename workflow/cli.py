@@ -17,7 +17,7 @@ Exit status (also in ``bladewear --help`` and the README):
   results did not converge and why;
 * 130 — interrupted (Ctrl-C, SIGTERM): completed stages stay cached, and so
   do the finished pieces of the stage it stopped in (a Monte Carlo's patterns,
-  :mod:`workflow.progress`).
+  a contact-convergence study's meshes; :mod:`workflow.progress`).
 
 Other exceptions are bugs and keep their traceback (exit 1). Ctrl-C or
 SIGTERM stop the run between two writes: cache entries and the run folder's
@@ -45,7 +45,7 @@ EPILOG = """exit status:
   0    finished, every result converged
   2    error (bad scene key, bundle file, option or output folder; one line 'error: ...')
   3    finished, with unconverged results (listed in summary.json "unconverged", the log and the report)
-  130  interrupted (Ctrl-C / SIGTERM); completed stages stay cached (and a Monte Carlo's finished patterns)
+  130  interrupted (Ctrl-C / SIGTERM); completed stages stay cached (and a long stage's finished pieces)
 """
 
 
@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
 
 #: Seconds Ctrl-C waits for the main thread to stop by itself before the process ends at once.
 INTERRUPT_GRACE = 5.0
-INTERRUPTED = ("interrupted; completed stages stay cached (and a Monte Carlo's finished patterns), "
+INTERRUPTED = ("interrupted; completed stages stay cached (and a long stage's finished pieces), "
                "the next run resumes from them")
 
 

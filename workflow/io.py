@@ -73,10 +73,11 @@ def write_rows(path: str | os.PathLike, rows: list) -> Path:
 
 def write_json(path: str | os.PathLike, data) -> Path:
     """Write ``data`` as indented JSON atomically (NumPy scalars and arrays allowed)."""
-    return write_text(path, json.dumps(data, indent=2, default=_json_default) + "\n")
+    return write_text(path, json.dumps(data, indent=2, default=json_default) + "\n")
 
 
-def _json_default(obj):
+def json_default(obj):
+    """``json.dumps``'s ``default``: NumPy arrays and scalars as lists and numbers, paths as text."""
     import numpy as np
 
     if isinstance(obj, np.ndarray):

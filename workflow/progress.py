@@ -1,4 +1,5 @@
-"""Finished pieces of a long stage, kept across interrupted runs (a Monte Carlo's patterns).
+"""Finished pieces of a long stage, kept across interrupted runs (a Monte Carlo's patterns, a
+contact-convergence study's meshes).
 
 A cached stage is written whole or not at all (:func:`workflow.io.atomic_dir`): a run stopped
 three hours into a 100-pattern Monte Carlo would otherwise lose every pattern. While the
@@ -22,7 +23,7 @@ import re
 from pathlib import Path
 from typing import Iterator
 
-from workflow.io import write_text
+from workflow.io import json_default, write_text
 
 _current: contextvars.ContextVar["Progress | None"] = contextvars.ContextVar("bladewear_progress", default=None)
 _NAME = re.compile(r"^[A-Za-z0-9_.-]+$")
@@ -66,8 +67,9 @@ class Progress:
         return rec["data"]
 
     def put(self, name: str, data) -> Path:
-        """Keep ``data`` (JSON types: a dict of numbers, strings, None, lists) under ``name``, atomically."""
-        data = json.loads(json.dumps(data))       # the stored form, so that its checksum is what get() sees
+        """Keep ``data`` (JSON types — numbers, strings, None, lists, dicts — NumPy scalars and arrays
+        as lists) under ``name``, atomically."""
+        data = json.loads(json.dumps(data, default=json_default))   # the stored form: get() sees its checksum
         rec = {"key": self.key, "name": name, "sha256": _digest(data), "data": data}
         return write_text(self._path(name), json.dumps(rec, indent=1) + "\n")
 

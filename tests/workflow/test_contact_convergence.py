@@ -208,3 +208,35 @@ def test_stage_writes_table_and_figures(scene, tmp_path):
     assert all(r["grid_converged"] == r["grid_points"] == 5 for r in s["table"]) and s["unconverged"] == []
     for f in s["figures"] + [s["csv"]]:
         assert (tmp_path / f).is_file()
+
+
+def test_a_mesh_of_an_interrupted_study_is_kept_and_read_back(tmp_path, monkeypatch):
+    """Each contact mesh's row and worn profile are kept as the study goes (workflow.progress): a
+    run after an interruption reads a finished mesh back instead of meshing and wearing it again,
+    with the same row and arrays (NumPy scalars stored as numbers)."""
+    from workflow.progress import Progress
+
+    calls = []
+
+    def fake_level(scene, na, nc, work, log):
+        calls.append((na, nc))
+        p = na * nc
+        model = SimpleNamespace(position=np.arange(3.0 * p).reshape(p, 3) / 7, flank=np.arange(p) % 2)
+        return ({"pairs": np.int64(p), "max_wear_m": np.float64(1.25e-6), "wear_steady": True, "peak_at_band_edge": None},
+                {"model": model, "W": np.linspace(0, 1e-6, p) / 3, "flank_area_m2": 2.5e-4})
+
+    monkeypatch.setattr(cc, "run_level", fake_level)
+
+    class Log:
+        def info(self, msg):
+            pass
+
+    first = cc.kept_level(None, 4, 2, tmp_path, Log(), Progress(tmp_path / "p", "k"))
+    again = cc.kept_level(None, 4, 2, tmp_path, Log(), Progress(tmp_path / "p", "k"))
+    assert calls == [(4, 2)]                                   # the second read it back
+    assert again[0] == {k: (v.item() if isinstance(v, np.generic) else v) for k, v in first[0].items()}
+    for key in ("position", "flank"):
+        assert np.array_equal(getattr(again[1]["model"], key), getattr(first[1]["model"], key))
+    assert np.array_equal(again[1]["W"], first[1]["W"]) and again[1]["flank_area_m2"] == 2.5e-4
+    cc.kept_level(None, 4, 2, tmp_path, Log(), None)        # outside a pipeline run: computed
+    assert calls == [(4, 2), (4, 2)]

@@ -214,8 +214,29 @@ def unconverged(rows: list[dict]) -> list[str]:
     return out
 
 
+def kept_level(scene, na: int, nc: int, work: Path, log, store) -> tuple[dict, dict]:
+    """:func:`run_level`, or its row and worn profile kept by an interrupted run of the same study
+    (``store``: :class:`workflow.progress.Progress` or None); a computed level is kept there."""
+    from types import SimpleNamespace
+
+    name = f"mesh-{na}x{nc}"
+    got = None if store is None else store.get(name)
+    if got is not None:
+        log.info(f"contact mesh {na}×{nc}: kept from an interrupted run")
+        model = SimpleNamespace(position=np.asarray(got["position"], float), flank=np.asarray(got["flank"]))
+        return got["row"], {"model": model, "W": None if got["W"] is None else np.asarray(got["W"], float),
+                            "flank_area_m2": got["flank_area_m2"]}
+    row, raw = run_level(scene, na, nc, work, log)
+    if store is not None:
+        m = raw["model"]
+        store.put(name, {"row": row, "position": np.asarray(m.position), "flank": np.asarray(m.flank),
+                         "W": raw["W"], "flank_area_m2": raw["flank_area_m2"]})
+    return row, raw
+
+
 def run(scene, inputs: dict, out: Path, log) -> dict:
     from geometry.flankmap import common_points, profile_at
+    from workflow import progress
     from workflow.engine.studies.meshstudy import summarise
     from workflow.io import write_npz, write_rows
     from workflow.report.convergence import plot
@@ -225,8 +246,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     work = out / "work"
     work.mkdir(parents=True, exist_ok=True)
     rows, raws = [], []
+    store = progress.current()
     for na, nc in zip(cc.nodes_along, cc.nodes_across):
-        row, raw = run_level(scene, int(na), int(nc), work, log)
+        row, raw = kept_level(scene, int(na), int(nc), work, log, store)
         rows.append(row)
         raws.append(raw)
         write_rows(out / CSV, rows)  # the table grows on disk as the study runs
