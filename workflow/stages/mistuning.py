@@ -84,9 +84,9 @@ def _full_disk_tied(sub, dev, mass, omega: float) -> np.ndarray:
 def run(scene, inputs: dict, out: Path, log) -> dict:
     from reduction.bundle import read_bundle
     from reduction.mistuned import WholeDiskCoordinates, substructures
-    from workflow import engine, progress
+    from workflow import engine
     from workflow.engine.studies import mistuning as ms
-    from workflow.mpi import rank, world
+    from workflow.mpi import rank
     from workflow.stages.assembly import bundle_folder
     from workflow.stages.hb import clean
 
@@ -124,20 +124,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     if mt.checks:
         checks = _checks(sub, law_w, v, ref, freqs, seeds, dev, mass, resp, af, hb, log)
     worn = _wear(scene, sub, rc, rcc, law, law_w, v, resp, f_t, ref, log, checks) if mt.wear else None
-    mc_rows = []
-    if mt.samples:
-        store = progress.current()
-        mc_rows = ms.monte_carlo(lambda d: WholeDiskCoordinates(sub, d, mass), law_w, v, freqs, n_sectors=N,
-                                 std=mt.std, samples=mt.samples, seed=mt.seed, tuned_peak_m=a_t, tuned_tied_m=a_tied,
-                                 seeds=seeds, comm=world(), log=log.note if hasattr(log, "note") else None,
-                                 store=store, tol=hb.tol, maxiter=hb.max_iterations)
-        _log_kept(store, len(mc_rows), world(), log)
-        for kind in ("tied", "friction"):
-            values = [r[f"af_{kind}"] for r in mc_rows]
-            af[f"{kind}_p95"] = ms.percentile(values)
-            af[f"{kind}_p95_ci"] = ms.percentile_interval(values)
-        log.info(f"Monte Carlo, {len(mc_rows)} patterns at σ = {mt.std:g}: p95 amplification "
-                 f"tied {_p95_text(af, 'tied')}, friction {_p95_text(af, 'friction')}")
+    mc_rows = _monte_carlo(mt, sub, mass, law_w, v, freqs, seeds, (a_t, a_tied), hb, af, log) if mt.samples else []
     bound = ms.whitehead_bound(N)
     figures = _write(out, sub, dev, mass, resp, ref, rcc, (a_t, a_tied), worn, mc_rows, bound) if rank() == 0 else []
     warnings = []
@@ -165,6 +152,29 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                   "files": {"blades": "blades.csv", "blade_frf": "blade_frf.csv",
                             "figures": [Path(f).name for f in figures]},
                   "seconds": round(time.perf_counter() - t0, 3)})
+
+
+def _monte_carlo(mt, sub, mass, law_w, v, freqs, seeds, tuned: tuple, hb, af: dict, log) -> list[dict]:
+    """The Monte Carlo's rows over ``mt.samples`` patterns (shared over the MPI ranks, each kept in the
+    stage's progress folder as it comes), and its p95s with their 95 % intervals added to ``af``."""
+    from reduction.mistuned import WholeDiskCoordinates
+    from workflow import progress
+    from workflow.engine.studies import mistuning as ms
+    from workflow.mpi import world
+
+    store = progress.current()
+    rows = ms.monte_carlo(lambda d: WholeDiskCoordinates(sub, d, mass), law_w, v, freqs, n_sectors=sub.n_sectors,
+                          std=mt.std, samples=mt.samples, seed=mt.seed, tuned_peak_m=tuned[0], tuned_tied_m=tuned[1],
+                          seeds=seeds, comm=world(), log=log.note if hasattr(log, "note") else None,
+                          store=store, tol=hb.tol, maxiter=hb.max_iterations)
+    _log_kept(store, len(rows), world(), log)
+    for kind in ("tied", "friction"):
+        values = [r[f"af_{kind}"] for r in rows]
+        af[f"{kind}_p95"] = ms.percentile(values)
+        af[f"{kind}_p95_ci"] = ms.percentile_interval(values)
+    log.info(f"Monte Carlo, {len(rows)} patterns at σ = {mt.std:g}: p95 amplification "
+             f"tied {_p95_text(af, 'tied')}, friction {_p95_text(af, 'friction')}")
+    return rows
 
 
 def _log_kept(store, samples: int, comm, log) -> None:
