@@ -299,6 +299,7 @@ def cmd_scenes(args) -> int:
 
 
 def cmd_show(args) -> int:
+    from workflow import progress
     from workflow.pipeline import check_entry, default_cache, plan, progress_folder
     from workflow.scene import format_scene, load_scene
 
@@ -315,7 +316,7 @@ def cmd_show(args) -> int:
         got, damage = check_entry(cache / name / p.keys[name]) if getattr(module, "CACHE", True) else (None, None)
         state = "cached" if got is not None else "damaged" if damage else "to compute"
         reads = f"; reads [{'], ['.join(module.SECTIONS)}]" if module.SECTIONS else ""
-        kept = _kept_pieces(progress_folder(cache / name / p.keys[name])) if got is None else 0
+        kept = progress.kept(progress_folder(cache / name / p.keys[name])) if got is None else 0
         print(f"#   {name:<16} {state:<11} needs {', '.join(module.NEEDS) or '-'}{reads}"
               + (f" (cache entry damaged: {damage}; will recompute)" if damage else "")
               + (f" ({kept} finished piece{'s' if kept > 1 else ''} kept from an interrupted run)" if kept else ""))
@@ -324,14 +325,6 @@ def cmd_show(args) -> int:
         got, _ = check_entry(entry)
         print("\n" + _penalty_line(scene, None if got is None else entry / "reduced.npz"))
     return 0
-
-
-def _kept_pieces(folder: Path) -> int:
-    """How many finished pieces an interrupted run left in a stage's progress folder."""
-    try:
-        return sum(1 for f in folder.iterdir() if f.suffix == ".json" and not f.name.startswith("."))
-    except OSError:
-        return 0
 
 
 def _penalty_line(scene, reduced) -> str:

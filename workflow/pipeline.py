@@ -23,7 +23,8 @@ Cache
     two runs computing the same entry each write it whole (the last rename
     wins; both are the same result). While it computes, a stage may keep
     finished pieces of its work in ``<cache>/<stage>/<key>.progress/``
-    (:mod:`workflow.progress`: a Monte Carlo's patterns), which a run
+    (:mod:`workflow.progress`: a Monte Carlo's patterns, a contact-convergence
+    study's meshes), which a run
     interrupted inside it leaves for the next; the folder is removed once
     the entry is written.
 

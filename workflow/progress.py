@@ -84,6 +84,15 @@ def stage_progress(folder: str | Path, key: str) -> Iterator[Progress]:
         _current.reset(token)
 
 
+def kept(folder: str | Path) -> int:
+    """How many pieces an interrupted run left in ``folder`` (``bladewear show``; unchecked: a damaged
+    one is found so only when read)."""
+    try:
+        return sum(1 for f in Path(folder).iterdir() if f.suffix == ".json" and not f.name.startswith("."))
+    except OSError:
+        return 0
+
+
 def current() -> Progress | None:
     """The progress folder of the stage being computed, or None (outside a pipeline run)."""
     return _current.get()
