@@ -2,9 +2,10 @@
 
 Each fake has the real stage's NAME/SECTIONS/NEEDS/PRODUCES shape, checks
 that its inputs exist, writes a small file (plus a PNG and a CSV for the
-report), appends its name to the file ``$FAKE_TRACE`` (what ran, in order)
-and keeps its first half in the pipeline's progress folder (``<stage>.resumed`` beside
-``$FAKE_TRACE`` when a later run found it there), and can be told to crash half-way through with ``$FAKE_CRASH=<stage>:interrupt``
+report), appends its name to the file ``$FAKE_TRACE`` (what ran, in order),
+keeps its first half in the pipeline's progress folder (``<stage>.resumed`` beside
+``$FAKE_TRACE`` when a later run found it there), and can be told to crash half-way
+through with ``$FAKE_CRASH=<stage>:interrupt``
 (KeyboardInterrupt) or ``<stage>:exit`` (``os._exit``: no clean-up at all).
 """
 from __future__ import annotations

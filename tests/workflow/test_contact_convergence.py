@@ -222,8 +222,8 @@ def test_a_mesh_of_an_interrupted_study_is_kept_and_read_back(tmp_path, monkeypa
         calls.append((na, nc))
         p = na * nc
         model = SimpleNamespace(position=np.arange(3.0 * p).reshape(p, 3) / 7, flank=np.arange(p) % 2)
-        return ({"pairs": np.int64(p), "max_wear_m": np.float64(1.25e-6), "wear_steady": True, "peak_at_band_edge": None},
-                {"model": model, "W": np.linspace(0, 1e-6, p) / 3, "flank_area_m2": 2.5e-4})
+        row = {"pairs": np.int64(p), "max_wear_m": np.float64(1.25e-6), "wear_steady": True, "peak_at_band_edge": None}
+        return (row, {"model": model, "W": np.linspace(0, 1e-6, p) / 3, "flank_area_m2": 2.5e-4})
 
     monkeypatch.setattr(cc, "run_level", fake_level)
 

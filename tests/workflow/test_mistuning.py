@@ -443,8 +443,9 @@ def test_the_p95_interval_covers_the_percentile_as_often_as_it_says():
     """The distribution-free interval of the 95th percentile (order statistics, K ~ binomial):
     over 4000 samples of 100 uniform (ξ = 0.95) and lognormal values, the share of intervals
     holding ξ is the stated coverage within four standard errors of that share (0.008). An
-    order statistic off by one moves the coverage by 1.7 % (lower) or 3.1 % (upper). With too few samples for an upper
-    bound (n < 72) the interval says so (None) instead of quoting the largest sample."""
+    order statistic off by one moves the coverage by 1.7 % (lower) or 3.1 % (upper). With too
+    few samples for an upper bound (n < 72) the interval says so (None) instead of quoting the
+    largest sample."""
     from scipy.stats import lognorm
 
     rng = np.random.default_rng(5)
