@@ -636,7 +636,8 @@ def test_matrix_free_march_reaches_the_dense_worn_steady_state(monkeypatch):
 
 
 def test_wear_law_with_a_length_scale():
-    """wear.length_m: rate = S · rate_local, S the area-weighted Gaussian of each flank. ℓ → 0 is
+    """wear.length_m over every pair (``length_over = "all"``): rate = S · rate_local, S the
+    area-weighted Gaussian of each flank. ℓ → 0 is
     the node-wise law exactly; ℓ far above the pairs' spacing gives every pair of a flank the
     area-weighted mean rate; the derivatives (S·∂rate/∂x, S·diag ∂rate/∂W) match finite
     differences as the node-wise ones do (test_wear_derivatives_match_finite_differences)."""
@@ -651,15 +652,15 @@ def test_wear_law_with_a_length_scale():
     W = np.array([1e-7, 0.0, 2e-7])
     local = WearProblem(hb, area=area, k_w=1e-14).evaluate(x, W)
     assert averaging(pos, area, np.zeros(p), 0.0) is None
-    tiny = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(p), 1e-5))
+    tiny = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(p), 1e-5, over="all"))
     np.testing.assert_allclose(tiny.evaluate(x, W).rate, local.rate, rtol=1e-12)   # exp(−(1 mm)²/2ℓ²) = 0
-    wide = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(p), 10.0))
-    assert not wide.structured
+    wide = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(p), 10.0, over="all"),
+                       structured=False)
     st = wide.evaluate(x, W, jacobian=True)
     np.testing.assert_allclose(st.rate, np.sum(area * local.rate) / area.sum(), rtol=1e-6)
     # two flanks do not mix
-    two = averaging(pos, area, np.array([0, 1, 1]), 10.0)
-    assert two[0, 0] == 1.0 and two[0, 1:].sum() == 0.0 and two[1:, 0].sum() == 0.0
+    two = averaging(pos, area, np.array([0, 1, 1]), 10.0, over="all")
+    assert two.S[0, 0] == 1.0 and two.S[0, 1:].sum() == 0.0 and two.S[1:, 0].sum() == 0.0
     h = 1e-10
     for i in range(p):
         Wp = W.copy()
@@ -674,7 +675,7 @@ def test_wear_law_with_a_length_scale():
 def test_length_scale_march_reaches_a_worn_steady_state(tmp_path):
     """The pseudo-time march on the block model (3 pairs 1 mm apart, the middle one preloaded
     twice as hard, stuck): node-wise, the outer pairs wear (86 µm) and the middle one not at all;
-    with ℓ = 1 mm the wear spreads onto it (measured 8.7 / 28.4 / 58.8 µm), steady with every
+    averaged over every pair (``length_over = "all"``), with ℓ = 1 mm the wear spreads onto it (measured 8.7 / 28.4 / 58.8 µm), steady with every
     averaged rate ~0; with ℓ = 10 mm ≫ the spacing every pair wears at the flank's mean rate,
     the stuck pair with its slipping neighbours, and there is no worn steady state."""
     from workflow.engine import WearOptions, worn_steady_state
@@ -685,11 +686,145 @@ def test_length_scale_march_reaches_a_worn_steady_state(tmp_path):
     base = dict(methods=("pseudo-time",), nh=2, nit=32, k_w=1e-14, cycles_per_block=1e6, frequency_hz=20.0,
                 eps_check_factor=0.0, nh_check=False, compare_unworn=False, resonance_shift=False)
     node = worn_steady_state(m, law, WearOptions(**base)).histories["pseudo-time"]
-    ell = worn_steady_state(m, law, WearOptions(**base, length_m=1e-3)).histories["pseudo-time"]
+    ell = worn_steady_state(m, law, WearOptions(**base, length_m=1e-3, length_over="all")).histories["pseudo-time"]
     assert node.steady and ell.steady and node.W[1] == 0.0 < ell.W[1]
     # steady: the wear still to come over a block of cycles is below wear.steady_tol of max W
     assert np.max(ell.final_rate) * base["cycles_per_block"] <= 1e-4 * np.max(ell.W)
     assert np.ptp(ell.W) < np.ptp(node.W)
-    wide = worn_steady_state(m, law, WearOptions(**base, length_m=1e-2)).histories["pseudo-time"]
+    wide = worn_steady_state(m, law, WearOptions(**base, length_m=1e-2, length_over="all")).histories["pseudo-time"]
     assert not wide.steady and wide.persistent_slip
     assert np.ptp(wide.W) < 0.05 * np.max(wide.W)
+
+
+def test_averaging_over_slipping_pairs_is_the_mean_of_the_slipping_neighbours():
+    """wear.length_over = "slip": M_ij = χ_i S_ij / Σ_k S_ik χ_k (χ: q > 0). A stuck or open pair
+    (q = 0) wears nothing whatever its neighbours do; with ℓ far above the spacing every slipping
+    pair wears at the area-weighted mean q of the slipping pairs alone; with ℓ → 0 it is the
+    node-wise law; a flank boundary still separates."""
+    from workflow.engine.wear.law import Averaging, averaging
+
+    pos = np.column_stack([np.arange(5) * 1e-3, np.zeros(5), np.zeros(5)])
+    area = np.array([1.0, 2.0, 1.5, 0.5, 1.0]) * 1e-6
+    q = np.array([3.0, 0.0, 1.0, 4.0, 0.0]) * 1e-12
+    wide = averaging(pos, area, np.zeros(5), 10.0, over="slip")
+    slipping = q > 0
+    mean = np.sum(area[slipping] * q[slipping]) / area[slipping].sum()
+    # the Gaussian over 4 mm at ℓ = 10 m departs from flat by (4 mm / ℓ)²/2 = 8e-8
+    np.testing.assert_allclose(wide.operator(q) @ q, np.where(slipping, mean, 0.0), rtol=1e-7)
+    # "all" gives the stuck pairs that mean too (over every pair's area)
+    everyone = averaging(pos, area, np.zeros(5), 10.0, over="all").operator(q) @ q
+    np.testing.assert_allclose(everyone, np.sum(area * q) / area.sum(), rtol=1e-6)
+    tiny = averaging(pos, area, np.zeros(5), 1e-5, over="slip")
+    np.testing.assert_allclose(tiny.operator(q) @ q, q, rtol=1e-12)
+    two = averaging(pos, area, np.array([0, 0, 1, 1, 1]), 10.0, over="slip")
+    r = two.operator(q) @ q
+    np.testing.assert_allclose(r[:2], [3e-12, 0.0], rtol=1e-12)
+    np.testing.assert_allclose(r[2:4], (1.5 * 1.0 + 0.5 * 4.0) / 2.0 * 1e-12, rtol=1e-7)
+    assert r[4] == 0.0
+    assert not np.any(two.operator(np.zeros(5)))          # nothing slips: nothing wears
+    with pytest.raises(ValueError, match="slip"):
+        Averaging(np.eye(2), over="stick")
+
+
+def test_slip_averaged_law_keeps_stuck_pairs_unworn_and_settles():
+    """The block model (test_length_scale_march_reaches_a_worn_steady_state) with the rate averaged
+    over the slipping pairs only: the stuck middle pair never wears, at ℓ = 1 mm and at ℓ = 10 mm ≫
+    the spacing, where the all-pairs law has no worn steady state; the march is steady (the wear
+    still to come below wear.steady_tol of max W); and the derivatives match finite differences
+    with the stick/slip set held (it does not change under a 1e-10 perturbation)."""
+    from workflow.engine import WearOptions, worn_steady_state
+    from workflow.engine.contact import ContactLaw
+    from workflow.engine.wear.law import averaging
+    from workflow.engine.wear.problem import rate_w
+
+    m = _reduced_block_model()
+    law = ContactLaw(mu=np.full(m.n_pairs, 0.3), eps_n=1e5, eps_t=1e5, gap=np.zeros(m.n_pairs))
+    base = dict(methods=("pseudo-time",), nh=2, nit=32, k_w=1e-14, cycles_per_block=1e6, frequency_hz=20.0,
+                eps_check_factor=0.0, nh_check=False, compare_unworn=False, resonance_shift=False)
+    node = worn_steady_state(m, law, WearOptions(**base)).histories["pseudo-time"]
+    for ell in (1e-3, 1e-2):
+        h = worn_steady_state(m, law, WearOptions(**base, length_m=ell, length_over="slip")).histories["pseudo-time"]
+        assert h.steady and h.W[1] == 0.0 == node.W[1]
+        assert np.max(h.final_rate) * base["cycles_per_block"] <= 1e-4 * np.max(h.W)
+        assert np.all(h.W[[0, 2]] > 0.5 * np.max(node.W))
+
+    hb = hb_problem(20.0, nh=2, nit=32)
+    x = hb.solve(tol=1e-11).x
+    p = hb.p
+    pos = np.column_stack([np.arange(p) * 1e-3, np.zeros(p), np.zeros(p)])
+    area = np.array([1e-6, 2e-6, 1.5e-6])
+    W = np.array([1e-7, 0.0, 2e-7])
+    wp = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(p), 10.0, over="slip"))
+    st = wp.evaluate(x, W, jacobian=True)
+    local = WearProblem(hb, area=area, k_w=1e-14).evaluate(x, W).rate
+    assert np.all((st.rate > 0) == (local > 0))
+    step = 1e-10
+    for i in range(p):
+        Wp = W.copy()
+        Wp[i] += step
+        np.testing.assert_allclose((wp.evaluate(x, Wp).rate - st.rate) / step, rate_w(st)[:, i], rtol=1e-3, atol=1e-20)
+    v = np.random.default_rng(0).standard_normal(hb.n) * 1e-10
+    sp, sm = wp.evaluate(x + v, W), wp.evaluate(x - v, W)
+    np.testing.assert_allclose((sp.rate - sm.rate) / 2, st.G_x @ v, rtol=1e-3, atol=1e-22)
+
+
+def _averaged_block_problems():
+    """(x0, dense, free): hb_problem's three pairs 1 mm apart, the slip-averaged
+    law at ℓ = 3 mm, the wear problem with J formed and matrix-free."""
+    from workflow.engine.wear.law import averaging
+
+    hb = hb_problem(20.0, nh=3, nit=32)
+    x0 = hb.solve(tol=1e-10).x
+    p = hb.p
+    pos = np.column_stack([np.arange(p) * 1e-3, np.zeros(p), np.zeros(p)])
+    area = np.array([1e-6, 2e-6, 1.5e-6])
+    avg = averaging(pos, area, np.zeros(p), 3e-3, over="slip")
+    dense, free = (WearProblem(hb_problem(20.0, nh=3, nit=32), area=area, k_w=1e-14, structured=s, averaging=avg)
+                   for s in (False, True))
+    return x0, dense, free
+
+
+def test_matrix_free_step_with_a_length_scale_is_a_w_method():
+    """With the rate averaged (rate = M q) the matrix-free step keeps the vibration rows and the
+    rate M q exact and takes M's diagonal into the wear rows' derivatives (a W-method,
+    :func:`workflow.engine.wear.structured.augmented_step`): one step is the exact solution of
+    that system, to the structured GMRES's tolerance."""
+    from workflow.engine.linsolve import GMRES_RTOL
+    from workflow.engine.wear.pseudotime import _augmented_step
+
+    x0, dense, free = _averaged_block_problems()
+    p, n = dense.p, dense.n
+    W = np.array([1e-7, 0.0, 2e-7])
+    st, sf = dense.evaluate(x0, W, jacobian=True), free.evaluate(x0, W, jacobian=True)
+    m = np.diagonal(sf.rate_map)
+    assert np.any(sf.rate_map - np.diag(m))              # the averaging couples pairs here
+    np.testing.assert_array_equal(sf.rate, st.rate)
+    local_Gx = np.linalg.solve(st.rate_map[np.ix_(m > 0, m > 0)], st.G_x[m > 0])   # M⁻¹ (M G_x,loc)
+    Gx = np.zeros_like(st.G_x)
+    Gx[m > 0] = m[m > 0, None] * local_Gx
+    h = 1e6
+    A = np.block([[st.J, st.R_W], [-h * Gx, np.eye(p) - h * np.diag(m * sf.G_W)]])
+    dz = np.linalg.solve(A, np.concatenate([-st.R, h * st.rate]))
+    dx, dW = _augmented_step(free, sf, h)
+    np.testing.assert_allclose(dx, dz[:n], rtol=0, atol=1e3 * GMRES_RTOL * np.abs(dz[:n]).max())
+    np.testing.assert_allclose(dW, dz[n:], rtol=0, atol=1e3 * GMRES_RTOL * np.abs(dz[n:]).max())
+
+
+@pytest.mark.slow
+def test_matrix_free_march_with_a_length_scale_reaches_the_formed_worn_state(monkeypatch):
+    """The W-method march (test_matrix_free_step_with_a_length_scale_is_a_w_method), J never
+    formed, ends on the formed-J march's worn state within 10 × their rtol (measured 1.4e-4 at
+    rtol 1e-3, 7e-5 at 1e-4, 1.2e-5 at 1e-5), the stuck pair unworn."""
+    import workflow.engine.hb as hbmod
+
+    x0, dense, free = _averaged_block_problems()
+    kw = dict(cycles_per_block=5e5, steady_tol=1e-4, tol=1e-9, rtol=1e-3, max_steps=2000)
+    formed = pseudo_time_wear(dense, x0, **kw)
+
+    def forming(*a, **k):
+        raise AssertionError("the matrix-free march formed J")
+    monkeypatch.setattr(hbmod.HBProblem, "residual_jacobian", forming)
+    monkeypatch.setattr(hbmod.HBProblem, "jacobian", forming)
+    marched = pseudo_time_wear(free, x0, **kw)
+    assert formed.steady and marched.steady and marched.W[1] == 0.0
+    assert profile_rel_diff(marched.W, formed.W) <= 10 * kw["rtol"]

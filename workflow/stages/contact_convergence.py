@@ -275,6 +275,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                       "worn_volume_m3": r["wear_volume_m3"]} for r in rows],
             "unconverged": unconverged(rows),
             "table": rows, "layout": scene["geometry"].contact_nodes, "harmonics": int(cc.harmonics),
-            "wear_harmonics": wear_harmonics(cc),
+            "wear_harmonics": wear_harmonics(cc), "law_length_m": float(scene["wear"].length_m),
+            "law_length_over": scene["wear"].length_over,
             "time_samples": int(cc.time_samples), **summary, "csv": CSV,
             "profiles": PROFILES if profiles is not None else None, "figures": figures}

@@ -45,6 +45,7 @@ def options(scene):
                        rtol=pt.wear_rtol, dt_max_blocks=pt.wear_dt_max, eps_check_factor=ct.eps_check,
                        nh_check=hb.nh_check, operating_point=w.operating_point, detuning=w.detuning,
                        measure_length_m=w.measure_length_m, resonance_shift=w.resonance_shift, length_m=w.length_m,
+                       length_over=w.length_over,
                        mission=tuple(tuple(float(v) for v in point) for point in w.mission), dwell_tol=w.dwell_tol,
                        dwell_step=w.dwell_step, dwell_stages=w.dwell_stages,
                        control=w.control, tip_amplitude_m=w.tip_amplitude_m)
@@ -77,7 +78,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
                "methods": {m: h.summary() for m, h in study.histories.items()},
                "eps_check": study.eps_check, "nh_check": study.nh_check, "unconverged": study.unconverged(), "warnings": study.warnings(),
                "mu_source": model.friction(ct.mu)[1],
-               "operating_point": study.operating_point, "law_length_m": float(w.length_m), "measures": study.measures,
+               "operating_point": study.operating_point, "law_length_m": float(w.length_m), "law_length_over": w.length_over, "measures": study.measures,
                "worn_volume_m3": {k: v["worn_volume_m3"] for k, v in (study.measures.get("flanks") or {}).items()},
                "energy_per_cycle_J": study.energy_per_cycle_J, "resonance_shift": study.resonance_shift}
     if w.response_detunings:

@@ -173,7 +173,7 @@ class AmplitudeProblem:
             raise SceneError(f"wear.tip_amplitude_m = {target!r}: the held tip amplitude must be > 0 m")
         self.wp = wp
         #: J formed (False) or its blocks, bordered matrix-free (True): as the vibration's own
-        #: (:attr:`WearProblem.structured`; a length scale forms J)
+        #: (:attr:`WearProblem.structured`)
         self.structured = wp.structured
         self.C, self.d = (np.asarray(a, dtype=complex) for a in tip)
         self.target = float(target)
@@ -223,14 +223,14 @@ class AmplitudeProblem:
         o, a = self.tip(x)
         sig = self.sigma
         R = np.append(st.R, sig * (a / self.target - 1.0))
-        out = WearState(R=R, rate=st.rate, lam=st.lam, slip=st.slip)
+        out = WearState(R=R, rate=st.rate, lam=st.lam, slip=st.slip, rate_map=st.rate_map)
         if not jacobian:
             return out
         hb, wp = self.wp.hb, self.wp
         R_s = -self._r_dyn + hb.apply_contact_blocks(st.G, self._a_dyn.reshape(-1, 1))[:, 0]
         rate_s = np.einsum("pa,pa->p", st.g, self._a_dyn.ravel()[wp._rows])
-        if wp.averaging is not None:
-            rate_s = wp.averaging @ rate_s
+        if st.rate_map is not None:
+            rate_s = st.rate_map @ rate_s
         w = np.conj(o) @ self.C / max(a, 1e-300)             # ∂‖o₁‖/∂U₁ as Re(w dU₁)
         gc = np.zeros((hb.nc, hb.nr))
         gc[1], gc[2] = w.real, w.imag                        # U₁ = c₁ − i c₂

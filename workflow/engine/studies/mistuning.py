@@ -346,8 +346,8 @@ def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0
     ``tol``, the march's ``steady_tol``, ``rtol``, ``max_steps``, ``cycles_per_block``);
     ``U0`` (Nh+1, n_rel) relative harmonics [m] of a converged vibration at ω to start from
     (the forced response's); if it is not converged here the solver cascade starts from it and
-    from the stuck guess. The node-wise law only: a length scale (``opt.length_m`` > 0) couples
-    the pairs, and the march would form the whole disk's J. With ``opt.control`` "amplitude"
+    from the stuck guess. The node-wise law only (``opt.length_m`` = 0): the averaging needs every
+    blade's pair positions, which the whole disk's coordinates do not carry. With ``opt.control`` "amplitude"
     the most vibrating blade's tip is held (:func:`held_blade`) and the load follows.
     ``step_lengths`` (cycles): the march's steps given — another march's, replayed on the same
     path (:func:`~workflow.engine.wear.pseudo_time_wear`): the tuned disk against the sector."""
@@ -362,7 +362,7 @@ def worn_blades(rc, law, variant, omega: float, area, opt, *, n_sectors: int, U0
 
     if opt.length_m > 0:
         raise SceneError(f"wear.length_m = {opt.length_m:g}: the whole disk's wear takes the node-wise law "
-                         "(wear.length_m = 0); a length scale couples its pairs into one dense Jacobian")
+                         "(wear.length_m = 0)")
     N = int(n_sectors)
     cond = condensed(rc, omega, variant.nh)
     st = static_state(cond.Zr, cond.Fr, law, opt.max_passes)

@@ -51,12 +51,43 @@ def wear_per_cycle(lam: np.ndarray, uT: np.ndarray, area, k_w: float) -> np.ndar
     return k_w * np.sum(0.5 * (p + np.roll(p, 1, axis=0)) * ds, axis=0)
 
 
-def averaging(position, area, flank, length: float) -> np.ndarray | None:
-    """(p, p) averaging of the frictional power over ``length`` [m] (a Gaussian weighted by the
-    tributary areas, within each flank: :func:`workflow.engine.wear.measures.filter_matrix`), or
-    None for length 0 — the wear law with a length scale: rate_i = k_w Σ_j S_ij q_j, q the
-    cycle's frictional work per unit area. Averaging q (not p or the slip alone) keeps the worn
-    steady state what it is: no slip anywhere, no wear anywhere."""
+#: the pairs an averaged rate is shared over (:class:`Averaging`)
+AVERAGING_OVER = ("slip", "all")
+
+
+class Averaging:
+    """The wear law with a length scale: rate_i = k_w Σ_j M_ij q_j, q the cycle's frictional work
+    per unit area [J/m² per cycle → m per cycle through k_w], M from S (p, p), a row-stochastic
+    Gaussian of width ℓ weighted by the tributary areas within each flank.
+
+    * ``over = "all"``: M = S. Every pair within ℓ of a slipping one wears, a stuck one too.
+    * ``over = "slip"``: M_ij = χ_i S_ij / Σ_k S_ik χ_k, χ_i = 1 where pair i slips in contact
+      (q_i > 0). A slipping pair wears at the mean q of the slipping pairs within ℓ of it; a stuck
+      or open pair wears nothing, as the stick zone of a partial-slip fretting scar stays unworn.
+      The worn steady states are the node-wise law's (q = 0 everywhere); only the path to them is
+      smoothed. χ is piecewise constant in the state, so the derivatives take it as fixed.
+    """
+
+    def __init__(self, S, over: str = "slip"):
+        if over not in AVERAGING_OVER:
+            raise ValueError(f"wear averaging over {over!r}: one of {', '.join(AVERAGING_OVER)}")
+        self.S, self.over = np.asarray(S, dtype=float), over
+
+    def operator(self, q) -> np.ndarray:
+        """M (p, p) at the local rates ``q`` (p,) [m/cycle]: the averaged rate is ``M @ q``."""
+        if self.over == "all":
+            return self.S
+        chi = (np.asarray(q) > 0.0).astype(float)
+        share = self.S @ chi                       # > 0 wherever χ = 1 (S_ii > 0)
+        return (chi / np.where(share > 0.0, share, 1.0))[:, None] * self.S
+
+
+def averaging(position, area, flank, length: float, over: str = "slip") -> Averaging | None:
+    """The averaging of the frictional power over ``length`` [m] (a Gaussian weighted by the
+    tributary areas, within each flank: :func:`workflow.engine.wear.measures.filter_matrix`) among
+    the pairs ``over`` selects (:class:`Averaging`), or None for length 0 — the node-wise law.
+    Averaging q (not p or the slip alone) keeps the worn steady state what it is: no slip
+    anywhere, no wear anywhere."""
     from workflow.engine.wear.measures import filter_matrix
 
     if length <= 0:
@@ -66,7 +97,7 @@ def averaging(position, area, flank, length: float) -> np.ndarray | None:
     for f in np.unique(fl):
         m = np.flatnonzero(fl == f)
         S[np.ix_(m, m)] = filter_matrix(np.asarray(position)[m], np.asarray(area)[m], length)
-    return S
+    return Averaging(S, over)
 
 
 def profile_rel_diff(W_a, W_b) -> float:

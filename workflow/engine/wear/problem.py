@@ -16,7 +16,7 @@ import scipy.linalg
 from workflow.engine.errors import SolverError
 from workflow.engine.solvers import newton
 from workflow.engine.wear import structured as matrix_free
-from workflow.engine.wear.law import pressure, wear_per_cycle
+from workflow.engine.wear.law import Averaging, pressure, wear_per_cycle
 
 @dataclass
 class WearState:
@@ -39,6 +39,9 @@ class WearState:
     G: np.ndarray | None = None   # contact blocks (p, 3nc, 3nc) (HBProblem.contact_blocks)
     g: np.ndarray | None = None   # ∂rate_i/∂a_i (p, 3nc) [m/cycle per N]
     w: np.ndarray | None = None   # ∂R/∂W_i on pair i's rows (p, 3nc) [N/m]
+    #: the averaging's map at this state, rate = M · local rate (:meth:`law.Averaging.operator`),
+    #: or None: the node-wise law
+    rate_map: np.ndarray | None = None
 
     @property
     def has_jacobian(self) -> bool:
@@ -61,13 +64,14 @@ class WearProblem:
     def __init__(self, hb, area, k_w: float, share: float = 0.5, eps_path=(), structured: bool | None = None,
                  averaging=None):
         self.hb = hb
-        #: (p, p) row-stochastic averaging of the frictional power over a length (the wear law
-        #: with a length scale, :func:`averaging`), or None: the node-wise law (eq. 21). It
-        #: couples pairs, so the march forms J (the matrix-free step's rank-one pair blocks assume
-        #: a pair's rate depends on its own pair alone).
-        self.averaging = None if averaging is None else np.asarray(averaging, dtype=float)
-        if self.averaging is not None:
-            structured = False
+        #: the averaging of the frictional power over a length (the wear law with a length scale,
+        #: :class:`workflow.engine.wear.law.Averaging`; a bare (p, p) matrix averages over all
+        #: pairs), or None: the node-wise law (eq. 21). It couples the pairs' rates; the
+        #: matrix-free step takes that coupling's diagonal only (a W-method,
+        #: :func:`workflow.engine.wear.structured.augmented_step`).
+        if averaging is not None and not isinstance(averaging, Averaging):
+            averaging = Averaging(averaging)
+        self.averaging = averaging
         #: the linear algebra of the HB solves and pseudo-time steps: matrix-free J and GMRES
         #: (True), or J formed and factored (False; the implicit reference march always forms
         #: it); None: by size (:func:`workflow.engine.wear.structured.use`)
@@ -119,8 +123,8 @@ class WearProblem:
         lam = res.lam
         slip = res.lam_x_T / law.eps_t[None, :, None]
         rate = wear_per_cycle(lam, slip, self.area, self.k_w)
-        S = self.averaging
-        st = WearState(R=R, rate=rate if S is None else S @ rate, lam=lam, slip=slip, J=J)
+        S = None if self.averaging is None else self.averaging.operator(rate)
+        st = WearState(R=R, rate=rate if S is None else S @ rate, lam=lam, slip=slip, J=J, rate_map=S)
         if not jacobian:
             return st
         g = self.rate_sensitivity(res, law, lam, slip)

@@ -49,14 +49,15 @@ def r_w_times(st, v) -> np.ndarray:
     return out if getattr(st, "border", None) is None else np.append(out, 0.0)
 
 
-def rate_x_times(wp, st, v) -> np.ndarray:
-    """``∂rate/∂x · v`` (p,) [m/cycle] for unknowns v (n,): g_i · (∂a/∂x v) on pair i's rows
-    (and ∂rate/∂s · v_s for a bordered state's load scale)."""
+def rate_x_times(wp, st, v, border: bool = True) -> np.ndarray:
+    """``∂q/∂x · v`` (p,) [m/cycle] of the local rates q (before any averaging) for unknowns v
+    (n,): g_i · (∂a/∂x v) on pair i's rows (and, if ``border``, ∂rate/∂s · v_s for a bordered
+    state's load scale)."""
     b = getattr(st, "border", None)
     v = np.asarray(v, dtype=float)
     da = wp.hb.penalty_apply(v if b is None else v[:-1]).ravel()[wp._rows]          # (p, 3nc)
     out = np.einsum("pa,pa->p", st.g, da)
-    return out if b is None else out + b.rate_s * v[-1]
+    return out if b is None or not border else out + b.rate_s * v[-1]
 
 
 def _factored(wp, G):
@@ -80,14 +81,27 @@ def solve(wp, st, b):
     return _finite(lin.solve(-np.asarray(b, dtype=float), border=None if border is None else border.bordered()))
 
 
+def _own_share(st):
+    """M_ii (p,) of a state's averaging map (1 for the node-wise law): the part of each pair's
+    averaged rate that is its own (:class:`workflow.engine.wear.law.Averaging`)."""
+    return 1.0 if getattr(st, "rate_map", None) is None else np.diagonal(st.rate_map)
+
+
 def augmented_step(wp, st, h: float):
     """(Δx, ΔW) of the linearly implicit step (module docstring), or None where a solve failed.
     A bordered state's load scale s enters the wear rate too: ΔW takes ∂rate/∂s Δs, and the
-    border's column takes ∂R/∂W D⁻¹ h ∂rate/∂s."""
-    D = 1.0 - h * st.G_W
+    border's column takes ∂R/∂W D⁻¹ h ∂rate/∂s.
+
+    With a length scale (rate = M q, M a (p, p) averaging map) the step keeps the rate M q and
+    the vibration rows exact and takes only M's diagonal into the wear rows' derivatives — a
+    W-method: the step stays consistent (first order, as the linearly implicit step is), its
+    error estimate judges it, and the rank-one pair blocks keep the matrix-free solve."""
+    m = _own_share(st)
+    D = 1.0 - h * m * st.G_W
     if not np.all(np.abs(D) > 0):
         return None
-    B = (h / D)[:, None, None] * st.w[:, :, None] * st.g[:, None, :]
+    hm = h * m / D
+    B = np.broadcast_to(hm, D.shape)[:, None, None] * st.w[:, :, None] * st.g[:, None, :]
     lin = _factored(wp, st.G + B)
     if lin is None:
         return None
@@ -97,4 +111,6 @@ def augmented_step(wp, st, h: float):
     dx = _finite(lin.solve(st.R + r_w_times(st, c), border=border))  # (J + B-part) dx = −R − ∂R/∂W c
     if dx is None:
         return None
-    return dx, c + h * rate_x_times(wp, st, dx) / D
+    return dx, c + hm * rate_x_times(wp, st, dx, border=False) + (0.0 if b is None else h * b.rate_s * dx[-1] / D)
+
+

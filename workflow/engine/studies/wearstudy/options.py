@@ -23,7 +23,8 @@ class WearOptions:
     comparison); ``operating_point`` "frequency" (``frequency_hz``) or "detuning"
     (``detuning`` × the friction-damped resonance, :mod:`workflow.engine.studies.operating`);
     ``length_m``: the wear law's length scale ℓ [m] (0: node-wise, eq. 21;
-    :func:`workflow.engine.wear.law.averaging`); ``measure_length_m``: ℓ [m] of the filtered profile among the wear measures
+    :func:`workflow.engine.wear.law.averaging`) and ``length_over`` the pairs it averages over
+    ("slip" or "all", :class:`workflow.engine.wear.law.Averaging`); ``measure_length_m``: ℓ [m] of the filtered profile among the wear measures
     (:mod:`workflow.engine.wear.measures`); ``resonance_shift``: find the friction-damped
     resonance of the worn and the new model (two FRF searches).
 
@@ -61,6 +62,7 @@ class WearOptions:
     detuning: float = 1.0
     measure_length_m: float = 2e-3
     length_m: float = 0.0
+    length_over: str = "slip"
     resonance_shift: bool = True
     mission: tuple = ()
     dwell_tol: float = 1e-5

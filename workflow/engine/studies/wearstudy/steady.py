@@ -54,7 +54,7 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
     from workflow.engine.wear.law import averaging
 
     wp = WearProblem(hb, model.area, opt.k_w, opt.blade_share, eps_path=eps_path,
-                     averaging=averaging(model.position, model.area, model.flank, opt.length_m))
+                     averaging=averaging(model.position, model.area, model.flank, opt.length_m, opt.length_over))
     if point["kind"] == "mission":
         wp, base = _mission(rc, wp, base, point, opt, eps_path, log)
     if opt.control == "amplitude":
