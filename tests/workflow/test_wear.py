@@ -635,6 +635,30 @@ def test_matrix_free_march_reaches_the_dense_worn_steady_state(monkeypatch):
     assert profile_rel_diff(free.W, dense.W) <= 1e-3
 
 
+def _three_pairs_worn():
+    """(hb, x, position, area, W): hb_problem's three pairs solved at Nh = 2, 1 mm apart on one
+    flank, with unequal areas [m²] and a worn state W [m]."""
+    hb = hb_problem(20.0, nh=2, nit=32)
+    x = hb.solve(tol=1e-11).x
+    pos = np.column_stack([np.arange(hb.p) * 1e-3, np.zeros(hb.p), np.zeros(hb.p)])
+    return hb, x, pos, np.array([1e-6, 2e-6, 1.5e-6]), np.array([1e-7, 0.0, 2e-7])
+
+
+def _rate_derivatives_match_finite_differences(wp, x, W):
+    """∂rate/∂W and ∂rate/∂x of ``wp`` (J formed) at (x, W) against finite differences."""
+    from workflow.engine.wear.problem import rate_w
+
+    st = wp.evaluate(x, W, jacobian=True)
+    h = 1e-10
+    for i in range(wp.p):
+        Wp = W.copy()
+        Wp[i] += h
+        np.testing.assert_allclose((wp.evaluate(x, Wp).rate - st.rate) / h, rate_w(st)[:, i], rtol=1e-3, atol=1e-20)
+    v = np.random.default_rng(0).standard_normal(wp.n) * 1e-10
+    sp, sm = wp.evaluate(x + v, W), wp.evaluate(x - v, W)
+    np.testing.assert_allclose((sp.rate - sm.rate) / 2, st.G_x @ v, rtol=1e-3, atol=1e-22)
+
+
 def test_wear_law_with_a_length_scale():
     """wear.length_m over every pair (``length_over = "all"``): rate = S · rate_local, S the
     area-weighted Gaussian of each flank. ℓ → 0 is
@@ -642,14 +666,9 @@ def test_wear_law_with_a_length_scale():
     area-weighted mean rate; the derivatives (S·∂rate/∂x, S·diag ∂rate/∂W) match finite
     differences as the node-wise ones do (test_wear_derivatives_match_finite_differences)."""
     from workflow.engine.wear.law import averaging
-    from workflow.engine.wear.problem import rate_w
 
-    hb = hb_problem(20.0, nh=2, nit=32)
-    x = hb.solve(tol=1e-11).x
+    hb, x, pos, area, W = _three_pairs_worn()
     p = hb.p
-    pos = np.column_stack([np.arange(p) * 1e-3, np.zeros(p), np.zeros(p)])
-    area = np.array([1e-6, 2e-6, 1.5e-6])
-    W = np.array([1e-7, 0.0, 2e-7])
     local = WearProblem(hb, area=area, k_w=1e-14).evaluate(x, W)
     assert averaging(pos, area, np.zeros(p), 0.0) is None
     tiny = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(p), 1e-5, over="all"))
@@ -661,15 +680,7 @@ def test_wear_law_with_a_length_scale():
     # two flanks do not mix
     two = averaging(pos, area, np.array([0, 1, 1]), 10.0, over="all")
     assert two.S[0, 0] == 1.0 and two.S[0, 1:].sum() == 0.0 and two.S[1:, 0].sum() == 0.0
-    h = 1e-10
-    for i in range(p):
-        Wp = W.copy()
-        Wp[i] += h
-        sp = wide.evaluate(x, Wp)
-        np.testing.assert_allclose((sp.rate - st.rate) / h, rate_w(st)[:, i], rtol=1e-3, atol=1e-20)
-    v = np.random.default_rng(0).standard_normal(hb.n) * 1e-10
-    sp, sm = wide.evaluate(x + v, W), wide.evaluate(x - v, W)
-    np.testing.assert_allclose((sp.rate - sm.rate) / 2, st.G_x @ v, rtol=1e-3, atol=1e-22)
+    _rate_derivatives_match_finite_differences(wide, x, W)
 
 
 def test_length_scale_march_reaches_a_worn_steady_state(tmp_path):
@@ -735,7 +746,6 @@ def test_slip_averaged_law_keeps_stuck_pairs_unworn_and_settles():
     from workflow.engine import WearOptions, worn_steady_state
     from workflow.engine.contact import ContactLaw
     from workflow.engine.wear.law import averaging
-    from workflow.engine.wear.problem import rate_w
 
     m = _reduced_block_model()
     law = ContactLaw(mu=np.full(m.n_pairs, 0.3), eps_n=1e5, eps_t=1e5, gap=np.zeros(m.n_pairs))
@@ -748,24 +758,12 @@ def test_slip_averaged_law_keeps_stuck_pairs_unworn_and_settles():
         assert np.max(h.final_rate) * base["cycles_per_block"] <= 1e-4 * np.max(h.W)
         assert np.all(h.W[[0, 2]] > 0.5 * np.max(node.W))
 
-    hb = hb_problem(20.0, nh=2, nit=32)
-    x = hb.solve(tol=1e-11).x
-    p = hb.p
-    pos = np.column_stack([np.arange(p) * 1e-3, np.zeros(p), np.zeros(p)])
-    area = np.array([1e-6, 2e-6, 1.5e-6])
-    W = np.array([1e-7, 0.0, 2e-7])
-    wp = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(p), 10.0, over="slip"))
-    st = wp.evaluate(x, W, jacobian=True)
+    hb, x, pos, area, W = _three_pairs_worn()
+    wp = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(hb.p), 10.0, over="slip"),
+                     structured=False)
     local = WearProblem(hb, area=area, k_w=1e-14).evaluate(x, W).rate
-    assert np.all((st.rate > 0) == (local > 0))
-    step = 1e-10
-    for i in range(p):
-        Wp = W.copy()
-        Wp[i] += step
-        np.testing.assert_allclose((wp.evaluate(x, Wp).rate - st.rate) / step, rate_w(st)[:, i], rtol=1e-3, atol=1e-20)
-    v = np.random.default_rng(0).standard_normal(hb.n) * 1e-10
-    sp, sm = wp.evaluate(x + v, W), wp.evaluate(x - v, W)
-    np.testing.assert_allclose((sp.rate - sm.rate) / 2, st.G_x @ v, rtol=1e-3, atol=1e-22)
+    assert np.all((wp.evaluate(x, W).rate > 0) == (local > 0))
+    _rate_derivatives_match_finite_differences(wp, x, W)
 
 
 def _averaged_block_problems():

@@ -112,5 +112,3 @@ def augmented_step(wp, st, h: float):
     if dx is None:
         return None
     return dx, c + hm * rate_x_times(wp, st, dx, border=False) + (0.0 if b is None else h * b.rate_s * dx[-1] / D)
-
-
