@@ -409,6 +409,7 @@ def test_wear_stage_on_a_reduced_model(tmp_path, monkeypatch):
     # the measures of the worn state (pseudo-time's): volume = Σ W A of the profile in wear.csv,
     # and the worn steady state dissipates (almost) nothing — wear stops where slip stops
     assert s["operating_point"] == {"kind": "frequency", "frequency_hz": 20.0} and s["law_length_m"] == 0.0
+    assert s["law_length_over"] == "slip"            # the default, read when wear.length_m > 0
     W_pt = np.array([float(r["W_pseudo-time_m"]) for r in csv.DictReader(open(out / "wear.csv"))])
     assert s["worn_volume_m3"]["intrados"] == pytest.approx(float(np.sum(W_pt * model.area)), rel=1e-6)
     assert s["measures"]["length_m"] == scene["wear"].measure_length_m
