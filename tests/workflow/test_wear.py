@@ -687,8 +687,8 @@ def test_wear_law_with_a_length_scale():
 def test_length_scale_march_reaches_a_worn_steady_state(tmp_path):
     """The pseudo-time march on the block model (3 pairs 1 mm apart, the middle one preloaded
     twice as hard, stuck): node-wise, the outer pairs wear (86 µm) and the middle one not at all;
-    averaged over every pair (``length_over = "all"``), with ℓ = 1 mm the wear spreads onto it (measured 8.7 / 28.4 / 58.8 µm), steady with every
-    averaged rate ~0; with ℓ = 10 mm ≫ the spacing every pair wears at the flank's mean rate,
+    averaged over every pair (``length_over = "all"``), with ℓ = 1 mm the wear spreads onto it
+    (measured 8.7 / 28.4 / 58.8 µm), steady with every averaged rate ~0; with ℓ = 10 mm ≫ the spacing every pair wears at the flank's mean rate,
     the stuck pair with its slipping neighbours, and there is no worn steady state."""
     from workflow.engine import WearOptions, worn_steady_state
     from workflow.engine.contact import ContactLaw

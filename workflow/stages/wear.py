@@ -78,7 +78,8 @@ def run_wear(model, scene, out: Path, log) -> dict:
                "methods": {m: h.summary() for m, h in study.histories.items()},
                "eps_check": study.eps_check, "nh_check": study.nh_check, "unconverged": study.unconverged(), "warnings": study.warnings(),
                "mu_source": model.friction(ct.mu)[1],
-               "operating_point": study.operating_point, "law_length_m": float(w.length_m), "law_length_over": w.length_over, "measures": study.measures,
+               "operating_point": study.operating_point, "law_length_m": float(w.length_m),
+               "law_length_over": w.length_over, "measures": study.measures,
                "worn_volume_m3": {k: v["worn_volume_m3"] for k, v in (study.measures.get("flanks") or {}).items()},
                "energy_per_cycle_J": study.energy_per_cycle_J, "resonance_shift": study.resonance_shift}
     if w.response_detunings:
