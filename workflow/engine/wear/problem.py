@@ -16,7 +16,7 @@ import scipy.linalg
 from workflow.engine.errors import SolverError
 from workflow.engine.solvers import newton
 from workflow.engine.wear import structured as matrix_free
-from workflow.engine.wear.law import Averaging, pressure, wear_per_cycle
+from workflow.engine.wear.law import pressure, wear_per_cycle
 
 @dataclass
 class WearState:
@@ -65,12 +65,9 @@ class WearProblem:
                  averaging=None):
         self.hb = hb
         #: the averaging of the frictional power over a length (the wear law with a length scale,
-        #: :class:`workflow.engine.wear.law.Averaging`; a bare (p, p) matrix averages over all
-        #: pairs), or None: the node-wise law (eq. 21). It couples the pairs' rates; the
-        #: matrix-free step takes that coupling's diagonal only (a W-method,
-        #: :func:`workflow.engine.wear.structured.augmented_step`).
-        if averaging is not None and not isinstance(averaging, Averaging):
-            averaging = Averaging(averaging)
+        #: :class:`workflow.engine.wear.law.Averaging`), or None: the node-wise law (eq. 21). It
+        #: couples the pairs' rates; the matrix-free step takes that coupling's diagonal only (a
+        #: W-method, :func:`workflow.engine.wear.structured.augmented_step`).
         self.averaging = averaging
         #: the linear algebra of the HB solves and pseudo-time steps: matrix-free J and GMRES
         #: (True), or J formed and factored (False; the implicit reference march always forms
