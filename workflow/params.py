@@ -102,6 +102,16 @@ class Contact:
                                        "change (0: off)", min=0.0)
     gap: float = param(0.0, "m", "initial normal gap added to every pair (<0: interference)")
     max_passes: int = param(20, "", "DLFT periodic passes at most (stick reference convergence)", min=1)
+    stiffness_n: float = param(0.0, "N/m³", "normal contact stiffness per unit area: an elastic interface layer "
+                                            "k_n·A in series with each pair (reduction/layer.py); 0: rigid, the "
+                                            "paper's contact", min=0.0)
+    stiffness_t: float = param(0.0, "N/m³", "tangential contact stiffness per unit area (k_t·A in series with "
+                                            "each pair's Coulomb slider); 0: rigid", min=0.0)
+
+    @property
+    def layered(self) -> bool:
+        """True where the scene gives the contact an elastic interface layer."""
+        return self.stiffness_n > 0 or self.stiffness_t > 0
 
 
 @dataclass

@@ -101,11 +101,13 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
         grading: float = 1.0, sets=()) -> list[dict]:
     from workflow.scene import load_scene
 
-    scene = load_scene(SCENE, [f"geometry.flank_grading={grading!r}"])
+    from workflow.stages.reduction import contact_model
+
+    scene = load_scene(SCENE, [f"geometry.flank_grading={grading!r}", *sets])
     rows = []
     out.mkdir(parents=True, exist_ok=True)
     for g in grids:
-        model = model_of(scene, g, keep)
+        model = contact_model(model_of(scene, g, keep), scene["contact"])
         if crown > 0:
             model = replace(model, gap=np.asarray(model.gap, float) + crown_gap(model, crown))
         w = {} if static_only else worn(model, tip, sets)

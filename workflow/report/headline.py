@@ -270,6 +270,10 @@ def hb_headline(hb: dict, folder: Path | None, damping: dict | None) -> tuple[di
         checks.append(Check("peak", "peak search", "green",
                             f"grid peak {pk['grid_hz']:.6g} Hz / {pk['grid_amplitude_m']:.4g} m refined to "
                             f"{pk['hz']:.6g} Hz / {pk['amplitude_m']:.4g} m ({pk['evaluations']} frequencies solved)"))
+    layer = hb.get("contact_stiffness")
+    if layer:   # "tied" then means the interface stuck on its elastic layer, not welded
+        vals["peak_source"] += (f"; contact stiffness k_n = {layer['normal_n_per_m3']:.3g}, "
+                                f"k_t = {layer['tangential_n_per_m3']:.3g} N/m³")
     lin = read_rows(Path(folder) / "linear.csv")
     if lin:
         fl = np.array([float(r["frequency_hz"]) for r in lin])

@@ -140,7 +140,10 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
     """One contact mesh: its table row and its raw results (model, W)."""
     cc = scene["contact_convergence"]
     t0 = time.perf_counter()
+    from workflow.stages.reduction import contact_model
+
     model, vertex, info = build_model(scene, na, nc, work)
+    model = contact_model(model, scene["contact"])
     t_build = time.perf_counter() - t0
     t1 = time.perf_counter()
     pk = _friction_peak(model, scene["contact"], scene["hb"], cc)
@@ -240,6 +243,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from workflow.engine.studies.meshstudy import summarise
     from workflow.io import write_npz, write_rows
     from workflow.report.convergence import plot
+    from workflow.stages.reduction import contact_stiffness
 
     out = Path(out)
     cc = scene["contact_convergence"]
@@ -276,6 +280,6 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
             "unconverged": unconverged(rows),
             "table": rows, "layout": scene["geometry"].contact_nodes, "harmonics": int(cc.harmonics),
             "wear_harmonics": wear_harmonics(cc), "law_length_m": float(scene["wear"].length_m),
-            "law_length_over": scene["wear"].length_over,
+            "law_length_over": scene["wear"].length_over, "contact_stiffness": contact_stiffness(scene["contact"]),
             "time_samples": int(cc.time_samples), **summary, "csv": CSV,
             "profiles": PROFILES if profiles is not None else None, "figures": figures}

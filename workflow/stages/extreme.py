@@ -39,6 +39,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from workflow.errors import BundleError
     from workflow.io import write_text
 
+    from workflow.stages.reduction import rigid_contact_only
+
+    rigid_contact_only(scene["contact"], "extreme")
     path = Path(inputs["reduced"]) / REDUCED_FILE
     if not path.is_file():
         raise BundleError(f"reduced model {path} is missing")

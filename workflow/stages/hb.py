@@ -92,9 +92,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from workflow.errors import BundleError, SolverError
     from workflow.mpi import world
     from workflow.report.frf import write_outputs
-    from workflow.stages.reduction import load_model
+    from workflow.stages.reduction import contact_stiffness, load_model
 
-    model = load_model(Path(inputs["reduced"]))
+    model = load_model(Path(inputs["reduced"]), scene["contact"])
     if model.n_pairs == 0:
         raise BundleError(f"reduced model in {inputs['reduced']} has no contact pairs")
     t0 = time.perf_counter()
@@ -114,6 +114,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     files = write_outputs(Path(out), study)
     summary = summarise(study, scene)
     summary["mu_source"] = model.friction(scene["contact"].mu)[1]
+    summary["contact_stiffness"] = contact_stiffness(scene["contact"])
     summary["peak"] = study.peak
     if cyclic is not None:
         summary["cyclic"] = cyclic

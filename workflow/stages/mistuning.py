@@ -90,6 +90,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from workflow.stages.assembly import bundle_folder
     from workflow.stages.hb import clean
 
+    from workflow.stages.reduction import rigid_contact_only
+
+    rigid_contact_only(scene["contact"], "mistuning")
     t0 = time.perf_counter()
     out = Path(out)
     mt, hb = scene["mistuning"], scene["hb"]

@@ -49,7 +49,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
 
     out = Path(out)
     nm, exc = scene["nonlinear_modes"], scene["excitation"]
-    model = load_model(Path(inputs["reduced"]))
+    model = load_model(Path(inputs["reduced"]), scene["contact"])
     law = law_of(scene, model)
     nh = int(nm.harmonics)
     nit = int(nm.time_samples) or default_nit(nh)

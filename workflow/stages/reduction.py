@@ -86,20 +86,48 @@ def _run_cyclic(scene, bundle, out: Path, log) -> dict:
             "seconds": round(model.info["seconds"], 3), "reduced": CYCLIC_FILE}
 
 
-def load_model(folder: Path):
+def load_model(folder: Path, contact=None):
     """The model the reduction stage wrote in ``folder``: a
     :class:`~reduction.cyclic_reduce.CyclicReducedModel` (cyclic sector) or a
-    :class:`~reduction.reduced.ReducedModel`; :class:`BundleError` if neither."""
+    :class:`~reduction.reduced.ReducedModel`; :class:`BundleError` if neither. With the scene's
+    ``contact`` section, the model the contact sees (:func:`contact_model`)."""
     from reduction.cyclic_reduce import CyclicReducedModel
     from reduction.reduced import ReducedModel
     from workflow.errors import BundleError
 
     folder = Path(folder)
     if (folder / CYCLIC_FILE).exists():
-        return CyclicReducedModel.load(folder / CYCLIC_FILE)
-    if not (folder / REDUCED_FILE).exists():
+        model = CyclicReducedModel.load(folder / CYCLIC_FILE)
+    elif not (folder / REDUCED_FILE).exists():
         raise BundleError(f"reduced model {folder / REDUCED_FILE} is missing (the reduction stage writes it)")
-    return ReducedModel.load(folder / REDUCED_FILE)
+    else:
+        model = ReducedModel.load(folder / REDUCED_FILE)
+    return model if contact is None else contact_model(model, contact)
+
+
+def contact_model(model, contact):
+    """``model`` with the interface layer of the scene's ``contact`` section
+    (``contact.stiffness_n``, ``stiffness_t``; :mod:`reduction.layer`), or ``model`` itself for
+    the rigid contact: the one place a stage's model gets its contact stiffness."""
+    from reduction.layer import with_interface_layer
+
+    return with_interface_layer(model, contact.stiffness_n, contact.stiffness_t)
+
+
+def contact_stiffness(contact) -> dict | None:
+    """What a result's summary says of the contact's interface layer (None: rigid)."""
+    if not contact.layered:
+        return None
+    return {"normal_n_per_m3": float(contact.stiffness_n), "tangential_n_per_m3": float(contact.stiffness_t)}
+
+
+def rigid_contact_only(contact, stage: str) -> None:
+    """:class:`SceneError` where a stage that takes the rigid contact only is given a layer."""
+    from workflow.errors import SceneError
+
+    if contact.layered:
+        raise SceneError(f"contact.stiffness_n = {contact.stiffness_n:g}, contact.stiffness_t = "
+                         f"{contact.stiffness_t:g}: the {stage} stage takes the rigid contact (both 0)")
 
 
 def _summary(model, seconds: float, log) -> dict:

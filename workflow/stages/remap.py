@@ -221,11 +221,13 @@ def worn_vs_new_frf(scene, new, worn, points: int | None = None) -> dict:
     HBM with the scene's first Nh and nit, its contact, excitation and solver,
     ``sweep.points`` clipped to :data:`FRF_POINTS`, over ``sweep.f_start_hz``/
     ``f_stop_hz`` (else ±10 % of the new model's first excited tied mode);
-    both models on the new model's penalties."""
+    both models with the scene's contact stiffness, on the new model's penalties."""
     from workflow.engine import Variant
     from workflow.engine.studies.compare import frf_new_vs_worn
     from workflow.stages.hb import law_of, options
+    from workflow.stages.reduction import contact_model
 
+    new, worn = contact_model(new, scene["contact"]), contact_model(worn, scene["contact"])
     hb, sw = scene["hb"], scene["sweep"]
     nh = int(hb.harmonics[0])
     nit = int(hb.time_samples[0]) or 2 * nh + 1

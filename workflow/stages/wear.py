@@ -57,6 +57,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
     from workflow.io import write_npz, write_rows
     from workflow.report.wear import tip_cycles, plot_wear, write_wear_csv
     from workflow.stages.hb import clean, law_of
+    from workflow.stages.reduction import contact_stiffness
 
     out = Path(out)
     ct = scene["contact"]
@@ -77,7 +78,7 @@ def run_wear(model, scene, out: Path, log) -> dict:
                "unworn_point": u, "tracked_pair": study.tracked_pair,
                "methods": {m: h.summary() for m, h in study.histories.items()},
                "eps_check": study.eps_check, "nh_check": study.nh_check, "unconverged": study.unconverged(), "warnings": study.warnings(),
-               "mu_source": model.friction(ct.mu)[1],
+               "mu_source": model.friction(ct.mu)[1], "contact_stiffness": contact_stiffness(ct),
                "operating_point": study.operating_point, "law_length_m": float(w.length_m),
                "law_length_over": w.length_over, "measures": study.measures,
                "worn_volume_m3": {k: v["worn_volume_m3"] for k, v in (study.measures.get("flanks") or {}).items()},
@@ -107,7 +108,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from workflow.stages.hb import cyclic_check
     from workflow.stages.reduction import load_model
 
-    model = load_model(Path(inputs["reduced"]))
+    model = load_model(Path(inputs["reduced"]), scene["contact"])
     cyclic = cyclic_check(model, options(scene).nh)
     summary = run_wear(model, scene, Path(out), log)
     if cyclic is not None:
