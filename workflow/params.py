@@ -391,15 +391,17 @@ class Verification:
                               min=0)
     penalty_factor: float = param(0.0, "", "ε_N = ε_T = this × the case's stiffness (k, or the stiffest pad); "
                                            "0: the project's default penalty", min=0.0)
-    wear_cases: list = param(["jenkins", "punch", "mdr"], "", "wear references (workflow/verification/wear_exact.py, "
-                                                      "wear_mdr.py): jenkins (one Jenkins element whose wear relieves "
-                                                      "its load, closed form), punch (a rigid punch on three contacts "
-                                                      "with an edge gap, closed form), mdr (the partial-slip worn "
-                                                      "steady state of a Hertzian contact, closed form by the method "
-                                                      "of dimensionality reduction, against a cycle-by-cycle march; "
-                                                      "≈ 1.5 s), oscillator (a dynamic Jenkins oscillator by "
-                                                      "event-driven integration with cycle jumps, ≈ 2 min)",
-                             item_choices=("jenkins", "punch", "oscillator", "mdr"))
+    wear_cases: list = param(["jenkins", "punch", "punch-layer", "mdr"], "",
+                             "wear references (workflow/verification/wear_exact.py, "
+                             "wear_mdr.py): jenkins (one Jenkins element whose wear relieves "
+                             "its load, closed form), punch (a rigid punch on three contacts "
+                             "with an edge gap, closed form), punch-layer (the same punch "
+                             "built through the contact's interface layer), mdr (the partial-slip worn "
+                             "steady state of a Hertzian contact, closed form by the method "
+                             "of dimensionality reduction, against a cycle-by-cycle march; "
+                             "≈ 1.5 s), oscillator (a dynamic Jenkins oscillator by "
+                             "event-driven integration with cycle jumps, ≈ 2 min)",
+                             item_choices=("jenkins", "punch", "punch-layer", "oscillator", "mdr"))
 
     def check(self):
         for nh in self.harmonics:

@@ -16,12 +16,13 @@ import csv
 import json
 from pathlib import Path
 
-from workflow.verification.wear_runner import jenkins_rows, oscillator_rows, punch_rows
+from workflow.verification.wear_runner import jenkins_rows, oscillator_rows, punch_layer_rows, punch_rows
 
 
 def run(out: Path, quick: bool = False, oscillator_case: bool = True) -> list[dict]:
     out.mkdir(parents=True, exist_ok=True)
-    rows = jenkins_rows(quick) + punch_rows(quick) + (oscillator_rows() if oscillator_case else [])
+    rows = (jenkins_rows(quick) + punch_rows(quick) + punch_layer_rows(quick)
+            + (oscillator_rows() if oscillator_case else []))
     with open(out / "wear_references.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=["case", "quantity", "value", "exact", "error"])
         w.writeheader()

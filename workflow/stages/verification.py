@@ -62,5 +62,6 @@ def wear_references(cases) -> list[dict]:
     from workflow.verification import wear_mdr, wear_runner
 
     make = {"jenkins": wear_runner.jenkins_rows, "punch": wear_runner.punch_rows,
+            "punch-layer": wear_runner.punch_layer_rows,
             "oscillator": wear_runner.oscillator_rows, "mdr": wear_mdr.mdr_rows}
     return [r for c in cases for r in make[c]()]

@@ -441,6 +441,36 @@ class PunchWear:
         return _model(M, K, B, fs, fh, O, self._arr("A"), self._arr("gap"))
 
 
+def layered_punch(A, gap, *, kn: float, kt: float, Ks: float, N0: float, X: float, mu: float, k_w: float):
+    """(b) through the contact's interface layer (:mod:`reduction.layer`): ``(PunchWear, model)``.
+
+    The model is a rigid punch (1 kg, dead load −N₀) touching its contacts i directly, each
+    contact's structure side driven along t1 by X cos ωt through a spring Ks [N/m] (grounded
+    Ks, loaded Ks·X; t2 grounded Ks), with the layer k_n, k_t [N/m³] in series. Its normal springs
+    are k_n A_i and the slider sees Ks and k_t A_i in series: the :class:`PunchWear` with those
+    k_n,i and k_t,i. The contacts' structure DOFs carry 1e-9 kg (the tied modes need a mass;
+    ω²m ~ 1e-10 Ks at the punch's frequencies). Observed: contact 0's t1."""
+    from reduction.layer import with_interface_layer
+
+    A, gap = np.asarray(A, float), np.asarray(gap, float)
+    m = A.size
+    size = 1 + 2 * m                                    # the punch's v, then t1, t2 of each contact
+    K, M = np.zeros((size, size)), 1e-9 * np.eye(size)
+    M[0, 0] = 1.0
+    B = np.zeros((3 * m, size))
+    fs, fh = np.zeros(size), np.zeros(size)
+    fs[0] = -N0
+    for i in range(m):
+        t1, t2 = 1 + 2 * i, 2 + 2 * i
+        K[t1, t1] = K[t2, t2] = Ks
+        fh[t1] = Ks * X
+        B[3 * i, 0], B[3 * i + 1, t1], B[3 * i + 2, t2] = 1.0, 1.0, 1.0
+    model = with_interface_layer(_model(M, K, B, fs, fh, np.eye(size)[[1]], A, gap), kn, kt)
+    ref = PunchWear(k_n=tuple(kn * A), k_t=tuple(1.0 / (1.0 / Ks + 1.0 / (kt * A))), A=tuple(A), gap=tuple(gap),
+                    mu=mu, X=X, N0=N0, k_w=k_w)
+    return ref, model
+
+
 # ------------------------------------------------------------------ (d) dynamic oscillator
 @dataclass
 class OscillatorWear:

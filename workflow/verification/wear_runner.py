@@ -14,6 +14,8 @@ themselves never do. ``error`` is relative, against the scale named in the quant
   (edges A = 1.5 mm², gap 2 µm; centre 1 mm², no gap), N₀ = 12 N, k_w = 1e-15: persistent
   slip (no worn steady state); the march's W(n), its final rates against the sinking speed V
   and the worn profile's offset against the closed forms.
+* (b) ``punch-layer``: the same punch built through the contact's interface layer
+  (:func:`~workflow.verification.wear_exact.layered_punch`, :data:`PUNCH_LAYER`).
 * (d) ``oscillator`` (slow, ~2 min): :class:`~workflow.verification.wear_exact.OscillatorWear`
   at the tied resonance, reference by event-driven steady states and cycle jumps.
 """
@@ -23,13 +25,17 @@ import time
 
 import numpy as np
 
-from workflow.verification.wear_exact import JenkinsWear, OscillatorWear, PunchWear
+from workflow.verification.wear_exact import JenkinsWear, OscillatorWear, PunchWear, layered_punch
 
 JENKINS = JenkinsWear(k_t=1e5, k_n=1e7, mu=0.5, X=1e-4, N0=15.0, A=1e-6, k_w=2.5e-16)
 JENKINS_HZ = 100.0 / np.pi          # the witness sits at 100 Hz: no harmonic of 100/π Hz hits it
 PUNCH = PunchWear(k_n=(1e7, 1e7, 1e7), k_t=(1e5, 1e5, 1e5), A=(1.5e-6, 1e-6, 1.5e-6), gap=(2e-6, 0.0, 2e-6),
                   mu=0.5, X=1e-4, N0=12.0, k_w=1e-15)
 PUNCH_HZ = np.sqrt(3e7) / (2 * np.pi) / np.pi      # the punch (1 kg on 3 × 1e7 N/m) tied at √3e7 rad/s
+#: (b) on an interface layer: the contacts' springs k_n A_i (1.5e7 / 1e7 / 1.5e7 N/m) and, in series with
+#: the drive's 1e7 N/m, k_t A_i (1.5e5 / 1e5 / 1.5e5 N/m)
+PUNCH_LAYER = dict(A=(1.5e-6, 1e-6, 1.5e-6), gap=(2e-6, 0.0, 2e-6), kn=1e13, kt=1e11, Ks=1e7, N0=12.0, X=1e-4,
+                   mu=0.5, k_w=1e-15)
 
 
 def oscillator() -> OscillatorWear:
@@ -147,6 +153,31 @@ def punch_rows(quick: bool = False) -> list[dict]:
         n_edge = float(np.interp(1e-3 * ref.gap[0], ref.symmetric3(grid)[:, 0], grid))
         rows.append(row("punch", f"cycles to W_edge = 1e-3 gap ({tag})", cycles_at(h, 1e-3 * ref.gap[0], pair=0),
                         n_edge))
+    return rows
+
+
+def punch_layer_rows(quick: bool = False) -> list[dict]:
+    """(b) on the contact's interface layer (:func:`~workflow.verification.wear_exact.layered_punch`,
+    :data:`PUNCH_LAYER`): pseudo-time (rtol 1e-4) against the closed form, at a third of the
+    punch's tied frequency."""
+    from workflow import engine
+
+    ref, model = layered_punch(**PUNCH_LAYER)
+    hz = np.sqrt(np.sum(ref.k_n)) / (2 * np.pi) / np.pi
+    law = engine.contact_law(model, mu=ref.mu, omega_hz=hz)
+    opt = _options(("pseudo-time",), ref.k_w, hz, rtol=1e-4, steady_tol=1e-2, cycles_per_block=1e5)
+    h = engine.worn_steady_state(model, law, opt).histories["pseudo-time"]
+    asy = ref.asymptote()
+    top = float(np.max(ref.symmetric3([h.cycles[-1]])))
+    v, e, err = history_error(h, ref.symmetric3, top)
+    rows = [row("punch-layer", "stopped as persistent slip (1 = yes) (pseudo-time rtol=1e-4)", float(h.persistent_slip),
+                1.0),
+            {**row("punch-layer", "W(n) worst point, error / max W at the end (pseudo-time rtol=1e-4)", v, e),
+             "error": err}]
+    rate = np.asarray(h.final_rate)
+    for i, name in ((0, "edge"), (1, "centre")):
+        rows.append(row("punch-layer", f"final wear rate {name} [m/cycle] vs sinking speed V (pseudo-time rtol=1e-4)",
+                        float(rate[i]), asy["V"]))
     return rows
 
 
