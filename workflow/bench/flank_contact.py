@@ -14,6 +14,9 @@ there, ``model-AxC.npz``, and reads them back):
   (``wear.control = "amplitude"``) at the mesh's first tied frequency — the stage's own march
   (:func:`workflow.stages.contact_convergence._worn_profile`), no resonance-shift search.
 
+``--set`` overrides scene keys; ``contact.stiffness_n``/``stiffness_t`` give every grid's model the
+interface layer of :mod:`reduction.layer` before both the static state and the march.
+
 ``--crown`` δ [m] adds a parabolic initial gap across each flank (δ at its long edges, 0 on
 its centre line): a crowned flank, as micro-geometry. ``--grading`` g < 1 crowds the vertices
 across each flank towards its long edges (``geometry.flank_grading``).
@@ -100,7 +103,6 @@ def worn(model, tip: float, sets=()) -> dict:
 def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path,
         grading: float = 1.0, sets=()) -> list[dict]:
     from workflow.scene import load_scene
-
     from workflow.stages.reduction import contact_model
 
     scene = load_scene(SCENE, [f"geometry.flank_grading={grading!r}", *sets])
@@ -133,7 +135,8 @@ def main(argv=None) -> int:
     ap.add_argument("--grading", type=float, default=1.0,
                     help="geometry.flank_grading: < 1 crowds the vertices towards the flanks' long edges")
     ap.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                    help="a scene override for the wear march, e.g. wear.length_m=0.002 (repeatable)")
+                    help="a scene override, e.g. wear.length_m=0.002, or contact.stiffness_n=1e14 (an interface "
+                         "layer on every grid's model, static state and march alike) (repeatable)")
     ap.add_argument("--models", type=Path, default=None, help="keep the reduced models in this folder")
     ap.add_argument("--static-only", action="store_true", help="the static contact only, no wear march")
     ap.add_argument("--out", default="results/bench", type=Path)

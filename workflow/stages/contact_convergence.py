@@ -138,10 +138,10 @@ def build_model(scene, nodes_along: int, nodes_across: int, work: Path):
 
 def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
     """One contact mesh: its table row and its raw results (model, W)."""
-    cc = scene["contact_convergence"]
-    t0 = time.perf_counter()
     from workflow.stages.reduction import contact_model
 
+    cc = scene["contact_convergence"]
+    t0 = time.perf_counter()
     model, vertex, info = build_model(scene, na, nc, work)
     model = contact_model(model, scene["contact"])
     t_build = time.perf_counter() - t0

@@ -38,7 +38,6 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from workflow.engine.studies import extreme as X
     from workflow.errors import BundleError
     from workflow.io import write_text
-
     from workflow.stages.reduction import rigid_contact_only
 
     rigid_contact_only(scene["contact"], "extreme")

@@ -30,7 +30,6 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
 
     from workflow.bench import interface_scaling as bench
     from workflow.errors import SolverError
-
     from workflow.stages.reduction import rigid_contact_only
 
     rigid_contact_only(scene["contact"], "interface-scaling")

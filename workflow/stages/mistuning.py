@@ -89,7 +89,6 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from workflow.mpi import rank
     from workflow.stages.assembly import bundle_folder
     from workflow.stages.hb import clean
-
     from workflow.stages.reduction import rigid_contact_only
 
     rigid_contact_only(scene["contact"], "mistuning")
