@@ -104,12 +104,14 @@ def tied_modes(rc) -> tuple[np.ndarray, np.ndarray]:
 
     r = rc.n_rel
     tb = tied_basis(rc) if isinstance(rc, RelativeCoordinates) else None
-    if tb is not None and np.all(tb.mu > 0):
+    if tb is not None and tb.mu.max() > 0:
         # the condensation's modes (Φᵀ K_yy Φ = I, μ = 1/ω², ascending μ): not solved again, and the
         # low modes more accurate than eigh(K_yy, M_yy)'s (512 pairs: the first tied ω² 1.6e-7 off
         # there, 6e-13 here, against its Rayleigh quotient after inverse iteration). For the
-        # M-normalised ψ = Φ/√μ, ‖Oψ‖ |ψᵀf| / ω² = ‖OΦ‖ |Φᵀf|
-        phi, w2 = tb.Phi[:, ::-1], 1.0 / tb.mu[::-1]
+        # M-normalised ψ = Φ/√μ, ‖Oψ‖ |ψᵀf| / ω² = ‖OΦ‖ |Φᵀf|. Massless coordinates (a lumped
+        # model's light nodes, an interface layer's springs) have μ = 0 to round-off: no mode.
+        keep = tb.mu > 1e-14 * tb.mu.max()
+        phi, w2 = tb.Phi[:, keep][:, ::-1], 1.0 / tb.mu[keep][::-1]
         resp = np.linalg.norm(rc.O[:, r:] @ phi, axis=0) * np.abs(phi.T @ rc.f_harmonic[r:])
     else:
         w2, phi = scipy.linalg.eigh(rc.K[r:, r:], rc.M[r:, r:])

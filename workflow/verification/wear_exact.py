@@ -448,14 +448,13 @@ def layered_punch(A, gap, *, kn: float, kt: float, Ks: float, N0: float, X: floa
     contact's structure side driven along t1 by X cos ωt through a spring Ks [N/m] (grounded
     Ks, loaded Ks·X; t2 grounded Ks), with the layer k_n, k_t [N/m³] in series. Its normal springs
     are k_n A_i and the slider sees Ks and k_t A_i in series: the :class:`PunchWear` with those
-    k_n,i and k_t,i. The contacts' structure DOFs carry 1e-9 kg (the tied modes need a mass;
-    ω²m ~ 1e-10 Ks at the punch's frequencies). Observed: contact 0's t1."""
+    k_n,i and k_t,i; the contacts are massless. Observed: contact 0's t1."""
     from reduction.layer import with_interface_layer
 
     A, gap = np.asarray(A, float), np.asarray(gap, float)
     m = A.size
     size = 1 + 2 * m                                    # the punch's v, then t1, t2 of each contact
-    K, M = np.zeros((size, size)), 1e-9 * np.eye(size)
+    K, M = np.zeros((size, size)), np.zeros((size, size))
     M[0, 0] = 1.0
     B = np.zeros((3 * m, size))
     fs, fh = np.zeros(size), np.zeros(size)
