@@ -187,15 +187,25 @@ def condensation(rc) -> str:
         else "LU per harmonic"
 
 
+def rayleigh(M, K, C) -> tuple[float, float] | None:
+    """(α, β) with C = αM + βK (least squares in the Frobenius norm, within :data:`RAYLEIGH_TOL`),
+    or None where C is not of that form."""
+    G = np.array([[np.vdot(M, M), np.vdot(M, K)], [np.vdot(K, M), np.vdot(K, K)]]).real
+    alpha, beta = np.linalg.lstsq(G, np.real([np.vdot(M, C), np.vdot(K, C)]), rcond=None)[0]
+    if np.linalg.norm(C - alpha * M - beta * K) > RAYLEIGH_TOL * np.linalg.norm(C):
+        return None
+    return float(alpha), float(beta)
+
+
 def _tied_basis(rc: RelativeCoordinates) -> TiedBasis | None:
     r, n = rc.n_rel, rc.K.shape[0]
     K, M, C = rc.K, rc.M, rc.C
     if n == r or not all(np.isrealobj(a) for a in (K, M, C)):
         return None
-    G = np.array([[np.vdot(M, M), np.vdot(M, K)], [np.vdot(K, M), np.vdot(K, K)]])
-    alpha, beta = np.linalg.lstsq(G, [np.vdot(M, C), np.vdot(K, C)], rcond=None)[0]
-    if np.linalg.norm(C - alpha * M - beta * K) > RAYLEIGH_TOL * np.linalg.norm(C):
+    ab = rayleigh(M, K, C)
+    if ab is None:
         return None
+    alpha, beta = ab
     try:
         mu, Phi = sla.eigh(M[r:, r:], K[r:, r:], check_finite=False)
     except (np.linalg.LinAlgError, ValueError):   # K_yy not positive definite

@@ -24,26 +24,15 @@ from dataclasses import replace
 
 import numpy as np
 
+from reduction.condense import rayleigh
 from reduction.reduced import ReducedModel
 
 __all__ = ["with_interface_layer"]
-
-#: ‖C − αM − βK‖/‖C‖ below which the layer's damping follows β (the condensation's own test)
-RAYLEIGH_TOL = 1e-12
-
 
 def layer_stiffness(area, kn: float, kt: float) -> np.ndarray:
     """(3p,) spring of each relative DOF [N/m], pair-major [n, t1, t2]: k·A_i, 0 where k = 0 (rigid)."""
     A = np.asarray(area, float)
     return np.column_stack([kn * A, kt * A, kt * A]).ravel()
-
-
-def _rayleigh_beta(M, K, C) -> float | None:
-    """β of C = αM + βK (least squares), or None where C is not of that form."""
-    G = np.array([[np.vdot(M, M), np.vdot(M, K)], [np.vdot(K, M), np.vdot(K, K)]])
-    alpha, beta = np.linalg.lstsq(G.real, np.real([np.vdot(M, C), np.vdot(K, C)]), rcond=None)[0]
-    nc = np.linalg.norm(C)
-    return float(beta) if nc == 0 or np.linalg.norm(C - alpha * M - beta * K) <= RAYLEIGH_TOL * nc else None
 
 
 def _layered(model: ReducedModel, kn: float, kt: float) -> ReducedModel:
@@ -52,7 +41,8 @@ def _layered(model: ReducedModel, kn: float, kt: float) -> ReducedModel:
     soft = np.flatnonzero(k > 0)                       # the layered relative DOFs; the others stay rigid
     ns = soft.size
     ks, L = k[soft], B[soft]
-    beta = _rayleigh_beta(model.M, model.K, model.C)
+    ab = rayleigh(model.M, model.K, model.C)
+    beta = None if ab is None else ab[1]
     dtype = np.result_type(model.K, model.M, model.C, float)
     K = np.zeros((m + ns, m + ns), dtype)
     K[:m, :m] = model.K + L.T @ (ks[:, None] * L)
