@@ -118,14 +118,27 @@ def jenkins_rows(quick: bool = False) -> list[dict]:
     return rows
 
 
-def engine_punch(ref: PunchWear = PUNCH, *, method="pseudo-time", **kw):
+def engine_punch(ref: PunchWear = PUNCH, *, method="pseudo-time", model=None, hz: float = PUNCH_HZ, **kw):
+    """(study, history) of the engine on a punch: ``ref.model()`` unless ``model`` is given, at ``hz``."""
     from workflow import engine
 
-    model = ref.model()
-    law = engine.contact_law(model, mu=ref.mu, omega_hz=PUNCH_HZ)
+    model = ref.model() if model is None else model
+    law = engine.contact_law(model, mu=ref.mu, omega_hz=hz)
     kw = {"steady_tol": 1e-2, "cycles_per_block": 1e5, **kw}
-    st = engine.worn_steady_state(model, law, _options((method,), ref.k_w, PUNCH_HZ, **kw))
+    st = engine.worn_steady_state(model, law, _options((method,), ref.k_w, hz, **kw))
     return st, st.histories[method]
+
+
+def _punch_march_rows(case: str, ref: PunchWear, h, tag: str) -> list[dict]:
+    """A punch march against its closed forms: persistent slip, the worst W(n), the final rates vs V."""
+    rows = [row(case, f"stopped as persistent slip (1 = yes) ({tag})", float(h.persistent_slip), 1.0)]
+    top = float(np.max(ref.symmetric3([h.cycles[-1]])))
+    v, e, err = history_error(h, ref.symmetric3, top)
+    rows.append({**row(case, f"W(n) worst point, error / max W at the end ({tag})", v, e), "error": err})
+    rate, V = np.asarray(h.final_rate), ref.asymptote()["V"]
+    for i, name in ((0, "edge"), (1, "centre")):
+        rows.append(row(case, f"final wear rate {name} [m/cycle] vs sinking speed V ({tag})", float(rate[i]), V))
+    return rows
 
 
 def punch_rows(quick: bool = False) -> list[dict]:
@@ -138,14 +151,7 @@ def punch_rows(quick: bool = False) -> list[dict]:
     for method, kw in runs:
         tag = f"{method} " + ", ".join(f"{k}={v:g}" for k, v in kw.items())
         st, h = engine_punch(ref, method=method, **kw)
-        rows.append(row("punch", f"stopped as persistent slip (1 = yes) ({tag})", float(h.persistent_slip), 1.0))
-        top = float(np.max(ref.symmetric3([h.cycles[-1]])))
-        v, e, err = history_error(h, ref.symmetric3, top)
-        rows.append({**row("punch", f"W(n) worst point, error / max W at the end ({tag})", v, e), "error": err})
-        rate = np.asarray(h.final_rate)
-        for i, name in ((0, "edge"), (1, "centre")):
-            rows.append(row("punch", f"final wear rate {name} [m/cycle] vs sinking speed V ({tag})", float(rate[i]),
-                            asy["V"]))
+        rows += _punch_march_rows("punch", ref, h, tag)
         W = np.asarray(h.W)
         rows.append(row("punch", f"profile W_centre − W_edge [m] ({tag})", float(W[1] - W[0]), float(asy["offsets"][1])))
         # cycles until the edges have worn 1e-3 of their gap (just after they close at n₁)
@@ -160,25 +166,10 @@ def punch_layer_rows(quick: bool = False) -> list[dict]:
     """(b) on the contact's interface layer (:func:`~workflow.verification.wear_exact.layered_punch`,
     :data:`PUNCH_LAYER`): pseudo-time (rtol 1e-4) against the closed form, at a third of the
     punch's tied frequency."""
-    from workflow import engine
-
     ref, model = layered_punch(**PUNCH_LAYER)
     hz = np.sqrt(np.sum(ref.k_n)) / (2 * np.pi) / np.pi
-    law = engine.contact_law(model, mu=ref.mu, omega_hz=hz)
-    opt = _options(("pseudo-time",), ref.k_w, hz, rtol=1e-4, steady_tol=1e-2, cycles_per_block=1e5)
-    h = engine.worn_steady_state(model, law, opt).histories["pseudo-time"]
-    asy = ref.asymptote()
-    top = float(np.max(ref.symmetric3([h.cycles[-1]])))
-    v, e, err = history_error(h, ref.symmetric3, top)
-    rows = [row("punch-layer", "stopped as persistent slip (1 = yes) (pseudo-time rtol=1e-4)", float(h.persistent_slip),
-                1.0),
-            {**row("punch-layer", "W(n) worst point, error / max W at the end (pseudo-time rtol=1e-4)", v, e),
-             "error": err}]
-    rate = np.asarray(h.final_rate)
-    for i, name in ((0, "edge"), (1, "centre")):
-        rows.append(row("punch-layer", f"final wear rate {name} [m/cycle] vs sinking speed V (pseudo-time rtol=1e-4)",
-                        float(rate[i]), asy["V"]))
-    return rows
+    st, h = engine_punch(ref, model=model, hz=hz, rtol=1e-4)
+    return _punch_march_rows("punch-layer", ref, h, "pseudo-time rtol=0.0001")
 
 
 def oscillator_rows(tol: float = 2.5e-4) -> list[dict]:
