@@ -80,3 +80,32 @@ def test_condensation_with_springs_truncated_basis_is_close_and_static_exact():
     np.testing.assert_allclose(red, full, rtol=1e-9)
     full, red = _spring_solutions(bundle, model, 2 * np.pi * 200.0, kc)
     assert np.abs(red - full).max() < 1e-2 * np.abs(full).max()
+
+
+def test_the_projections_by_column_blocks_are_the_whole_products(monkeypatch, reduced):
+    """The constraint modes solved and the VᵀAV projections formed a few columns at a time (to keep
+    the n × m products from being whole) give the model of the whole products: VᵀMV, VᵀKV, VᵀCV
+    against the dense products of the same basis, to round-off; the constraint modes and the
+    reduced model's frequencies against the default blocks (the fixed-interface modes' signs and
+    degenerate pairs may differ between two Lanczos runs, so V's modal columns are not compared)."""
+    import scipy.linalg
+
+    import reduction.craig_bampton as cb
+    import reduction.reduce as rr
+
+    bundle, model, basis = reduced
+    monkeypatch.setattr(rr, "PROJECTION_COLUMNS", 3)
+    monkeypatch.setattr(cb, "_CHUNK", 2)
+    small, small_basis = reduce_with_basis(bundle, 10)
+    nb = basis.boundary.size
+    assert basis.V.shape[1] > 3 * rr.PROJECTION_COLUMNS and nb > 4 * cb._CHUNK
+    free, V = bundle.free_dofs, small_basis.V
+    for name in "MKC":
+        A = getattr(bundle, name).tocsr()[free][:, free]
+        whole = V.T @ (A @ V)
+        np.testing.assert_allclose(getattr(small, name), 0.5 * (whole + whole.T), rtol=0,
+                                   atol=1e-12 * np.abs(whole).max(), err_msg=name)
+    np.testing.assert_allclose(V[:, :nb], basis.V[:, :nb], rtol=0, atol=1e-12 * np.abs(basis.V[:, :nb]).max())
+    w_small = scipy.linalg.eigh(small.K, small.M, eigvals_only=True)    # ω² [rad²/s²], rigid modes ≈ 0
+    w = scipy.linalg.eigh(model.K, model.M, eigvals_only=True)
+    np.testing.assert_allclose(w_small, w, rtol=1e-9, atol=1e-12 * w.max())
