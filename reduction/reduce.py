@@ -24,6 +24,7 @@ import scipy.sparse as sp
 from reduction.bundle import Bundle, pair_labels
 from reduction.craig_bampton import craig_bampton
 from reduction.reduced import ReducedModel
+from reduction.tie import tie_map, tie_pairs
 from workflow.errors import BundleError
 
 #: A harmonic load on at most this many DOFs makes them boundary DOFs;
@@ -74,7 +75,7 @@ def boundary_dofs(bundle: Bundle, max_load_dofs: int = MAX_LOAD_DOFS) -> np.ndar
     ``max_load_dofs`` DOFs), observed DOFs."""
     c, L = bundle.contact, bundle.loads
     parts = [c.blade_dofs.ravel(), c.disk_dofs.ravel(), np.asarray(L.observe).ravel()]
-    if c.tie is not None:  # tied midside DOFs stay physical until reduction.tie eliminates them
+    if c.tie is not None:  # tied midside DOFs follow their masters in the constraint modes (reduction.tie)
         parts.append(np.asarray(c.tie)[:, 0])
     loaded = np.flatnonzero(L.harmonic)
     if loaded.size <= max_load_dofs:
@@ -88,7 +89,7 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
                       solver: str = "mumps", eigensolver: str = "lanczos",
                       max_load_dofs: int = MAX_LOAD_DOFS, keep_basis: bool = True) -> tuple[ReducedModel, Basis | None]:
     """:func:`reduce_bundle` that also returns the basis (for validation and recovery; None
-    with ``keep_basis`` False, which spares the tied basis V T, another copy of V)."""
+    with ``keep_basis`` False)."""
     t_all = time.perf_counter()
     n = bundle.n_dofs
     free = bundle.free_dofs
@@ -99,14 +100,17 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
         raise BundleError("bundle has no unclamped contact, loaded or observed DOF to keep")
     Mf, Kf, Cf = (sp.csr_matrix(A)[free][:, free] for A in (bundle.M, bundle.K, bundle.C))
     loads = np.column_stack([bundle.loads.static[free], bundle.loads.harmonic[free]])
+    c = bundle.contact
+    T_b, kept = (sp.identity(bnd.size, format="csr"), np.arange(bnd.size)) if c.tie is None else tie_map(
+        bnd, c.tie, bnd.size)
     timings: dict = {}
     V, omega = craig_bampton(Mf, Kf, local[bnd], n_modes, cutoff_hz, loads=loads, solver=solver,
-                             eigensolver=eigensolver, timings=timings)
-    nb, nm = bnd.size, omega.size
+                             eigensolver=eigensolver, timings=timings, combine=T_b)
+    nb, nm = kept.size, omega.size
     nl = V.shape[1] - nb - nm
 
     t0 = time.perf_counter()
-    Kr = _project_stiffness(Kf, V, local[bnd], nb)
+    Kr = _project_stiffness(Kf, V, local[bnd], T_b)
     Mr = _sandwich(Mf, V)
     Cr = _sandwich(Cf, V) if Cf.nnz else np.zeros_like(Mr)
     B = np.asarray(contact_map(bundle)[:, free] @ V)
@@ -117,7 +121,6 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
     fs, fh = V.T @ bundle.loads.static[free], V.T @ bundle.loads.harmonic[free]
     timings["projection"] = time.perf_counter() - t0
 
-    c = bundle.contact
     flank, position = pair_labels(bundle)
     seconds = {k: float(v) for k, v in timings.items() if not k.startswith("lanczos_")}
     seconds["total"] = time.perf_counter() - t_all
@@ -142,18 +145,12 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
     model = ReducedModel(M=Mr, K=Kr, C=Cr, B=B, f_static=fs, f_harmonic=fh, O=O, area=np.asarray(c.area, float),
                          gap=np.asarray(c.gap, float), flank=np.asarray(flank), position=np.asarray(position, float),
                          info=info, mu=None if c.mu is None else np.asarray(c.mu, float))
-    model.validate()
     if c.tie is not None:
-        from reduction.tie import eliminate
-
-        model, T = eliminate(model, bnd, c)
-        if not keep_basis:
-            return model, None
-        V = np.asarray(V @ T)
-        bnd = np.setdiff1d(bnd, np.asarray(c.tie)[:, 0])
+        info.update(tied_dofs=int(bnd.size - kept.size), tie_pairs=tie_pairs(c).tolist())
+    model.validate()
     if not keep_basis:
         return model, None
-    return model, Basis(V=V, free=free, boundary=bnd, n_modes=nm, n_load=nl, n_dofs=n)
+    return model, Basis(V=V, free=free, boundary=bnd[kept], n_modes=nm, n_load=nl, n_dofs=n)
 
 
 def reduce_bundle(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float | None = None, **kwargs) -> ReducedModel:
@@ -173,23 +170,24 @@ def reduce_bundle(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float | N
     return reduce_with_basis(bundle, n_modes, cutoff_hz, keep_basis=False, **kwargs)[0]
 
 
-def _project_stiffness(K, V, bnd, nb):
-    """VᵀKV with the boundary block as the exact Schur complement K_bb + K_bi Ψ.
+def _project_stiffness(K, V, bnd, T_b):
+    """VᵀKV with the boundary block as the exact Schur complement T_bᵀ(K_bb T_b + K_bi Ψ).
 
-    ``[I; Ψ]ᵀ K [I; Ψ] = K_bb + K_bi Ψ`` because ``K_ib + K_ii Ψ = 0``; this
-    avoids a sparse product with the nb (hundreds) constraint-mode columns.
-    The other blocks are formed directly.
+    With V's boundary columns ``[T_b; Ψ]`` (T_b the tie map, or I) and ``K_ib T_b + K_ii Ψ = 0``,
+    ``[T_b; Ψ]ᵀ K [T_b; Ψ] = T_bᵀ(K_bb T_b + K_bi Ψ)``; this avoids a sparse product with the
+    nb (hundreds to thousands) constraint-mode columns. The other blocks are formed directly.
     """
     n = K.shape[0]
+    nb = T_b.shape[1]
     mask = np.ones(n, dtype=bool)
     mask[bnd] = False
     interior = np.flatnonzero(mask)
     Kr = np.empty((V.shape[1], V.shape[1]))
     Kb = K[bnd]
-    Kbb, Kbi = Kb[:, bnd].toarray(), Kb[:, interior]
+    KbbT, Kbi, T_t = (Kb[:, bnd] @ T_b).tocsc(), Kb[:, interior], T_b.T.tocsr()
     for s in range(0, nb, PROJECTION_COLUMNS):
         e = min(s + PROJECTION_COLUMNS, nb)
-        Kr[:nb, s:e] = Kbb[:, s:e] + Kbi @ V[interior, s:e]
+        Kr[:nb, s:e] = T_t @ (KbbT[:, s:e].toarray() + Kbi @ V[interior, s:e])
     Kr[:, nb:] = V.T @ (K @ V[:, nb:])
     Kr[nb:, :nb] = Kr[:nb, nb:].T
     return _symmetric(Kr)

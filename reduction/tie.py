@@ -2,19 +2,22 @@
 
 The bundle's ``contact.tie`` rows ``(dep, a, b)`` ask ``u_dep = (u_a + u_b)/2``
 (``geometry.contact_nodes = "linear"``: every midside node of a flank facet
-follows its edge, :func:`reduction.pairs.tie_midsides`). The reduction keeps
-the dependent DOFs as Craig–Bampton boundary DOFs and eliminates them after
-the projection, ``q = T q'``:
-
-    M' = Tᵀ M T,  K' = Tᵀ K T,  C' = Tᵀ C T,  B' = B T,  O' = O T,  f' = Tᵀ f.
+follows its edge, :func:`reduction.pairs.tie_midsides`). The reduction
+(:func:`reduction.reduce.reduce_with_basis`) holds the dependent DOFs with the
+boundary in its fixed-interface modes, and solves the constraint modes of the
+kept DOFs alone with the dependent ones following, ``q_b = T q_b'``
+(:func:`tie_map`): the constraint mode of a master DOF is the static response
+to it with the other kept DOFs held, ``Ψ_a + ½ Σ Ψ_dep``, one solve with the
+right-hand side ``K_ib T``.
 
 This *is* the Craig–Bampton reduction of the constrained structure, not an
-approximation of it: its fixed-interface modes hold every boundary DOF, the
-dependent ones included, so they are the same; its constraint mode for a
-master DOF is the static response to that DOF with the others held and the
-dependent ones following, ``Ψ_a + ½ Σ Ψ_dep`` — the columns of ``V T``
-(test: ``tests/reduction/test_tie.py`` against the reduction of the
-explicitly constrained full model).
+approximation of it (test: ``tests/reduction/test_tie.py`` against the
+reduction of the explicitly constrained full model). Solving for the kept DOFs
+only keeps V a quarter as wide on a linear contact surface (three midside DOFs
+tied to every vertex DOF). The distributed reduction (:mod:`reduction.parallel`)
+still keeps the dependent DOFs as boundary DOFs and eliminates them after the
+projection (:func:`eliminate`): ``M' = Tᵀ M T``, ``B' = B T``, … with the
+columns of ``V T`` the same constraint modes.
 """
 from __future__ import annotations
 
