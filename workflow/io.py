@@ -64,11 +64,17 @@ def write_text(path: str | os.PathLike, text: str) -> Path:
 
 def write_rows(path: str | os.PathLike, rows: list) -> Path:
     """Rows (dicts with the same keys, the first row's order) as CSV, atomically;
-    floats with 9 significant digits."""
+    floats with 9 significant digits, a cell with a comma, quote or newline quoted (RFC 4180)."""
+    import csv
+    import io
+
     keys = list(rows[0])
     cell = lambda v: f"{v:.9g}" if isinstance(v, float) else str(v)  # noqa: E731
-    lines = [",".join(keys)] + [",".join(cell(r[k]) for k in keys) for r in rows]
-    return write_text(path, "\n".join(lines) + "\n")
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(keys)
+    w.writerows([cell(r[k]) for k in keys] for r in rows)
+    return write_text(path, buf.getvalue())
 
 
 def write_json(path: str | os.PathLike, data) -> Path:

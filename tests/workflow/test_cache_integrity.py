@@ -128,3 +128,17 @@ def test_help_documents_exit_codes(capsys):
     for code in ("0 ", "2 ", "3 ", "130"):
         assert f"\n  {code}" in out
     assert "unconverged" in out
+
+
+def test_a_table_cell_with_a_comma_stays_one_cell(tmp_path):
+    """write_rows quotes a cell that holds a comma or a quote (a march's stop reason does), so
+    the file reads back as the rows written; floats keep 9 significant digits."""
+    import csv
+
+    from workflow.io import write_rows
+
+    rows = [{"grid": "4x2", "reason": 'steady (70 steps, 4 rejected, "none" lost)', "seconds": 1.0 / 3.0},
+            {"grid": "7x3", "reason": "max steps (1500)", "seconds": 2.0}]
+    back = list(csv.DictReader(open(write_rows(tmp_path / "t.csv", rows))))
+    assert [r["reason"] for r in back] == [r["reason"] for r in rows]
+    assert [r["seconds"] for r in back] == ["0.333333333", "2"]

@@ -240,3 +240,33 @@ def test_a_mesh_of_an_interrupted_study_is_kept_and_read_back(tmp_path, monkeypa
     assert np.array_equal(again[1]["W"], first[1]["W"]) and again[1]["flank_area_m2"] == 2.5e-4
     cc.kept_level(None, 4, 2, tmp_path, Log(), None)        # outside a pipeline run: computed
     assert calls == [(4, 2), (4, 2)]
+
+
+def test_each_flanks_worn_volume_changes_on_its_own():
+    """The flanks can trade wear between meshes: the total holds while each moves. changes_last
+    gives each flank's change and the larger of the two."""
+    rows = [dict(h_contact_m=x, pairs=int(1 / x), peak_hz=100.0, peak_amplitude_m=1e-3, energy_J=1e-4,
+                 max_wear_m=1e-6, wear_volume_m3=3e-10, worn_volume_intrados_m3=a, worn_volume_extrados_m3=3e-10 - a)
+            for x, a in ((0.02, 2.0e-10), (0.01, 2.1e-10))]
+    c = summarise(rows, None)["changes_last"]
+    assert c["worn_volume"] == 0.0
+    assert c["worn_volume_flanks"]["intrados"] == pytest.approx(0.1 / 2.1)
+    assert c["worn_volume_flanks"]["extrados"] == pytest.approx(0.1 / 0.9)
+    assert c["worn_volume_flanks"]["largest"] == pytest.approx(0.1 / 0.9)
+    rows = [{k: v for k, v in r.items() if not k.startswith("worn_volume_")} for r in rows]
+    assert summarise(rows, None)["changes_last"]["worn_volume_flanks"] is None
+
+
+def test_a_meshs_row_carries_each_flanks_worn_volume():
+    """The row's per-flank volumes are Σ W·A over each flank's pairs, and sum to the interface's."""
+    from workflow.engine.wear.measures import wear_measures
+
+    rng = np.random.default_rng(3)
+    W, A = rng.uniform(0, 2e-6, 12), rng.uniform(1e-6, 3e-6, 12)
+    flank, pos = np.repeat([0, 1], 6), rng.uniform(0, 0.02, (12, 3))
+    worn = {"measures": wear_measures(W, pos, A, flank, 0.002), "energy_per_cycle_J": {"new": 1.0, "worn": 0.0}}
+    row = cc._wear_measures(worn)
+    assert row["worn_volume_intrados_m3"] == pytest.approx(W[:6] @ A[:6], rel=1e-14)
+    assert row["worn_volume_extrados_m3"] == pytest.approx(W[6:] @ A[6:], rel=1e-14)
+    assert cc._wear_measures(None)["worn_volume_intrados_m3"] is None
+

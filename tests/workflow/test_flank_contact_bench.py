@@ -23,4 +23,7 @@ def test_the_bench_keeps_each_worn_state_with_the_rows_it_reports(tmp_path):
     assert float(rows[0]["worn_volume_m3"]) == pytest.approx(float(w["W"] @ w["area"]), rel=1e-12)
     assert float(rows[0]["max_wear_m"]) == pytest.approx(float(w["W"].max()), rel=1e-12) and w["W"].max() > 0
     assert rows[0]["steady"] == "True"
+    for r in rows:          # each row's own flank: Σ W·A over its pairs
+        on = w["flank"] == int(r["flank"])
+        assert float(r["flank_worn_volume_m3"]) == pytest.approx(float(w["W"][on] @ w["area"][on]), rel=1e-12)
     assert (models / "model-4x2-g0.5.npz").exists()      # the model is kept under its grading

@@ -102,6 +102,7 @@ def worn(model, tip: float, sets=()) -> dict:
 
 def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path,
         grading: float = 1.0, sets=()) -> list[dict]:
+    from workflow.engine.wear.measures import worn_volume
     from workflow.scene import load_scene
     from workflow.stages.reduction import contact_model
 
@@ -113,13 +114,17 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
         if crown > 0:
             model = replace(model, gap=np.asarray(model.gap, float) + crown_gap(model, crown))
         w = {} if static_only else worn(model, tip, sets)
+        per_flank = {}
         if w:
-            np.savez(out / f"worn-{g[0]}x{g[1]}.npz", W=w.pop("W"), position=model.position, flank=model.flank,
+            W = w.pop("W")
+            per_flank = worn_volume(W, model.area, model.flank)
+            np.savez(out / f"worn-{g[0]}x{g[1]}.npz", W=W, position=model.position, flank=model.flank,
                      area=model.area)
         for r in static_contact(model, scene):
             rows.append({"grid": f"{g[0]}x{g[1]}", "pairs": int(model.area.size), "crown_m": crown,
                          "flank_grading": grading, **r,
-                         "tip_amplitude_m": None if static_only else tip, **w})
+                         "tip_amplitude_m": None if static_only else tip, **w,
+                         "flank_worn_volume_m3": per_flank.get(r["flank"])})
         print(rows[-1], flush=True)
     from workflow.io import write_rows
 

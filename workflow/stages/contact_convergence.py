@@ -187,19 +187,26 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
 def _wear_measures(worn: dict | None) -> dict:
     """The table's wear measures of one mesh (:mod:`workflow.engine.wear.measures`): the ℓ-filtered
     profile's RMS and maximum over both flanks, the scar width, the energy per cycle before and
-    after wear, the worn − new friction-damped resonance shift."""
+    after wear, the worn − new friction-damped resonance shift, and each flank's worn volume (the
+    sum of the two can converge while each flank moves: the flanks trade wear between meshes)."""
+    from workflow.engine.wear.measures import FLANK_NAMES
+
+    flank_keys = tuple(f"worn_volume_{name}_m3" for name in FLANK_NAMES.values())
     keys = ("profile_l2_m", "filtered_max_wear_m", "scar_width_m", "wear_length_m", "energy_new_J", "energy_worn_J",
             "resonance_shift_hz", "resonance_shift_amplitude_rel", "wear_operating_point")
     if not worn or not worn.get("measures"):
-        return dict.fromkeys(keys)
-    fl = worn["measures"]["flanks"].values()
+        return dict.fromkeys(keys + flank_keys)
+    per = worn["measures"]["flanks"]
+    flanks = {k: (per[name]["worn_volume_m3"] if name in per else None)
+              for k, name in zip(flank_keys, FLANK_NAMES.values())}
+    fl = per.values()
     rs = worn.get("resonance_shift") or {}
     op = worn.get("operating_point") or {}
     return dict(zip(keys, (float(np.sqrt(sum(f["profile_l2_m"] ** 2 for f in fl))),
                            max(f["filtered_max_m"] for f in fl), max(f["scar_width_m"] for f in fl),
                            worn["measures"]["length_m"], worn["energy_per_cycle_J"].get("new"),
                            worn["energy_per_cycle_J"].get("worn"), rs.get("hz"), rs.get("amplitude_rel"),
-                           op.get("kind") if op.get("kind") != "detuning" else f"detuning {op['detuning']:g}")))
+                           op.get("kind") if op.get("kind") != "detuning" else f"detuning {op['detuning']:g}"))) | flanks
 
 
 def unconverged(rows: list[dict]) -> list[str]:
@@ -243,6 +250,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from workflow.engine.studies.meshstudy import summarise
     from workflow.io import write_npz, write_rows
     from workflow.report.convergence import plot
+    from workflow.engine.wear.measures import FLANK_NAMES
     from workflow.stages.reduction import contact_stiffness
 
     out = Path(out)
@@ -276,7 +284,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
                      f"{sp['min']:.4g} … {sp['max']:.4g} (range {sp['range_rel']:.1%} of the median)")
     return {"rows": [{**{k: r[k] for k in ("pairs", "peak_hz", "peak_amplitude_m", "energy_J", "max_wear_m",
                                          "profile_l2_m", "resonance_shift_hz", "seconds")},
-                      "worn_volume_m3": r["wear_volume_m3"]} for r in rows],
+                      "worn_volume_m3": r["wear_volume_m3"],
+                      "worn_volume_flanks_m3": {n: r.get(f"worn_volume_{n}_m3") for n in FLANK_NAMES.values()}}
+                     for r in rows],
             "unconverged": unconverged(rows),
             "table": rows, "layout": scene["geometry"].contact_nodes, "harmonics": int(cc.harmonics),
             "wear_harmonics": wear_harmonics(cc), "law_length_m": float(scene["wear"].length_m),

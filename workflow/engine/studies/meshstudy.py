@@ -232,6 +232,18 @@ def _shift_change(worn: list[dict]) -> float | None:
     return abs(worn[-1]["resonance_shift_hz"] - worn[-2]["resonance_shift_hz"]) / worn[-1]["peak_hz"]
 
 
+def _flank_changes(last2: list[dict]) -> dict | None:
+    """{flank: relative change of its worn volume} between two meshes' rows (their
+    ``worn_volume_<flank>_m3``), and ``"largest"``: the larger of them — the measure to judge,
+    since the total can hold while the flanks trade wear (None without per-flank volumes)."""
+    from workflow.engine.wear.measures import FLANK_NAMES
+
+    out = {n: rel_change(last2[0].get(f"worn_volume_{n}_m3"), last2[1].get(f"worn_volume_{n}_m3"))
+           for n in FLANK_NAMES.values()}
+    known = [v for v in out.values() if v is not None]
+    return {**out, "largest": max(known)} if known else None
+
+
 def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
     """Relative changes between the two finest meshes and observed orders; for the
     wear, between the two finest meshes that have a worn profile (``profiles``:
@@ -244,7 +256,8 @@ def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
            "max_wear_change_last": last("max_wear_m"), "wear_volume_change_last": last("wear_volume_m3"),
            "changes_last": {"worn_volume": last("wear_volume_m3"), "max_wear": last("max_wear_m"),
                             "profile_l2": last("profile_l2_m"), "filtered_max": last("filtered_max_wear_m"),
-                            "resonance_shift": _shift_change(worn)},
+                            "resonance_shift": _shift_change(worn),
+                            "worn_volume_flanks": _flank_changes(worn[-2:]) if len(worn) >= 2 else None},
            "wear_pairs_last": [r.get("pairs") for r in worn[-2:]] if len(worn) >= 2 else None,
            "observed_order": {k: observed_order([r["h_contact_m"] for r in rs], [r.get(k) for r in rs])
                               for rs, ks in ((rows, ("peak_hz", "peak_amplitude_m", "energy_J")),
