@@ -14,8 +14,9 @@ provide rather than a scheme of our own:
    range, so the interior numbering is distributed the same way).
 2. **Factor.** One parallel MUMPS LDLᵀ of ``K_ii``
    (:class:`~reduction.craig_bampton.SparseFactor` on the MPIAIJ matrix).
-3. **Constraint modes** ``Ψ = −K_ii⁻¹ K_ib``: multi-right-hand-side MUMPS
-   solves on row-distributed dense blocks (MPIDENSE), 64 columns at a time.
+3. **Constraint modes** ``Ψ = −K_ii⁻¹ K_ib T_b`` of the kept boundary DOFs (tied
+   midside DOFs following, :func:`reduction.tie.boundary_map`): multi-right-hand-side
+   MUMPS solves on row-distributed dense blocks (MPIDENSE), 64 columns at a time.
 4. **Fixed-interface modes**: the serial block shift-invert Lanczos
    (:func:`~reduction.craig_bampton.fixed_interface_modes`) run on
    row-distributed blocks: products with ``M_ii``/``K_ii`` are PETSc
@@ -44,6 +45,7 @@ from reduction.bundle import matrix_rows, pair_labels, read_bundle
 from reduction.craig_bampton import MODE_TOL, SparseFactor, _load_vectors, fixed_interface_modes
 from reduction.reduce import MAX_LOAD_DOFS, boundary_dofs, contact_map
 from reduction.reduced import ReducedModel
+from reduction.tie import boundary_map, tie_pairs
 from workflow.errors import BundleError, SolverError
 
 ROOT = 0
@@ -174,14 +176,16 @@ def reduce_bundle_mpi(folder: str | Path, n_modes: int | None = 30, cutoff_hz: f
     seconds["total"] = time.perf_counter() - t_all
     info = {
         "method": "craig-bampton", "modes": int(Phi.shape[1]), "load_vectors": int(X.shape[1]),
-        "boundary_dofs": int(r.nb), "size": int(red["m"]), "n_dofs": int(r.n), "free_dofs": int(r.nf),
+        "boundary_dofs": int(r.kept.size), "size": int(red["m"]), "n_dofs": int(r.n), "free_dofs": int(r.nf),
         "pairs": int(r.sk.contact.n_pairs),
         "modes_requested": None if n_modes is None else int(n_modes), "cutoff_hz": float(cutoff_hz or 0.0),
         "fixed_interface_hz": (np.sqrt(np.clip(omega2, 0.0, None)) / (2 * np.pi)).tolist(), "solver": "mumps",
         "eigensolver": eigensolver, "eigen_stats": {k[8:]: v for k, v in timings.items() if k.startswith("lanczos_")},
         "seconds": seconds, "bundle": str(Path(folder)), "mpi_ranks": int(comm.Get_size()),
     }
-    return _model(r.sk, red, info, r.bnd)
+    if r.sk.contact.tie is not None:
+        info.update(tied_dofs=int(r.nb - r.kept.size), tie_pairs=tie_pairs(r.sk.contact).tolist())
+    return _model(r.sk, red, info)
 
 
 def _read_rows(folder: Path, comm, pcomm, max_load_dofs: int):
@@ -227,11 +231,13 @@ def _read_rows(folder: Path, comm, pcomm, max_load_dofs: int):
     Kii = aij(Kf_i[:, interior], (ni, ni), pcomm)
     Mii = aij(mats["M"][own_int][:, interior], (ni, ni), pcomm)
     Kib = Kf_i[:, fpos[bnd]].tocsc()
+    T_b, kept = boundary_map(bnd, sk.contact.tie)
     Mf, Kf = (RowOperator(aij(mats[k], (nf, nf), pcomm)) for k in ("M", "K"))
     c_nnz = comm.allreduce(mats["C"].nnz)
     Cf = RowOperator(aij(mats["C"], (nf, nf), pcomm)) if c_nnz else None
     loads = np.column_stack([sk.loads.static[free], sk.loads.harmonic[free]])
-    return SimpleNamespace(sk=sk, n=n, free=free, nf=nf, fpos=fpos, bnd=bnd, nb=bnd.size, is_b=is_b,
+    return SimpleNamespace(sk=sk, n=n, free=free, nf=nf, fpos=fpos, bnd=bnd, nb=bnd.size, T_b=T_b, kept=kept,
+                           is_b=is_b,
                            interior=interior, ni=ni, f0=f0, f1=f1, own=own, i0=i0, i1=i1, mats=mats,
                            own_int=own_int, own_bnd=own_bnd, Kii=Kii, Mii=Mii, Kib=Kib, Mf=Mf, Kf=Kf, Cf=Cf,
                            loads=loads, Kop=None, Mop=None)
@@ -246,7 +252,7 @@ def _basis(r, comm, n_modes, cutoff_hz, eigensolver: str, tol: float, timings: d
     factor = SparseFactor(r.Kii, "mumps")
     timings["factor"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    Psi = -factor.solve_sparse(r.Kib)
+    Psi = -factor.solve_sparse(r.Kib @ r.T_b)     # the kept DOFs' modes, tied ones following
     bad = comm.allreduce(int(not np.all(np.isfinite(Psi))))
     if bad:
         raise SolverError("constraint modes are not finite: K_ii is singular — a body is held by no boundary DOF")
@@ -274,25 +280,25 @@ def _basis(r, comm, n_modes, cutoff_hz, eigensolver: str, tol: float, timings: d
 
 
 def _project(r, comm, Psi, Phi, X) -> dict:
-    """Step 5: this rank's rows of V = [boundary | Ψ | Φ | X], the projections
-    summed on rank 0 (None elsewhere): ``Mr``, ``Kr_bb`` (boundary block as
-    the exact Schur complement K_bb + K_bi Ψ), ``Kr_xn`` (columns nb: of
-    VᵀKV), ``Cr``, ``B``, ``O``, ``fr``; and the sizes ``m``, ``nb``."""
-    f0, f1, nb, fpos, bnd = r.f0, r.f1, r.nb, r.fpos, r.bnd
-    nm, nl = Phi.shape[1], X.shape[1]
+    """Step 5: this rank's rows of V = [T_b; Ψ | Φ | X] (T_b the boundary map,
+    :func:`reduction.tie.boundary_map`), the projections summed on rank 0 (None
+    elsewhere): ``Mr``, ``Kr_bb`` (boundary block as the exact Schur complement
+    T_bᵀ(K_bb T_b + K_bi Ψ)), ``Kr_xn`` (columns nb: of VᵀKV), ``Cr``, ``B``,
+    ``O``, ``fr``; and the sizes ``m``, ``nb`` (kept boundary DOFs)."""
+    f0, f1, fpos, bnd, T_b = r.f0, r.f1, r.fpos, r.bnd, r.T_b
+    nb, nm, nl = T_b.shape[1], Phi.shape[1], X.shape[1]
     m = nb + nm + nl
     V = np.zeros((f1 - f0, m))
-    V[r.own_bnd, np.searchsorted(fpos[bnd], f0 + r.own_bnd)] = 1.0
+    pos = np.searchsorted(fpos[bnd], f0 + r.own_bnd)     # this rank's boundary rows among the boundary DOFs
+    V[r.own_bnd, :nb] = T_b[pos].toarray()
     V[r.own_int, :nb] = Psi
     V[r.own_int, nb:nb + nm] = Phi
     V[r.own_int, nb + nm:] = X
     MV = r.Mf @ V
     out = {"m": m, "nb": nb, "Mr": reduce_root(comm, V.T @ MV)}
     del MV
-    Kbb = np.zeros((nb, nb))
     Kb_rows = r.mats["K"][r.own_bnd][:, fpos[bnd]]
-    Kbb[np.searchsorted(fpos[bnd], f0 + r.own_bnd)] = Kb_rows.toarray()
-    out["Kr_bb"] = reduce_root(comm, Kbb + r.Kib.T @ Psi)
+    out["Kr_bb"] = reduce_root(comm, np.asarray(T_b[pos].T @ (Kb_rows @ T_b).toarray()) + (r.Kib @ T_b).T @ Psi)
     KV = r.Kf @ V[:, nb:]
     out["Kr_xn"] = reduce_root(comm, V.T @ KV)
     del KV
@@ -310,9 +316,9 @@ def _project(r, comm, Psi, Phi, X) -> dict:
     return out
 
 
-def _model(sk, red: dict, info: dict, bnd: np.ndarray) -> ReducedModel:
+def _model(sk, red: dict, info: dict) -> ReducedModel:
     """Rank 0: the symmetric reduced matrices from :func:`_project`'s sums and the :class:`ReducedModel`
-    (tied midside DOFs eliminated, :mod:`reduction.tie`; ``bnd`` the boundary DOFs)."""
+    (in the kept boundary DOFs: tied midside DOFs follow, :mod:`reduction.tie`)."""
     m, nb = red["m"], red["nb"]
     Kr = np.empty((m, m))
     Kr[:nb, :nb] = red["Kr_bb"]
@@ -329,10 +335,6 @@ def _model(sk, red: dict, info: dict, bnd: np.ndarray) -> ReducedModel:
                          position=np.asarray(position, float), info=info,
                          mu=None if c.mu is None else np.asarray(c.mu, float))  # per-pair μ (#18)
     model.validate()
-    if c.tie is not None:
-        from reduction.tie import eliminate
-
-        model = eliminate(model, bnd, c)[0]
     return model
 
 

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from reduction.bundle import Bundle, pair_labels
 from reduction.craig_bampton import craig_bampton
 from reduction.reduced import ReducedModel
-from reduction.tie import tie_map, tie_pairs
+from reduction.tie import boundary_map, tie_pairs
 from workflow.errors import BundleError
 
 #: A harmonic load on at most this many DOFs makes them boundary DOFs;
@@ -101,8 +101,7 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
     Mf, Kf, Cf = (sp.csr_matrix(A)[free][:, free] for A in (bundle.M, bundle.K, bundle.C))
     loads = np.column_stack([bundle.loads.static[free], bundle.loads.harmonic[free]])
     c = bundle.contact
-    T_b, kept = (sp.identity(bnd.size, format="csr"), np.arange(bnd.size)) if c.tie is None else tie_map(
-        bnd, c.tie, bnd.size)
+    T_b, kept = boundary_map(bnd, c.tie)
     timings: dict = {}
     V, omega = craig_bampton(Mf, Kf, local[bnd], n_modes, cutoff_hz, loads=loads, solver=solver,
                              eigensolver=eigensolver, timings=timings, combine=T_b)

@@ -1,10 +1,10 @@
-"""Tied midside nodes of a linear contact surface, eliminated from a reduced model.
+"""Tied midside nodes of a linear contact surface: they follow their edges in the reduction.
 
 The bundle's ``contact.tie`` rows ``(dep, a, b)`` ask ``u_dep = (u_a + u_b)/2``
 (``geometry.contact_nodes = "linear"``: every midside node of a flank facet
-follows its edge, :func:`reduction.pairs.tie_midsides`). The reduction
-(:func:`reduction.reduce.reduce_with_basis`) holds the dependent DOFs with the
-boundary in its fixed-interface modes, and solves the constraint modes of the
+follows its edge, :func:`reduction.pairs.tie_midsides`). The reductions
+(:func:`reduction.reduce.reduce_with_basis`, :mod:`reduction.parallel`) hold the
+dependent DOFs with the boundary in their fixed-interface modes, and solve the constraint modes of the
 kept DOFs alone with the dependent ones following, ``q_b = T q_b'``
 (:func:`tie_map`): the constraint mode of a master DOF is the static response
 to it with the other kept DOFs held, ``Ψ_a + ½ Σ Ψ_dep``, one solve with the
@@ -13,15 +13,11 @@ right-hand side ``K_ib T``.
 This *is* the Craig–Bampton reduction of the constrained structure, not an
 approximation of it (test: ``tests/reduction/test_tie.py`` against the
 reduction of the explicitly constrained full model). Solving for the kept DOFs
-only keeps V a quarter as wide on a linear contact surface (three midside DOFs
-tied to every vertex DOF). The distributed reduction (:mod:`reduction.parallel`)
-still keeps the dependent DOFs as boundary DOFs and eliminates them after the
-projection (:func:`eliminate`): ``M' = Tᵀ M T``, ``B' = B T``, … with the
-columns of ``V T`` the same constraint modes.
+alone, rather than for every boundary DOF and eliminating the dependent ones
+after the projection, makes V a quarter as wide on a linear contact surface
+(three midside DOFs tied to every vertex DOF).
 """
 from __future__ import annotations
-
-from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -57,6 +53,15 @@ def tie_map(boundary: np.ndarray, tie: np.ndarray, m: int) -> tuple[sp.csr_matri
     return tie_matrix(m, pos)
 
 
+def boundary_map(boundary: np.ndarray, tie) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``(T_b, kept)``: the boundary DOFs ``boundary`` (sorted full indices) as a map of the kept
+    ones, ``q_b = T_b q_b'`` (:func:`tie_map`), or the identity without ``tie``; ``kept`` their
+    positions in ``boundary``. The reductions solve the constraint modes of ``K_ib T_b``."""
+    if tie is None:
+        return sp.identity(len(boundary), format="csr"), np.arange(len(boundary))
+    return tie_map(boundary, tie, len(boundary))
+
+
 def tie_pairs(contact) -> np.ndarray:
     """(k_m, 2) pair indices of the edge ends of each tied blade midside node
     (the x-component rows of the blade side), for checks and reports."""
@@ -64,22 +69,3 @@ def tie_pairs(contact) -> np.ndarray:
     of = {int(d): i for i, d in enumerate(np.asarray(contact.blade_dofs)[:, 0])}
     rows = [r for r in t if int(r[1]) in of and int(r[2]) in of]
     return np.array([(of[int(r[1])], of[int(r[2])]) for r in rows], dtype=np.int64).reshape(-1, 2)
-
-
-def eliminate(model, boundary: np.ndarray, contact):
-    """``model`` with the DOFs of ``contact.tie`` eliminated (module docstring);
-    returns ``(model', T)``. ``info`` gains ``tied_dofs`` and ``tie_pairs``."""
-    T, keep = tie_map(boundary, contact.tie, model.size)
-    nb = int(model.info.get("boundary_dofs", boundary.size))
-
-    def proj(A):
-        A = np.asarray(T.T @ (T.T @ A).T)
-        return 0.5 * (A + A.T)
-
-    info = dict(model.info, tied_dofs=int(model.size - keep.size), size=int(keep.size),
-                boundary_dofs=int(nb - (model.size - keep.size)), tie_pairs=tie_pairs(contact).tolist())
-    out = replace(model, M=proj(model.M), K=proj(model.K), C=proj(model.C), B=np.asarray(model.B @ T),
-                  O=np.asarray(model.O @ T), f_static=T.T @ model.f_static, f_harmonic=T.T @ model.f_harmonic,
-                  info=info)
-    out.validate()
-    return out, T

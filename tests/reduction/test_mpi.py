@@ -233,3 +233,29 @@ def test_every_node_pairs_on_two_ranks_equal_serial(dovetail, tmp_path):
     np.testing.assert_allclose(b["area"], a["area"], rtol=1e-12)
     for k in ("normal", "t1", "t2"):  # unit vectors; the sums run in another order
         np.testing.assert_allclose(b[k], a[k], rtol=0, atol=1e-12)
+
+
+@pytest.mark.slow   # a serial run to the reduced model (~10 s) and a two-rank reduction: make test-slow
+def test_tied_midside_dofs_reduced_on_two_ranks(tmp_path):
+    """A linear contact surface (three midside DOFs tied to every vertex DOF): the two-rank reduction
+    solves the kept DOFs' constraint modes with the tied ones following, as the serial one does —
+    the same model block by block, its boundary DOFs the kept ones."""
+    from reduction.reduced import ReducedModel
+
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE.replace('outputs = ["reduced", "modes", "frf"]', 'outputs = ["reduced"]')
+                     .replace("h_airfoil = 0.009", 'h_airfoil = 0.009\ncontact_nodes = "linear"'))
+    serial = tmp_path / "serial"
+    _run([str(BIN / "bladewear"), "run", str(scene), "--out", str(serial), "--cache", str(tmp_path / "c"), "--quiet"])
+    out = tmp_path / "r2.npz"
+    _run(MPIRUN + [sys.executable, "-m", "reduction.parallel", str(serial / "assembly" / "model"), str(out),
+                   "--modes", "10"])
+    s, p = _reduced(serial), ReducedModel.load(out)
+    assert s.info["tied_dofs"] == p.info["tied_dofs"] > s.info["boundary_dofs"]
+    nb = s.info["boundary_dofs"]
+    assert p.info["boundary_dofs"] == nb and p.size == s.size
+    for name in "KM":
+        A, B = getattr(p, name)[:nb, :nb], getattr(s, name)[:nb, :nb]
+        np.testing.assert_allclose(A, B, rtol=0, atol=1e-10 * np.abs(B).max(), err_msg=name)
+    np.testing.assert_array_equal(p.B[:, :nb], s.B[:, :nb])
+    assert _rel(_tied(p)[0], _tied(s)[0]) < REL
