@@ -87,9 +87,8 @@ def boundary_dofs(bundle: Bundle, max_load_dofs: int = MAX_LOAD_DOFS) -> np.ndar
 
 def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float | None = None, *,
                       solver: str = "mumps", eigensolver: str = "lanczos",
-                      max_load_dofs: int = MAX_LOAD_DOFS, keep_basis: bool = True) -> tuple[ReducedModel, Basis | None]:
-    """:func:`reduce_bundle` that also returns the basis (for validation and recovery; None
-    with ``keep_basis`` False)."""
+                      max_load_dofs: int = MAX_LOAD_DOFS) -> tuple[ReducedModel, Basis]:
+    """:func:`reduce_bundle` that also returns the basis (for validation and recovery)."""
     t_all = time.perf_counter()
     n = bundle.n_dofs
     free = bundle.free_dofs
@@ -147,8 +146,6 @@ def reduce_with_basis(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float
     if c.tie is not None:
         info.update(tied_dofs=int(bnd.size - kept.size), tie_pairs=tie_pairs(c).tolist())
     model.validate()
-    if not keep_basis:
-        return model, None
     return model, Basis(V=V, free=free, boundary=bnd[kept], n_modes=nm, n_load=nl, n_dofs=n)
 
 
@@ -166,7 +163,7 @@ def reduce_bundle(bundle: Bundle, n_modes: int | None = 30, cutoff_hz: float | N
         n_modes = None
         if not cutoff_hz:
             raise BundleError("reduction needs modes > 0 or cutoff_hz > 0")
-    return reduce_with_basis(bundle, n_modes, cutoff_hz, keep_basis=False, **kwargs)[0]
+    return reduce_with_basis(bundle, n_modes, cutoff_hz, **kwargs)[0]
 
 
 def _project_stiffness(K, V, bnd, T_b):
