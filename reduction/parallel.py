@@ -196,8 +196,9 @@ def _read_rows(folder: Path, comm, pcomm, max_load_dofs: int):
     ``is_b``, ``interior``; this rank's ranges ``f0:f1`` (free) and ``i0:i1``
     (interior), ``own`` (global DOFs), ``own_int``/``own_bnd`` (local rows);
     ``mats`` (local free-numbered rows of M, K, C), ``Kii``, ``Mii`` (MPIAIJ),
-    ``Kib`` (local rows), ``Mf``, ``Kf``, ``Cf`` (:class:`RowOperator`, Cf
-    None without damping), ``loads`` (nf, 2)."""
+    ``T_b``, ``kept`` (:func:`reduction.tie.boundary_map`), ``KibT`` (local rows
+    of K_ib T_b), ``Mf``, ``Kf``, ``Cf`` (:class:`RowOperator`, Cf None without
+    damping), ``loads`` (nf, 2)."""
     from types import SimpleNamespace
 
     rank, size = comm.Get_rank(), comm.Get_size()
@@ -230,8 +231,8 @@ def _read_rows(folder: Path, comm, pcomm, max_load_dofs: int):
     Kf_i = mats["K"][own_int]
     Kii = aij(Kf_i[:, interior], (ni, ni), pcomm)
     Mii = aij(mats["M"][own_int][:, interior], (ni, ni), pcomm)
-    Kib = Kf_i[:, fpos[bnd]].tocsc()
     T_b, kept = boundary_map(bnd, sk.contact.tie)
+    KibT = (Kf_i[:, fpos[bnd]] @ T_b).tocsc()      # the kept DOFs' columns, tied ones following
     Mf, Kf = (RowOperator(aij(mats[k], (nf, nf), pcomm)) for k in ("M", "K"))
     c_nnz = comm.allreduce(mats["C"].nnz)
     Cf = RowOperator(aij(mats["C"], (nf, nf), pcomm)) if c_nnz else None
@@ -239,7 +240,7 @@ def _read_rows(folder: Path, comm, pcomm, max_load_dofs: int):
     return SimpleNamespace(sk=sk, n=n, free=free, nf=nf, fpos=fpos, bnd=bnd, nb=bnd.size, T_b=T_b, kept=kept,
                            is_b=is_b,
                            interior=interior, ni=ni, f0=f0, f1=f1, own=own, i0=i0, i1=i1, mats=mats,
-                           own_int=own_int, own_bnd=own_bnd, Kii=Kii, Mii=Mii, Kib=Kib, Mf=Mf, Kf=Kf, Cf=Cf,
+                           own_int=own_int, own_bnd=own_bnd, Kii=Kii, Mii=Mii, KibT=KibT, Mf=Mf, Kf=Kf, Cf=Cf,
                            loads=loads, Kop=None, Mop=None)
 
 
@@ -252,7 +253,7 @@ def _basis(r, comm, n_modes, cutoff_hz, eigensolver: str, tol: float, timings: d
     factor = SparseFactor(r.Kii, "mumps")
     timings["factor"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    Psi = -factor.solve_sparse(r.Kib @ r.T_b)     # the kept DOFs' modes, tied ones following
+    Psi = -factor.solve_sparse(r.KibT)
     bad = comm.allreduce(int(not np.all(np.isfinite(Psi))))
     if bad:
         raise SolverError("constraint modes are not finite: K_ii is singular — a body is held by no boundary DOF")
@@ -298,7 +299,7 @@ def _project(r, comm, Psi, Phi, X) -> dict:
     out = {"m": m, "nb": nb, "Mr": reduce_root(comm, V.T @ MV)}
     del MV
     Kb_rows = r.mats["K"][r.own_bnd][:, fpos[bnd]]
-    out["Kr_bb"] = reduce_root(comm, np.asarray(T_b[pos].T @ (Kb_rows @ T_b).toarray()) + (r.Kib @ T_b).T @ Psi)
+    out["Kr_bb"] = reduce_root(comm, np.asarray(T_b[pos].T @ (Kb_rows @ T_b).toarray()) + r.KibT.T @ Psi)
     KV = r.Kf @ V[:, nb:]
     out["Kr_xn"] = reduce_root(comm, V.T @ KV)
     del KV
