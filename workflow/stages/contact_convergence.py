@@ -248,9 +248,9 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     from geometry.flankmap import common_points, profile_at
     from workflow import progress
     from workflow.engine.studies.meshstudy import summarise
+    from workflow.engine.wear.measures import FLANK_NAMES
     from workflow.io import write_npz, write_rows
     from workflow.report.convergence import plot
-    from workflow.engine.wear.measures import FLANK_NAMES
     from workflow.stages.reduction import contact_stiffness
 
     out = Path(out)
