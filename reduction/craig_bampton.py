@@ -371,23 +371,30 @@ def craig_bampton(M: sp.spmatrix, K: sp.spmatrix, boundary: np.ndarray, n_modes:
         X = _load_vectors(np.asarray(loads).reshape(n, -1)[interior], Kii, Mii, factor, Phi)
     t["load_vectors"] = time.perf_counter() - t0
 
-    # the constraint modes last, straight into their rows of V block by block: V is the
-    # reduction's largest array (n × nb), and a whole Ψ beside it (and −Ψ) tripled it
     t0 = time.perf_counter()
+    try:
+        V = _basis(n, boundary, interior, combine, itertools.chain([first] if first is not None else [], psi), Phi, X)
+    finally:
+        factor.destroy()
+    t["constraint_modes"] += time.perf_counter() - t0
+    return V, np.sqrt(np.clip(omega2, 0.0, None))
+
+
+def _basis(n: int, boundary, interior, combine, psi, Phi, X) -> np.ndarray:
+    """V (n, nb' + nm + nl) = [combine on the boundary rows, Ψ on the interior ones | Φ | X]:
+    ``psi`` the (first column, K_ii⁻¹ K_ib combine block) pairs of :meth:`SparseFactor.solve_chunks`,
+    written negated (Ψ = −K_ii⁻¹ K_ib combine) straight into their rows block by block — V is the
+    reduction's largest array (n × nb'), and a whole Ψ beside it (and −Ψ) tripled it."""
     nb, nm, nl = combine.shape[1], Phi.shape[1], X.shape[1]
     V = np.zeros((n, nb + nm + nl))
     cc = combine.tocoo()
     V[boundary[cc.row], cc.col] = cc.data
     V[interior, nb:nb + nm] = Phi
     V[interior, nb + nm:] = X
-    try:
-        for s, Psi in itertools.chain([first] if first is not None else [], psi):
-            _finite_modes((s, Psi))
-            V[interior, s:s + Psi.shape[1]] = -Psi
-    finally:
-        factor.destroy()
-    t["constraint_modes"] += time.perf_counter() - t0
-    return V, np.sqrt(np.clip(omega2, 0.0, None))
+    for s, Y in psi:
+        _finite_modes((s, Y))
+        V[interior, s:s + Y.shape[1]] = -Y
+    return V
 
 
 def _finite_modes(chunk):
