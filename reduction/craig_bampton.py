@@ -348,7 +348,8 @@ def craig_bampton(M: sp.spmatrix, K: sp.spmatrix, boundary: np.ndarray, n_modes:
     combine = sp.identity(boundary.size, format="csr") if combine is None else sp.csr_matrix(combine)
     psi = factor.solve_chunks(Kib @ combine)
     first = next(psi, None)      # a singular K_ii shows here, before the eigensolver meets it
-    _finite_modes(first)
+    if first is not None:
+        _finite_modes(first[1])
     t["constraint_modes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -392,14 +393,14 @@ def _basis(n: int, boundary, interior, combine, psi, Phi, X) -> np.ndarray:
     V[interior, nb:nb + nm] = Phi
     V[interior, nb + nm:] = X
     for s, Y in psi:
-        _finite_modes((s, Y))
+        _finite_modes(Y)
         V[interior, s:s + Y.shape[1]] = -Y
     return V
 
 
-def _finite_modes(chunk):
-    """Raise if a (first column, block) chunk of constraint modes is not finite."""
-    if chunk is not None and not np.all(np.isfinite(chunk[1])):
+def _finite_modes(block: np.ndarray):
+    """Raise if a block of constraint modes is not finite."""
+    if not np.all(np.isfinite(block)):
         raise SolverError("constraint modes are not finite: K_ii is singular — a body is held by no boundary DOF")
 
 
