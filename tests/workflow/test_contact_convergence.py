@@ -54,7 +54,12 @@ def test_summarise_reports_the_two_finest_meshes():
     mw = s["spread"]["max_wear_m"]                                   # 1e-6 × (1.2, 1.1, 1.05)
     assert (mw["median"], mw["min"], mw["max"], mw["meshes"]) == pytest.approx((1.1e-6, 1.05e-6, 1.2e-6, 3))
     assert mw["range_rel"] == pytest.approx(0.15 / 1.1)
+    assert s["spread"]["energy_new_J"] is None                      # no wear energies in these rows
     assert s["profile_change_last"] == pytest.approx(0.1 / 2.1)
+    for r, e in zip(rows, (2.0e-4, 2.1e-4, 2.04e-4)):
+        r["energy_new_J"] = e
+    en = summarise(rows, W)["spread"]["energy_new_J"]
+    assert (en["median"], en["range_rel"]) == pytest.approx((2.04e-4, 0.1e-4 / 2.04e-4))
 
 
 def test_wear_changes_are_between_the_finest_meshes_that_have_it():

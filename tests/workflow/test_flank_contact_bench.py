@@ -27,3 +27,35 @@ def test_the_bench_keeps_each_worn_state_with_the_rows_it_reports(tmp_path):
         on = w["flank"] == int(r["flank"])
         assert float(r["flank_worn_volume_m3"]) == pytest.approx(float(w["W"][on] @ w["area"][on]), rel=1e-12)
     assert (models / "model-4x2-g0.5.npz").exists()      # the model is kept under its grading
+    # the march's path: W grows pair by pair (Archard's rates are ≥ 0) and ends at the kept W
+    c, Wh = w["cycles"], w["W_history"]
+    assert np.all(np.diff(c) > 0) and Wh.shape == (c.size, w["W"].size)
+    np.testing.assert_array_equal(Wh[-1], w["W"])
+    assert np.all(np.diff(Wh, axis=0) >= -1e-12 * w["W"].max())
+
+    # the same worn state read back: the worn − new resonance and the worn flanks' bearing
+    again = tmp_path / "again"
+    flank_contact.main(["--grids", "4x2", "--grading", "0.5", "--models", str(models), "--worn", str(out),
+                        "--shift", "--out", str(again)])
+    back = list(csv.DictReader(open(again / "flank_contact.csv")))
+    assert [r["worn_volume_m3"] for r in back] == [r["worn_volume_m3"] for r in rows]
+    for r in back:
+        # contact worn away softens the root: the friction-damped resonance falls, by far less than 1 %
+        assert -1e-2 < float(r["resonance_shift_rel"]) < 0
+        on = w["flank"] == int(r["flank"])
+        scar = w["area"][on][w["W"][on] >= 0.05 * w["W"].max()].sum()
+        assert float(r["scar_area_m2"]) == pytest.approx(scar, rel=1e-12)
+        assert 0 <= float(r["worn_open_share"]) <= 1
+
+
+def test_a_worn_state_of_other_pairs_is_refused(tmp_path):
+    from types import SimpleNamespace
+
+    from workflow.bench.flank_contact import saved_worn
+
+    model = SimpleNamespace(position=np.zeros((3, 3)))
+    np.savez(tmp_path / "worn-2x2.npz", W=np.zeros(4), position=np.zeros((4, 3)))
+    with pytest.raises(SystemExit, match="worn-2x2.npz holds other pairs"):
+        saved_worn(tmp_path / "worn-2x2.npz", model)
+    with pytest.raises(SystemExit, match="no worn state"):
+        saved_worn(tmp_path / "worn-3x3.npz", model)

@@ -1,7 +1,8 @@
 """The flank contact and the held-amplitude worn state against the contact mesh (issue 48).
 
 ``python -m workflow.bench.flank_contact --grids 4x2,7x3,7x5,8x9 [--tip 2.5e-3] [--crown 0]
-[--grading 1] [--set SECTION.KEY=VALUE ...] [--models DIR] [--static-only] [--out results/bench]``
+[--grading 1] [--set SECTION.KEY=VALUE ...] [--models DIR] [--static-only] [--worn DIR] [--shift]
+[--out results/bench]``
 
 For each flank grid (``along x across`` vertices) of the ``contact-convergence`` scene's sector
 (meshed, assembled and reduced as the stage does it; ``--models`` keeps the reduced models
@@ -12,7 +13,13 @@ there, ``model-AxC.npz``, and reads them back):
   (:meth:`workflow.engine.hb.HBProblem.static_state` with the scene's penalty per unit area);
 * unless ``--static-only``: the worn steady state with the tip held at ``--tip`` [m]
   (``wear.control = "amplitude"``) at the mesh's first tied frequency — the stage's own march
-  (:func:`workflow.stages.contact_convergence._worn_profile`), no resonance-shift search.
+  (:func:`workflow.stages.contact_convergence._worn_profile`), no resonance-shift search;
+  with ``--worn DIR`` the worn states a previous run wrote there (``worn-AxC.npz``) instead;
+* with ``--shift``, per worn state: the worn − new friction-damped resonance
+  (:func:`workflow.engine.studies.operating.resonance_shift` on the stage's march setup,
+  :func:`workflow.stages.contact_convergence.wear_setup`), and how each flank bears under the
+  preload once worn (the worn depth in the gap) beside its wear scar (pairs at ≥ 5 % of the
+  deepest; :func:`workflow.engine.wear.measures.scar`).
 
 ``--set`` overrides scene keys; ``contact.stiffness_n``/``stiffness_t`` give every grid's model the
 interface layer of :mod:`reduction.layer` before both the static state and the march.
@@ -22,7 +29,8 @@ its centre line): a crowned flank, as micro-geometry. ``--grading`` g < 1 crowds
 across each flank towards its long edges (``geometry.flank_grading``).
 
 Writes ``flank_contact.csv`` (one row per grid and flank) to ``--out``, and each worn state
-(W, the pairs' position, flank and area) to ``worn-AxC.npz``.
+(W, the pairs' position, flank and area, and the march's path: ``cycles`` (k,), ``W_history``
+(k, p) [m]) to ``worn-AxC.npz``.
 """
 from __future__ import annotations
 
@@ -69,9 +77,21 @@ def model_of(scene, grid: tuple[int, int], keep: Path | None):
     return model
 
 
-def static_contact(model, scene) -> list[dict]:
+def saved_worn(path: Path, model) -> np.ndarray:
+    """W (p,) [m] of a worn state this bench wrote (``worn-AxC.npz``), refused unless its pairs are
+    ``model``'s (the same positions)."""
+    if not path.exists():
+        raise SystemExit(f"--worn: no worn state {path}")
+    with np.load(path) as z:
+        W, pos = np.asarray(z["W"], float), np.asarray(z["position"], float)
+    if pos.shape != np.shape(model.position) or not np.allclose(pos, model.position, rtol=0, atol=1e-9):
+        raise SystemExit(f"--worn: {path} holds other pairs than this grid's model")
+    return W
+
+
+def static_contact(model, scene, W=None) -> list[dict]:
     """Per flank: :func:`workflow.engine.studies.meshstudy.flank_bearing` under the scene's law
-    (penalty per unit area)."""
+    (penalty per unit area), with the worn depth W (p,) [m] in the gap when given."""
     from reduction.condense import relative_coordinates
     from workflow.engine.studies.meshstudy import flank_bearing
     from workflow.engine.studies.wearstudy import build_problem
@@ -80,28 +100,59 @@ def static_contact(model, scene) -> list[dict]:
 
     rc = relative_coordinates(model)
     law, _ = _law(model, scene["contact"], scene["contact_convergence"], rc)
+    if W is not None:
+        law = law.with_wear(np.maximum(np.asarray(W, float), 0.0))
     sc = {"wear": scene["wear"], "contact": scene["contact"], "pseudotime": scene["pseudotime"],
           "hb": replace(scene["hb"], methods=["hbm"], harmonics=[1], time_samples=[8])}
     st = build_problem(model, law, options(sc), rc=rc)[0].static
-    return flank_bearing(model, st, np.asarray(law.gap, float))
+    return flank_bearing(model, st, np.asarray(law.gap, float) + np.asarray(law.wear, float))
 
 
 def worn(model, tip: float, sets=()) -> dict:
     """The held-amplitude worn steady state by the stage's march (``sets``: more scene overrides)."""
-    from workflow.scene import load_scene
     from workflow.stages.contact_convergence import _worn_profile
 
-    scene = load_scene(SCENE, ["wear.control=\"amplitude\"", f"wear.tip_amplitude_m={tip!r}",
-                               "wear.resonance_shift=false", *sets])
+    scene = _scene(tip, sets)
     t0 = time.perf_counter()
     out = _worn_profile(model, scene, scene["contact_convergence"])
     W = out["W"]
     return {"max_wear_m": float(W.max()), "worn_volume_m3": float(W @ np.asarray(model.area)),
-            "steady": out["steady"], "steps": out["steps"], "reason": out["reason"], "seconds": time.perf_counter() - t0, "W": W}
+            "steady": out["steady"], "steps": out["steps"], "reason": out["reason"], "seconds": time.perf_counter() - t0,
+            # the unworn vibration's friction energy per cycle [J]: k_w/μ times it is the worn volume's first rate
+            "energy_new_J": (out["energy_per_cycle_J"] or {}).get("new"), "W": W,
+            "path": {"cycles": out["cycles"], "W_history": out["W_history"]}}
+
+
+def _scene(tip: float, sets=()):
+    from workflow.scene import load_scene
+
+    return load_scene(SCENE, ["wear.control=\"amplitude\"", f"wear.tip_amplitude_m={tip!r}",
+                              "wear.resonance_shift=false", *sets])
+
+
+def worn_state(model, W, tip: float, sets=()) -> dict:
+    """What a worn state W (p,) [m] does (``--shift``): ``shift`` the worn − new friction-damped
+    resonance of the stage's march setup (Nh, nit, law) under the scene's force, and per flank
+    ``flanks[f]``: its scar area [m²] (:func:`workflow.engine.wear.measures.scar`), the share of
+    its area open under the preload once worn and its largest worn pressure [Pa]."""
+    from workflow.engine.studies.operating import resonance_shift
+    from workflow.engine.wear.measures import scar
+    from workflow.stages.contact_convergence import wear_setup
+
+    scene = _scene(tip, sets)
+    m, law, _, opt = wear_setup(model, scene, scene["contact_convergence"])
+    t0 = time.perf_counter()
+    shift = resonance_shift(m, law, W, opt)
+    shift["seconds"] = time.perf_counter() - t0
+    sc = scar(W, model.position, model.area, model.flank)
+    bearing = {r["flank"]: r for r in static_contact(model, scene, W)}
+    flanks = {f: {"scar_area_m2": sc[f]["area_m2"], "worn_open_share": bearing[f]["open_share"],
+                  "worn_max_pressure_pa": bearing[f]["max_pressure_pa"]} for f in sc}
+    return {"shift": shift, "flanks": flanks}
 
 
 def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path,
-        grading: float = 1.0, sets=()) -> list[dict]:
+        grading: float = 1.0, sets=(), worn_from: Path | None = None, shift: bool = False) -> list[dict]:
     from workflow.engine.wear.measures import worn_volume
     from workflow.scene import load_scene
     from workflow.stages.reduction import contact_model
@@ -113,18 +164,31 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
         model = contact_model(model_of(scene, g, keep), scene["contact"])
         if crown > 0:
             model = replace(model, gap=np.asarray(model.gap, float) + crown_gap(model, crown))
-        w = {} if static_only else worn(model, tip, sets)
-        per_flank = {}
+        name = f"worn-{g[0]}x{g[1]}.npz"
+        if worn_from is not None:
+            W = saved_worn(worn_from / name, model)
+            w = {"max_wear_m": float(W.max()), "worn_volume_m3": float(W @ np.asarray(model.area)), "W": W}
+        else:
+            w = {} if static_only else worn(model, tip, sets)
+        per_flank, state = {}, {}
         if w:
-            W = w.pop("W")
+            W, path = w.pop("W"), w.pop("path", {})
             per_flank = worn_volume(W, model.area, model.flank)
-            np.savez(out / f"worn-{g[0]}x{g[1]}.npz", W=W, position=model.position, flank=model.flank,
-                     area=model.area)
+            if worn_from is None:
+                np.savez(out / name, W=W, position=model.position, flank=model.flank, area=model.area, **path)
+            if shift:
+                state = worn_state(model, W, tip, sets)
         for r in static_contact(model, scene):
+            more = {}
+            if state:
+                sh = state["shift"]
+                more = {**state["flanks"][r["flank"]], "new_hz": sh.get("new_hz"), "worn_hz": sh.get("worn_hz"),
+                        "resonance_shift_rel": sh.get("rel"), "amplitude_shift_rel": sh.get("amplitude_rel"),
+                        "shift_seconds": sh["seconds"], "shift_reason": sh.get("reason")}
             rows.append({"grid": f"{g[0]}x{g[1]}", "pairs": int(model.area.size), "crown_m": crown,
                          "flank_grading": grading, **r,
                          "tip_amplitude_m": None if static_only else tip, **w,
-                         "flank_worn_volume_m3": per_flank.get(r["flank"])})
+                         "flank_worn_volume_m3": per_flank.get(r["flank"]), **more})
         print(rows[-1], flush=True)
     from workflow.io import write_rows
 
@@ -144,6 +208,10 @@ def main(argv=None) -> int:
                          "layer on every grid's model, static state and march alike) (repeatable)")
     ap.add_argument("--models", type=Path, default=None, help="keep the reduced models in this folder")
     ap.add_argument("--static-only", action="store_true", help="the static contact only, no wear march")
+    ap.add_argument("--worn", type=Path, default=None,
+                    help="read each grid's worn state (worn-AxC.npz) from this folder instead of marching")
+    ap.add_argument("--shift", action="store_true",
+                    help="per worn state: the worn − new friction-damped resonance and the worn flanks' bearing")
     ap.add_argument("--out", default="results/bench", type=Path)
     a = ap.parse_args(argv)
     try:
@@ -152,7 +220,9 @@ def main(argv=None) -> int:
         ap.error(f"--grids {a.grids!r}: expected e.g. 4x2,7x3")
     if not (a.tip > 0 and a.crown >= 0 and 0 < a.grading <= 1):
         ap.error("--tip must be > 0, --crown ≥ 0 and --grading in (0, 1]")
-    run(grids, a.tip, a.crown, a.models, a.static_only, a.out, a.grading, a.set)
+    if a.static_only and (a.worn or a.shift):
+        ap.error("--static-only has no worn state for --worn or --shift")
+    run(grids, a.tip, a.crown, a.models, a.static_only, a.out, a.grading, a.set, a.worn, a.shift)
     return 0
 
 

@@ -86,13 +86,12 @@ def wear_harmonics(cc) -> int:
     return int(cc.wear_harmonics or cc.harmonics)
 
 
-def _worn_profile(model, scene, cc) -> dict:
-    """:func:`workflow.engine.studies.meshstudy.worn_profile`: the scene's contact, wear
-    and pseudotime sections, pseudo-time only, HBM with the stage's wear Nh
+def wear_setup(model, scene, cc):
+    """(model, law, path, options) of the stage's wear march on one contact mesh: the scene's
+    contact, wear and pseudotime sections, pseudo-time only, HBM with the stage's wear Nh
     (``cc.wear_harmonics``, else ``cc.harmonics``) and nit, at the tip force
     ``cc.wear_amplitude`` when it is set."""
     from reduction.condense import relative_coordinates
-    from workflow.engine.studies.meshstudy import worn_profile
     from workflow.stages.wear import options
 
     sc = {"wear": scene["wear"], "contact": scene["contact"], "pseudotime": scene["pseudotime"],
@@ -103,7 +102,14 @@ def _worn_profile(model, scene, cc) -> dict:
     if cc.wear_amplitude > 0:
         model = replace(model, f_harmonic=model.f_harmonic * (cc.wear_amplitude / scene["excitation"].amplitude))
     law, path = _law(model, scene["contact"], cc, relative_coordinates(model))
-    return worn_profile(model, law, path, opt)
+    return model, law, path, opt
+
+
+def _worn_profile(model, scene, cc) -> dict:
+    """:func:`workflow.engine.studies.meshstudy.worn_profile` of the march :func:`wear_setup` sets up."""
+    from workflow.engine.studies.meshstudy import worn_profile
+
+    return worn_profile(*wear_setup(model, scene, cc))
 
 
 # ------------------------------------------------------------------ one contact mesh

@@ -161,7 +161,8 @@ def worn_profile(model, law, eps_path, options) -> dict:
     :class:`~workflow.engine.WearOptions` whose methods include
     ``"pseudo-time"``): ``W`` (p,) [m], ``steady``, ``steps``, ``frequency_hz``, and the wear
     measures, energies, operating point and resonance shift of :class:`WearStudy`, and
-    ``reason``, why the march stopped."""
+    ``reason``, why the march stopped; ``cycles`` (k,) and ``W_history`` (k, p) [m] the march's
+    path (pseudo-time in cycles: the physical wear path to ``pseudotime.wear_rtol``)."""
     from workflow.engine.studies.wearstudy import worn_steady_state
 
     study = worn_steady_state(model, law, options, eps_path=eps_path)
@@ -169,7 +170,8 @@ def worn_profile(model, law, eps_path, options) -> dict:
     return {"W": np.asarray(h.W, dtype=float), "steady": bool(h.steady), "steps": int(h.iterations),
             "reason": h.reason, "frequency_hz": float(study.omega / 2 / np.pi), "measures": study.measures,
             "energy_per_cycle_J": study.energy_per_cycle_J, "operating_point": study.operating_point,
-            "resonance_shift": study.resonance_shift}
+            "resonance_shift": study.resonance_shift, "cycles": np.asarray(h.cycles, dtype=float),
+            "W_history": np.asarray(h.W_history, dtype=float)}
 
 
 # ------------------------------------------------------------------ convergence over the meshes
@@ -267,8 +269,10 @@ def summarise(rows: list[dict], profiles: np.ndarray | None) -> dict:
                   for rs, ks in ((rows, ("peak_amplitude_m", "energy_J")),
                                  (worn, ("max_wear_m", "wear_volume_m3", "profile_l2_m"))) for k in ks
                   if len(rs) >= 3 and all(r.get(k) is not None for r in rs[-3:])}
-    # the node-wise max depth is a sensitivity, not a converging measure (docs/contact-layout.md)
-    out["spread"] = {k: spread([r.get(k) for r in worn]) for k in ("max_wear_m", "wear_volume_m3")}
+    # the node-wise max depth is a sensitivity, not a converging measure; the unworn friction energy at
+    # the wear's operating point drives the worn volume's first rate, so its spread is the volume's floor
+    # (docs/contact-layout.md, "What the worn volume's scatter follows")
+    out["spread"] = {k: spread([r.get(k) for r in worn]) for k in ("max_wear_m", "wear_volume_m3", "energy_new_J")}
     for k in ("midside_gap_min_m", "vertex_only_midside_gap_min_m"):
         vals = [r[k] for r in rows if r.get(k) is not None]
         out[f"worst_{k}"] = min(vals) if vals else None  # < 0: the flank meshes interpenetrate
