@@ -1,4 +1,6 @@
 """The interface layer (reduction/layer.py): springs in series with the contact, against closed forms."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -131,3 +133,53 @@ def test_no_layer_returns_the_model_and_bad_stiffness_is_refused():
     assert with_interface_layer(model, 0.0, 0.0) is model
     with pytest.raises(ValueError, match="interface stiffness"):
         with_interface_layer(model, -1.0, 1.0)
+
+
+def _grid_model(seed=4, alpha=0.5, beta=1e-3):
+    """A 3 × 3 grid of pairs on a tilted plane (1 mm apart), 30 coordinates."""
+    base = _model(m=30, p=9, seed=seed, alpha=alpha, beta=beta)
+    u, v = np.meshgrid(np.arange(3) * 1e-3, np.arange(3) * 1e-3)
+    e1, e2 = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.6, 0.8])
+    pos = u.reshape(-1, 1) * e1 + v.reshape(-1, 1) * e2 + np.array([0.1, 0.2, 0.3])
+    gap = 1e-6 * (pos[:, 0] - 2 * pos[:, 1])                 # a linear gap field
+    return replace(base, position=pos, gap=gap, area=np.full(9, 1e-6 / 4))
+
+
+@pytest.mark.parametrize("per_side", [1, 2, 3])
+def test_sample_points_integrate_the_flank_and_interpolate_linear_fields(per_side):
+    """The points cover the area the pairs span ((2 mm)², 8 triangles), each sub-triangle equally,
+    and their interpolation rows reproduce any linear field (positions, the gap) exactly."""
+    from reduction.layer import sample_points
+
+    model = _grid_model()
+    N, area, pos, fl = sample_points(model.position, model.flank, per_side)
+    assert N.shape == (8 * per_side ** 2, 9) and np.all(N >= 0)
+    np.testing.assert_allclose(area, 4e-6 / (8 * per_side ** 2), rtol=1e-9)
+    np.testing.assert_allclose(N.sum(axis=1), 1.0, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(N @ model.position, pos, rtol=0, atol=1e-15)
+    assert np.all(fl == 0)
+
+
+def test_a_sampled_layer_is_springs_in_series_at_the_points():
+    """Z_r of the sampled layer is (N₃ H N₃ᵀ + diag 1/k_c)⁻¹ — the structure's compliance H = Z_r⁻¹
+    seen at the points (N₃ = N ⊗ I₃, the linear interpolation) and springs k_c = k·a(1 + i jωβ) at
+    each, a its area — and F_r follows as Z'_r N₃ H F_r; the points' gaps are the nodes' gap
+    interpolated. Round-off bounds the tolerance."""
+    from reduction.layer import sample_points, with_sampled_layer
+
+    model, beta, omega = _grid_model(), 1e-3, 2.9
+    sampled = with_sampled_layer(model, 3e7, 1e7, 1)
+    N, area, _, _ = sample_points(model.position, model.flank, 1)
+    assert sampled.n_pairs == 8 and sampled.info["interface_layer"]["sample_per_side"] == 1
+    np.testing.assert_allclose(sampled.gap, N @ model.gap, rtol=0, atol=1e-18)
+    c0 = condense(relative_coordinates(model), omega, nh=2)
+    c1 = condense(relative_coordinates(sampled), omega, nh=2)
+    k = layer_stiffness(area, 3e7, 1e7)
+    N3 = np.kron(N, np.eye(3))
+    for j in range(3):
+        H = np.linalg.inv(c0.Zr[j])
+        Z = np.linalg.inv(N3 @ H @ N3.T + np.diag(1.0 / (k * (1 + 1j * j * omega * beta))))
+        np.testing.assert_allclose(c1.Zr[j], Z, rtol=1e-9, atol=1e-9 * np.abs(Z).max())
+        np.testing.assert_allclose(c1.Fr[j], Z @ N3 @ H @ c0.Fr[j], rtol=1e-9, atol=1e-9 * np.abs(c1.Fr[j]).max())
+    with pytest.raises(ValueError, match="k_n, k_t > 0"):
+        with_sampled_layer(model, 0.0, 1e7, 1)

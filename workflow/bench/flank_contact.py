@@ -2,7 +2,7 @@
 
 ``python -m workflow.bench.flank_contact --grids 4x2,7x3,7x5,8x9 [--tip 2.5e-3] [--crown 0]
 [--grading 1] [--set SECTION.KEY=VALUE ...] [--models DIR] [--static-only] [--worn DIR] [--shift]
-[--out results/bench]``
+[--sample S] [--out results/bench]``
 
 For each flank grid (``along x across`` vertices) of the ``contact-convergence`` scene's sector
 (meshed, assembled and reduced as the stage does it; ``--models`` keeps the reduced models
@@ -22,7 +22,9 @@ there, ``model-AxC.npz``, and reads them back):
   deepest; :func:`workflow.engine.wear.measures.scar`).
 
 ``--set`` overrides scene keys; ``contact.stiffness_n``/``stiffness_t`` give every grid's model the
-interface layer of :mod:`reduction.layer` before both the static state and the march.
+interface layer of :mod:`reduction.layer` before both the static state and the march; with
+``--sample S`` that layer and the contact law sit at S² points a contact-surface triangle
+(:func:`reduction.layer.with_sampled_layer`), and the rows' pairs are those points.
 
 ``--crown`` δ [m] adds a parabolic initial gap across each flank (δ at its long edges, 0 on
 its centre line): a crowned flank, as micro-geometry. ``--grading`` g < 1 crowds the vertices
@@ -75,6 +77,16 @@ def model_of(scene, grid: tuple[int, int], keep: Path | None):
         path.parent.mkdir(parents=True, exist_ok=True)
         model.save(path)
     return model
+
+
+def sampled_model(model, contact, per_side: int):
+    """``model`` with the scene's interface layer integrated at ``per_side``² points a surface
+    triangle (:func:`reduction.layer.with_sampled_layer`) instead of at its node pairs."""
+    from reduction.layer import with_sampled_layer
+
+    if not (contact.stiffness_n > 0 and contact.stiffness_t > 0):
+        raise SystemExit("--sample needs an interface layer: --set contact.stiffness_n=K --set contact.stiffness_t=K")
+    return with_sampled_layer(model, contact.stiffness_n, contact.stiffness_t, per_side)
 
 
 def saved_worn(path: Path, model) -> np.ndarray:
@@ -152,7 +164,8 @@ def worn_state(model, W, tip: float, sets=()) -> dict:
 
 
 def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path,
-        grading: float = 1.0, sets=(), worn_from: Path | None = None, shift: bool = False) -> list[dict]:
+        grading: float = 1.0, sets=(), worn_from: Path | None = None, shift: bool = False,
+        sample: int = 0) -> list[dict]:
     from workflow.engine.wear.measures import worn_volume
     from workflow.scene import load_scene
     from workflow.stages.reduction import contact_model
@@ -161,7 +174,8 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
     rows = []
     out.mkdir(parents=True, exist_ok=True)
     for g in grids:
-        model = contact_model(model_of(scene, g, keep), scene["contact"])
+        model = (sampled_model(model_of(scene, g, keep), scene["contact"], sample) if sample
+                 else contact_model(model_of(scene, g, keep), scene["contact"]))
         if crown > 0:
             model = replace(model, gap=np.asarray(model.gap, float) + crown_gap(model, crown))
         name = f"worn-{g[0]}x{g[1]}.npz"
@@ -212,6 +226,9 @@ def main(argv=None) -> int:
                     help="read each grid's worn state (worn-AxC.npz) from this folder instead of marching")
     ap.add_argument("--shift", action="store_true",
                     help="per worn state: the worn − new friction-damped resonance and the worn flanks' bearing")
+    ap.add_argument("--sample", type=int, default=0, metavar="S",
+                    help="integrate the interface layer at S² points a contact-surface triangle instead of at "
+                         "the node pairs (needs contact.stiffness_n, stiffness_t > 0)")
     ap.add_argument("--out", default="results/bench", type=Path)
     a = ap.parse_args(argv)
     try:
@@ -222,7 +239,9 @@ def main(argv=None) -> int:
         ap.error("--tip must be > 0, --crown ≥ 0 and --grading in (0, 1]")
     if a.static_only and (a.worn or a.shift):
         ap.error("--static-only has no worn state for --worn or --shift")
-    run(grids, a.tip, a.crown, a.models, a.static_only, a.out, a.grading, a.set, a.worn, a.shift)
+    if a.sample < 0:
+        ap.error("--sample must be ≥ 0")
+    run(grids, a.tip, a.crown, a.models, a.static_only, a.out, a.grading, a.set, a.worn, a.shift, a.sample)
     return 0
 
 
