@@ -163,21 +163,40 @@ def worn_state(model, W, tip: float, sets=()) -> dict:
     return {"shift": shift, "flanks": flanks}
 
 
+def grid_model(scene, grid: tuple[int, int], keep: Path | None, crown: float, sample: int):
+    """The model the bench studies on ``grid``: the scene's interface layer at the node pairs, or at
+    ``sample``² points a surface triangle when ``sample`` > 0, and a crown of ``crown`` [m]."""
+    from workflow.stages.reduction import contact_model
+
+    raw = model_of(scene, grid, keep)
+    model = sampled_model(raw, scene["contact"], sample) if sample else contact_model(raw, scene["contact"])
+    if crown > 0:
+        model = replace(model, gap=np.asarray(model.gap, float) + crown_gap(model, crown))
+    return model
+
+
+def _shift_columns(state: dict, flank: int) -> dict:
+    """One flank's row columns of :func:`worn_state` (none without ``--shift``)."""
+    if not state:
+        return {}
+    sh = state["shift"]
+    return {**state["flanks"][flank], "new_hz": sh.get("new_hz"), "worn_hz": sh.get("worn_hz"),
+            "resonance_shift_rel": sh.get("rel"), "amplitude_shift_rel": sh.get("amplitude_rel"),
+            "shift_seconds": sh["seconds"], "shift_reason": sh.get("reason")}
+
+
 def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path,
         grading: float = 1.0, sets=(), worn_from: Path | None = None, shift: bool = False,
         sample: int = 0) -> list[dict]:
     from workflow.engine.wear.measures import worn_volume
+    from workflow.io import write_npz, write_rows
     from workflow.scene import load_scene
-    from workflow.stages.reduction import contact_model
 
     scene = load_scene(SCENE, [f"geometry.flank_grading={grading!r}", *sets])
     rows = []
     out.mkdir(parents=True, exist_ok=True)
     for g in grids:
-        model = (sampled_model(model_of(scene, g, keep), scene["contact"], sample) if sample
-                 else contact_model(model_of(scene, g, keep), scene["contact"]))
-        if crown > 0:
-            model = replace(model, gap=np.asarray(model.gap, float) + crown_gap(model, crown))
+        model = grid_model(scene, g, keep, crown, sample)
         name = f"worn-{g[0]}x{g[1]}.npz"
         if worn_from is not None:
             W = saved_worn(worn_from / name, model)
@@ -189,23 +208,14 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
             W, path = w.pop("W"), w.pop("path", {})
             per_flank = worn_volume(W, model.area, model.flank)
             if worn_from is None:
-                np.savez(out / name, W=W, position=model.position, flank=model.flank, area=model.area, **path)
+                write_npz(out / name, W=W, position=model.position, flank=model.flank, area=model.area, **path)
             if shift:
                 state = worn_state(model, W, tip, sets)
         for r in static_contact(model, scene):
-            more = {}
-            if state:
-                sh = state["shift"]
-                more = {**state["flanks"][r["flank"]], "new_hz": sh.get("new_hz"), "worn_hz": sh.get("worn_hz"),
-                        "resonance_shift_rel": sh.get("rel"), "amplitude_shift_rel": sh.get("amplitude_rel"),
-                        "shift_seconds": sh["seconds"], "shift_reason": sh.get("reason")}
             rows.append({"grid": f"{g[0]}x{g[1]}", "pairs": int(model.area.size), "crown_m": crown,
-                         "flank_grading": grading, **r,
-                         "tip_amplitude_m": None if static_only else tip, **w,
-                         "flank_worn_volume_m3": per_flank.get(r["flank"]), **more})
+                         "flank_grading": grading, **r, "tip_amplitude_m": None if static_only else tip, **w,
+                         "flank_worn_volume_m3": per_flank.get(r["flank"]), **_shift_columns(state, r["flank"])})
         print(rows[-1], flush=True)
-    from workflow.io import write_rows
-
     write_rows(out / "flank_contact.csv", rows)
     return rows
 
