@@ -140,7 +140,9 @@ def with_sampled_layer(model: ReducedModel, kn: float, kt: float, per_side: int)
     points become the model's pairs (gap and friction interpolated from the nodes), so
     condensation, HB, wear and recovery take it unchanged; ``per_side`` = 1 puts one point in each
     triangle. Needs k_n, k_t > 0 [N/m³] and the pairs' local frames alike over each flank (planar
-    flanks: their frames come from the one normal)."""
+    flanks: their frames come from the one normal). On the fine-solid sector it moves the unworn
+    friction power by 0.3–8 % and does not narrow its scatter over contact grids
+    (docs/contact-layout.md, "What the worn volume's scatter follows")."""
     kn, kt = float(kn), float(kt)
     if not (kn > 0 and kt > 0 and np.isfinite(kn) and np.isfinite(kt)):
         raise ValueError(f"a sampled layer needs finite k_n, k_t > 0, got k_n = {kn}, k_t = {kt}")
