@@ -155,6 +155,39 @@ def set_point_sizes(points: list[int], size_of: Callable[[np.ndarray], float]) -
         gmsh.model.mesh.setSize([(0, pt)], float(size_of(xyz)))
 
 
+#: Largest growth of the element size per unit distance away from a refined zone
+#: (dimensionless): gentle enough for Delaunay to grade without slivers.
+GROWTH = 0.3
+
+
+def refine_near(segments, h_near: float, h_far: float, zone: float) -> None:
+    """Mesh size ``h_near`` [m] within ``zone`` [m] of the segments, growing by :data:`GROWTH`
+    per metre of distance to ``h_far`` [m] beyond; elsewhere the point sizes hold (gmsh takes
+    the smallest size of every source).
+
+    ``segments``: ((y0, z0), (y1, z1)) pairs [m] in the y–z plane, each the section of a face
+    extruded along x (the dovetail's flanks). The distance is exact, in closed form: gmsh's
+    Distance field would measure it to the faces' mesh nodes, as far apart as the contact grid.
+    """
+    import gmsh
+
+    # gmsh's expression parser reads neither exponents nor a doubled sign: fixed-point, bracketed.
+    num = lambda v: f"({float(v):.15f})"
+    dist = []
+    for (y0, z0), (y1, z1) in segments:
+        dy, dz = y1 - y0, z1 - z0
+        t = f"min(max(((y - {num(y0)})*{num(dy)} + (z - {num(z0)})*{num(dz)})/{num(dy * dy + dz * dz)}, 0), 1)"
+        dist.append(f"sqrt((y - {num(y0)} - {t}*{num(dy)})^2 + (z - {num(z0)} - {t}*{num(dz)})^2)")
+    d = dist[0]
+    for other in dist[1:]:
+        d = f"min({d}, {other})"
+    fld = gmsh.model.mesh.field
+    size = fld.add("MathEval")
+    fld.setString(size, "F", f"min(max({num(h_near)} + {num(GROWTH)}*({d} - {num(zone)}), {num(h_near)}), "
+                             f"{num(max(h_far, h_near))})")
+    fld.setAsBackgroundMesh(size)
+
+
 def generate(order: int, volumes: list[int]) -> None:
     """Mesh in 3D, raise the order, and check every volume got tetrahedra."""
     import gmsh

@@ -86,6 +86,11 @@ class SectorParams:
     Mesh
         h_blade, h_disk, h_airfoil: target element sizes in the blade root
             and platform, the disk, and the airfoil, m.
+        h_flank: element size in the solid next to the contact flanks, m:
+            within flank_length/2 of them, growing beyond to the body's size
+            (geometry.meshing.GROWTH); 0 leaves h_blade and h_disk there. The
+            worn state follows the solid's mesh next to the flanks as much as
+            the contact grid (docs/contact-layout.md).
         nodes_along: contact vertices per flank along x (leading → trailing).
         nodes_across: contact vertices per flank across the flank.
         contact_nodes: which flank nodes are contact nodes: "vertices" (the
@@ -140,6 +145,7 @@ class SectorParams:
     h_blade: float = 0.004
     h_disk: float = 0.007
     h_airfoil: float = 0.006
+    h_flank: float = 0.0
     nodes_along: int = 4
     nodes_across: int = 2
     flank_grading: float = 1.0
@@ -195,6 +201,9 @@ def _check_types(p: SectorParams) -> None:
                  "platform_thickness", "span", "chord", "thickness", "h_blade", "h_disk", "h_airfoil"):
         if getattr(p, name) <= 0:
             _fail(name, f"must be > 0, got {getattr(p, name)!r}")
+    if p.h_flank < 0 or p.h_flank > min(p.h_blade, p.h_disk):
+        _fail("h_flank", f"must be 0 (no local size) or in (0, min(h_blade, h_disk) = "
+                         f"{min(p.h_blade, p.h_disk)}], got {p.h_flank!r}")
     if p.nodes_along < 2:
         _fail("nodes_along", f"must be ≥ 2, got {p.nodes_along}")
     if p.nodes_across < 2:
@@ -293,6 +302,12 @@ def _check_airfoil(p: SectorParams) -> None:
                        f"(axial_length {p.axial_length} m × platform_width {p.platform_width} m)")
 
 
+def flank_zone(p: SectorParams) -> float:
+    """Distance from the flanks [m] within which the solid is meshed at ``h_flank``: half the
+    flank's width, where the contact's stresses are still a large share of their surface value."""
+    return 0.5 * p.flank_length
+
+
 def estimate_elements(p: SectorParams) -> dict[str, float]:
     """Estimated tetrahedra per region, keyed by the size key that sets it
     (within ~10 % of gmsh's count on the quick sector: 2012 vs 1840)."""
@@ -302,16 +317,22 @@ def estimate_elements(p: SectorParams) -> dict[str, float]:
     # A regular tetrahedron of edge h has volume h³/(6√2); Delaunay meshes
     # have ~1.5× more, smaller elements than that bound.
     per = lambda vol, h: 1.5 * vol / (h ** 3 / (6 * math.sqrt(2)))
-    return {
+    out = {
         "h_disk": per(d.disk_area() * p.axial_length, p.h_disk),
         "h_blade": per(d.root_area() * p.axial_length, p.h_blade),
         # A thin plate still needs ≥ 1 element through its thickness.
         "h_airfoil": per(p.span * p.chord * max(p.thickness, p.h_airfoil), p.h_airfoil),
     }
+    if p.h_flank > 0:
+        # Both sides of two flanks, each a slab flank_zone deep beyond its width.
+        zone = flank_zone(p)
+        out["h_flank"] = per(2 * 2 * zone * (p.flank_length + 2 * zone) * p.axial_length, p.h_flank)
+    return out
 
 
 #: Keys that set each region's volume, named with its size key when the mesh is too big.
-_VOLUME_KEYS = {"h_disk": "axial_length", "h_blade": "axial_length", "h_airfoil": "span, chord"}
+_VOLUME_KEYS = {"h_disk": "axial_length", "h_blade": "axial_length", "h_airfoil": "span, chord",
+                "h_flank": "axial_length, flank_length"}
 
 
 def _check_mesh_size(p: SectorParams) -> None:

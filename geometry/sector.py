@@ -26,7 +26,7 @@ import numpy as np
 from geometry import cyclic as gc
 from geometry import meshing as gm
 from geometry.airfoil import Airfoil
-from geometry.params import SectorParams, check_params
+from geometry.params import SectorParams, check_params, flank_zone
 from geometry.profile import Dovetail
 from workflow.errors import GeometryError
 
@@ -97,11 +97,13 @@ def build_sector(params: SectorParams | None, msh_path) -> dict:
             cut = gc.find_faces(disk, p.r_in, p.r_out, p.axial_length, p.n_sectors, gm.BBOX_TOL * p.r_out)
             gc.make_periodic(cut, p.n_sectors)
         _set_sizes(p, dov, blade, disk, tip_pt)
+        if p.h_flank > 0:
+            gm.refine_near(dov.flank_segments().values(), p.h_flank, max(p.h_blade, p.h_disk), flank_zone(p))
         _add_groups(blade, disk, faces)
         if p.cyclic:
             for name, (dim, tag) in gc.GROUPS.items():
                 gm.add_group(dim, [cut[name]], tag, name)
-        gm.set_mesh_options(min(p.h_blade, p.h_disk, p.h_airfoil) / 20.0,
+        gm.set_mesh_options(min(p.h_blade, p.h_disk, p.h_airfoil, p.h_flank or math.inf) / 20.0,
                             max(p.h_blade, p.h_disk, p.h_airfoil))
         gm.generate(p.element_order, [blade, disk])
         info.update(gm.check_quality(p.element_order))
@@ -314,6 +316,18 @@ def build_bar(length: float, width: float, height: float, h: float, msh_path, or
     return _bar(length, width, height, h, msh_path, order=order)
 
 
+def _value(text: str):
+    """A command-line value: int, float, true/false, or the text itself (contact_nodes)."""
+    if text in ("true", "false"):
+        return text == "true"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m geometry.sector OUT.msh [key=value ...]``: build a sector
     (default parameters, overridden by key=value) and print its info."""
@@ -324,7 +338,7 @@ def main(argv: list[str] | None = None) -> int:
     out, overrides = argv[0], {}
     for kv in argv[1:]:
         key, _, val = kv.partition("=")
-        overrides[key] = int(val) if val.lstrip("-").isdigit() else float(val)
+        overrides[key] = _value(val)
     try:
         t0 = time.perf_counter()
         info = build_sector(replace(SectorParams(), **overrides), out)
