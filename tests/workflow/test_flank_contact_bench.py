@@ -26,6 +26,9 @@ def test_the_bench_keeps_each_worn_state_with_the_rows_it_reports(tmp_path):
     for r in rows:          # each row's own flank: Σ W·A over its pairs
         on = w["flank"] == int(r["flank"])
         assert float(r["flank_worn_volume_m3"]) == pytest.approx(float(w["W"][on] @ w["area"][on]), rel=1e-12)
+        # the profile seen at ℓ: an average, so no deeper than the flank's deepest pair nor below its RMS
+        l2, top = float(r["profile_l2_m"]), float(r["filtered_max_m"])
+        assert float(r["measure_length_m"]) > 0 and 0 < l2 <= top <= w["W"][on].max() * (1 + 1e-12)
     assert (models / "model-4x2-g0.5.npz").exists()      # the model is kept under its grading
     # the march's path: W grows pair by pair (Archard's rates are ≥ 0) and ends at the kept W
     c, Wh = w["cycles"], w["W_history"]

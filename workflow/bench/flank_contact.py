@@ -175,6 +175,19 @@ def grid_model(scene, grid: tuple[int, int], keep: Path | None, crown: float, sa
     return model
 
 
+def _measure_columns(W, model, ell: float) -> dict:
+    """Per flank code, its row columns of the worn state W (p,) [m]
+    (:func:`workflow.engine.wear.measures.wear_measures` at the scene's ``wear.measure_length_m`` ℓ):
+    worn volume [m³], the ℓ-filtered profile's RMS and largest depth [m], the scar width [m]."""
+    from workflow.engine.wear.measures import FLANK_NAMES, wear_measures
+
+    m = wear_measures(W, model.position, model.area, model.flank, ell)
+    return {code: {"flank_worn_volume_m3": f["worn_volume_m3"], "measure_length_m": m["length_m"],
+                   "profile_l2_m": f["profile_l2_m"], "filtered_max_m": f["filtered_max_m"],
+                   "scar_width_m": f["scar_width_m"]}
+            for code, name in FLANK_NAMES.items() if (f := m["flanks"].get(name))}
+
+
 def _shift_columns(state: dict, flank: int) -> dict:
     """One flank's row columns of :func:`worn_state` (none without ``--shift``)."""
     if not state:
@@ -188,7 +201,6 @@ def _shift_columns(state: dict, flank: int) -> dict:
 def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path,
         grading: float = 1.0, sets=(), worn_from: Path | None = None, shift: bool = False,
         sample: int = 0) -> list[dict]:
-    from workflow.engine.wear.measures import worn_volume
     from workflow.io import write_npz, write_rows
     from workflow.scene import load_scene
 
@@ -206,7 +218,7 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
         per_flank, state = {}, {}
         if w:
             W, path = w.pop("W"), w.pop("path", {})
-            per_flank = worn_volume(W, model.area, model.flank)
+            per_flank = _measure_columns(W, model, scene["wear"].measure_length_m)
             if worn_from is None:
                 write_npz(out / name, W=W, position=model.position, flank=model.flank, area=model.area, **path)
             if shift:
@@ -214,7 +226,7 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
         for r in static_contact(model, scene):
             rows.append({"grid": f"{g[0]}x{g[1]}", "pairs": int(model.area.size), "crown_m": crown,
                          "flank_grading": grading, **r, "tip_amplitude_m": None if static_only else tip, **w,
-                         "flank_worn_volume_m3": per_flank.get(r["flank"]), **_shift_columns(state, r["flank"])})
+                         **per_flank.get(r["flank"], {}), **_shift_columns(state, r["flank"])})
         print(rows[-1], flush=True)
     write_rows(out / "flank_contact.csv", rows)
     return rows
