@@ -90,7 +90,9 @@ class SectorParams:
             within flank_length/2 of them, growing beyond to the body's size
             (geometry.meshing.GROWTH); 0 leaves h_blade and h_disk there. The
             worn state follows the solid's mesh next to the flanks as much as
-            the contact grid (docs/contact-layout.md).
+            the contact grid (docs/contact-layout.md). Far below the flank
+            cells' size it leaves slivers on them (gmsh's check refuses 1.5 mm
+            on 4 × 2 vertices; 1–1.5 mm meshes grids of 8 × 9 and finer).
         nodes_along: contact vertices per flank along x (leading → trailing).
         nodes_across: contact vertices per flank across the flank.
         contact_nodes: which flank nodes are contact nodes: "vertices" (the
