@@ -161,9 +161,9 @@ GROWTH = 0.3
 
 
 def refine_near(segments, h_near: float, h_far: float, zone: float) -> None:
-    """Mesh size ``h_near`` [m] within ``zone`` [m] of the segments, growing by :data:`GROWTH`
-    per metre of distance to ``h_far`` [m] beyond; elsewhere the point sizes hold (gmsh takes
-    the smallest size of every source).
+    """Mesh size ``h_near`` [m] within ``zone`` [m] of the segments, growing beyond by
+    :data:`GROWTH` m of size per m of distance up to ``h_far`` [m]; elsewhere the point sizes
+    hold (gmsh takes the smallest size of every source).
 
     ``segments``: ((y0, z0), (y1, z1)) pairs [m] in the y–z plane, each the section of a face
     extruded along x (the dovetail's flanks). The distance is exact, in closed form: gmsh's
