@@ -30,7 +30,9 @@ interface layer of :mod:`reduction.layer` before both the static state and the m
 its centre line): a crowned flank, as micro-geometry. ``--grading`` g < 1 crowds the vertices
 across each flank towards its long edges (``geometry.flank_grading``).
 
-Writes ``flank_contact.csv`` (one row per grid and flank) to ``--out``, and each worn state
+Writes ``flank_contact.csv`` (one row per grid and flank; with a worn state, the flank's worn
+volume, ℓ-filtered profile RMS and maximum at ``wear.measure_length_m`` and scar width) to
+``--out``, and each worn state
 (W, the pairs' position, flank and area, and the march's path: ``cycles`` (k,), ``W_history``
 (k, p) [m]) to ``worn-AxC.npz``.
 """
