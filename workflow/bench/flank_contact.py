@@ -147,10 +147,9 @@ def _scene(tip: float, sets=()):
 def worn_state(model, W, tip: float, sets=()) -> dict:
     """What a worn state W (p,) [m] does (``--shift``): ``shift`` the worn − new friction-damped
     resonance of the stage's march setup (Nh, nit, law) under the scene's force, and per flank
-    ``flanks[f]``: its scar area [m²] (:func:`workflow.engine.wear.measures.scar`), the share of
-    its area open under the preload once worn and its largest worn pressure [Pa]."""
+    ``flanks[f]``: the share of its area open under the preload once worn and its largest worn
+    pressure [Pa]."""
     from workflow.engine.studies.operating import resonance_shift
-    from workflow.engine.wear.measures import scar
     from workflow.stages.contact_convergence import wear_setup
 
     scene = _scene(tip, sets)
@@ -158,10 +157,9 @@ def worn_state(model, W, tip: float, sets=()) -> dict:
     t0 = time.perf_counter()
     shift = resonance_shift(m, law, W, opt)
     shift["seconds"] = time.perf_counter() - t0
-    sc = scar(W, model.position, model.area, model.flank)
     bearing = {r["flank"]: r for r in static_contact(model, scene, W)}
-    flanks = {f: {"scar_area_m2": sc[f]["area_m2"], "worn_open_share": bearing[f]["open_share"],
-                  "worn_max_pressure_pa": bearing[f]["max_pressure_pa"]} for f in sc}
+    flanks = {f: {"worn_open_share": bearing[f]["open_share"],
+                  "worn_max_pressure_pa": bearing[f]["max_pressure_pa"]} for f in bearing}
     return {"shift": shift, "flanks": flanks}
 
 
@@ -180,13 +178,14 @@ def grid_model(scene, grid: tuple[int, int], keep: Path | None, crown: float, sa
 def _measure_columns(W, model, ell: float) -> dict:
     """Per flank code, its row columns of the worn state W (p,) [m]
     (:func:`workflow.engine.wear.measures.wear_measures` at the scene's ``wear.measure_length_m`` ℓ):
-    worn volume [m³], the ℓ-filtered profile's RMS and largest depth [m], the scar width [m]."""
+    worn volume [m³], the ℓ-filtered profile's RMS and largest depth [m], the scar's area [m²] and
+    width [m]."""
     from workflow.engine.wear.measures import FLANK_NAMES, wear_measures
 
     m = wear_measures(W, model.position, model.area, model.flank, ell)
     return {code: {"flank_worn_volume_m3": f["worn_volume_m3"], "measure_length_m": m["length_m"],
                    "profile_l2_m": f["profile_l2_m"], "filtered_max_m": f["filtered_max_m"],
-                   "scar_width_m": f["scar_width_m"]}
+                   "scar_area_m2": f["scar_area_m2"], "scar_width_m": f["scar_width_m"]}
             for code, name in FLANK_NAMES.items() if (f := m["flanks"].get(name))}
 
 
