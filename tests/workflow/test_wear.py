@@ -395,13 +395,21 @@ def test_wear_stage_on_a_reduced_model(tmp_path, monkeypatch):
         return pseudo(*a, **k)
     monkeypatch.setattr(wear_mod, "pseudo_time_wear", recorded)
 
+    import workflow.engine.wear.pseudotime as pt
+    monkeypatch.setattr(pt, "REPORT_SECONDS", 0.0)     # every accepted step reports its progress
+
     class Log:
+        lines = []
+
         def info(self, msg):
-            pass
+            self.lines.append(msg)
 
     out = tmp_path / "wear"
     s = stage.run(scene, {"reduced": tmp_path}, out, Log())
     json.dumps(s)
+    # the pseudo-time march's progress reaches the stage's log, one line an accepted step here
+    progress = [m for m in Log.lines if m.startswith("wear march:")]
+    assert len(progress) == s["methods"]["pseudo-time"]["iterations"] > 0
     assert set(s["methods"]) == {"explicit", "pseudo-time"}
     for v in s["methods"].values():
         assert v["steady"] and v["max_wear_m"] > 0 and v["seconds"] > 0 and v["iterations"] > 0
@@ -827,3 +835,30 @@ def test_matrix_free_march_with_a_length_scale_reaches_the_formed_worn_state(mon
     marched = pseudo_time_wear(free, x0, **kw)
     assert formed.steady and marched.steady and marched.W[1] == 0.0
     assert profile_rel_diff(marched.W, formed.W) <= 10 * kw["rtol"]
+
+
+def test_a_march_reports_its_progress_only_when_it_takes_long(monkeypatch):
+    """``report`` hears from the pseudo-time march every REPORT_SECONDS: nothing from a march
+    that ends sooner; with the interval at 0, one line an accepted step, its steps counted
+    1, 2, …, its cycles growing and the last line's max W the march's own."""
+    import re
+
+    import workflow.engine.wear.pseudotime as pt
+
+    hb = hb_problem(20.0, nh=3, nit=32)
+    x0 = hb.solve(tol=1e-10).x
+    wp = WearProblem(hb, area=np.full(hb.p, 1e-6), k_w=1e-14)
+    kw = dict(cycles_per_block=5e5, steady_tol=1e-4, tol=1e-9)
+    quiet = []
+    h = pseudo_time_wear(wp, x0, report=quiet.append, **kw)
+    assert h.seconds < pt.REPORT_SECONDS and quiet == []
+    monkeypatch.setattr(pt, "REPORT_SECONDS", 0.0)
+    lines = []
+    wp.set_wear(np.zeros(wp.p))
+    h = pseudo_time_wear(wp, x0, report=lines.append, **kw)
+    parsed = [re.match(r"wear march: (\d+) steps \(\d+ rejected\), (\S+) cycles, max W (\S+) m", m) for m in lines]
+    assert len(lines) == h.iterations > 1 and all(parsed)
+    assert [int(p.group(1)) for p in parsed] == list(range(1, h.iterations + 1))
+    cycles = [float(p.group(2)) for p in parsed]
+    assert all(b > a for a, b in zip(cycles, cycles[1:]))
+    assert float(parsed[-1].group(3)) == pytest.approx(np.max(h.W), rel=1e-3)   # printed to 4 digits

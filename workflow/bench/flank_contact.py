@@ -39,6 +39,7 @@ volume, ℓ-filtered profile RMS and maximum at ``wear.measure_length_m`` and sc
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from dataclasses import replace
@@ -128,7 +129,8 @@ def worn(model, tip: float, sets=()) -> dict:
 
     scene = _scene(tip, sets)
     t0 = time.perf_counter()
-    out = _worn_profile(model, scene, scene["contact_convergence"])
+    out = _worn_profile(model, scene, scene["contact_convergence"],
+                        report=lambda m: print(m, file=sys.stderr, flush=True))
     W = out["W"]
     return {"max_wear_m": float(W.max()), "worn_volume_m3": float(W @ np.asarray(model.area)),
             "steady": out["steady"], "steps": out["steps"], "reason": out["reason"], "seconds": time.perf_counter() - t0,

@@ -105,11 +105,12 @@ def wear_setup(model, scene, cc):
     return model, law, path, opt
 
 
-def _worn_profile(model, scene, cc) -> dict:
-    """:func:`workflow.engine.studies.meshstudy.worn_profile` of the march :func:`wear_setup` sets up."""
+def _worn_profile(model, scene, cc, report=None) -> dict:
+    """:func:`workflow.engine.studies.meshstudy.worn_profile` of the march :func:`wear_setup` sets up;
+    ``report(message)``: its progress on a long march."""
     from workflow.engine.studies.meshstudy import worn_profile
 
-    return worn_profile(*wear_setup(model, scene, cc))
+    return worn_profile(*wear_setup(model, scene, cc), report=report)
 
 
 # ------------------------------------------------------------------ one contact mesh
@@ -163,7 +164,8 @@ def run_level(scene, na: int, nc: int, work: Path, log) -> tuple[dict, dict]:
                    **{f"static_open_share_{FLANK_NAMES[f['flank']]}": f["open_share"] for f in flanks}})
     t2 = time.perf_counter()
     with_wear = cc.wear and (cc.wear_max_pairs == 0 or model.n_pairs <= cc.wear_max_pairs)
-    worn = _worn_profile(model, scene, cc) if with_wear else None
+    worn = _worn_profile(model, scene, cc, report=lambda m: log.info(f"contact mesh {na}×{nc}: {m}")) \
+        if with_wear else None
     t_wear = time.perf_counter() - t2
     held = ((worn or {}).get("operating_point") or {}).get("control") or {}
     L = scene["geometry"].axial_length

@@ -155,17 +155,18 @@ def static_gaps(model, law, vertex: np.ndarray, max_passes: int, rc=None) -> dic
     return out
 
 
-def worn_profile(model, law, eps_path, options) -> dict:
+def worn_profile(model, law, eps_path, options, report=None) -> dict:
     """Worn steady state of ``model`` by pseudo-time wear (eq. 22,
     :func:`workflow.engine.worn_steady_state` with ``options``, a
     :class:`~workflow.engine.WearOptions` whose methods include
     ``"pseudo-time"``): ``W`` (p,) [m], ``steady``, ``steps``, ``frequency_hz``, and the wear
     measures, energies, operating point and resonance shift of :class:`WearStudy`, and
     ``reason``, why the march stopped; ``cycles`` (k,) and ``W_history`` (k, p) [m] the march's
-    path (pseudo-time in cycles: the physical wear path to ``pseudotime.wear_rtol``)."""
+    path (pseudo-time in cycles: the physical wear path to ``pseudotime.wear_rtol``). ``report``:
+    the march's progress messages (:func:`~workflow.engine.studies.wearstudy.worn_steady_state`)."""
     from workflow.engine.studies.wearstudy import worn_steady_state
 
-    study = worn_steady_state(model, law, options, eps_path=eps_path)
+    study = worn_steady_state(model, law, options, eps_path=eps_path, report=report)
     h = study.histories["pseudo-time"]
     return {"W": np.asarray(h.W, dtype=float), "steady": bool(h.steady), "steps": int(h.iterations),
             "reason": h.reason, "frequency_hz": float(study.omega / 2 / np.pi), "measures": study.measures,

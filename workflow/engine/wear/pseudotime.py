@@ -25,8 +25,10 @@ from workflow.engine.wear.history import (PERSISTENT, UNSOLVABLE, WearHistory, _
 from workflow.engine.wear import structured
 from workflow.engine.wear.problem import WearProblem, WearState, _newton_parts, rate_w
 
-#: :func:`pseudo_time_wear` reports its progress every this many accepted steps
-REPORT_STEPS = 20
+#: :func:`pseudo_time_wear` reports its progress at the first accepted step this many seconds
+#: after its start or its last report: a quick march says nothing, a long one (the 544-pair
+#: flank grid takes 15 min, with ℓ > 0 over an hour) shows that it moves and how far it is
+REPORT_SECONDS = 30.0
 
 
 def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
@@ -35,7 +37,8 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
                      dt_max_blocks: float = 0.0, order: int = 2, max_cycles: float = math.inf,
                      max_increment: float = math.inf, report=None, step_lengths=None) -> WearHistory:
     """Integrate the augmented system (eq. 22a–b) along the wear trajectory to zero wear rates.
-    ``report(message)``: the march's progress every :data:`REPORT_STEPS` accepted steps.
+    ``report(message)``: the march's progress every :data:`REPORT_SECONDS` (steps, cycles, max W,
+    max rate, seconds).
     ``step_lengths`` (cycles): take these steps in order, each accepted whatever its error, then
     stop (steady or not by the same test): another model's march replayed on its own path, so
     that two models of one system are compared without the step control's decisions, which
@@ -78,6 +81,7 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
     t, steps, rejected, count = 0.0, 0, 0, {"nje": 0, "corrections": 0, "reanchored": 0}
     steady, reason = False, f"max steps ({max_steps})"
     failed = 0          # consecutive steps refused by the vibration (not by the wear error)
+    reported = t0
     while steps + rejected < max_steps:
         steady, why = _stop(hist, N, steady_tol, steps, step_lengths)
         if why is None and failed == 2:
@@ -99,8 +103,9 @@ def pseudo_time_wear(wp: WearProblem, x0, *, cycles_per_block: float = 1e5,
             steps += 1
             _record(hist, wp, t, x, W, st.rate, track)
             h = min(h * min(4.0, max(0.3, fac)), hmax)
-            if report is not None and steps % REPORT_STEPS == 0:
-                report(_progress(hist, steps, rejected, time.perf_counter() - t0))
+            if report is not None and time.perf_counter() - reported >= REPORT_SECONDS:
+                reported = time.perf_counter()
+                report(_progress(hist, steps, rejected, reported - t0))
         else:
             rejected += 1
             h *= min(0.5, max(0.1, fac)) if ok else 0.25

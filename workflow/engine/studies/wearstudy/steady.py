@@ -20,11 +20,12 @@ from workflow.engine.studies.wearstudy.unworn import _unworn_at, _unworn_start, 
 
 
 def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=None,
-                      log=None) -> WearStudy:
+                      log=None, report=None) -> WearStudy:
     """Fretting wear of ``model``'s pairs under ``law`` to the worn steady state
     by each of ``opt.methods`` (see the module docstring); ``eps_path`` as in
     :func:`workflow.engine.cascade.along_eps_path` (None: the law's own,
-    :func:`workflow.engine.penalty.path_of`).
+    :func:`workflow.engine.penalty.path_of`). ``report(message)``: a long pseudo-time march's
+    progress (:data:`workflow.engine.wear.pseudotime.REPORT_SECONDS`; None: ``log.info``).
 
     A resonance dwell's study is at its last frequency (``omega``, ``hb``, ``base`` the unworn
     vibration there); its first method that :func:`_steady_history` would pick dwells
@@ -68,7 +69,9 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
         point.update(dwell)
         point["frequency_hz"] = schedule[-1][0] / 2 / np.pi
     w_end = omega if schedule is None else schedule[-1][0]
-    histories = _every_method(wp, base.x, opt, track, rc, schedule, histories, w_end, eps_path, log)
+    if report is None and log is not None:
+        report = log.info
+    histories = _every_method(wp, base.x, opt, track, rc, schedule, histories, w_end, eps_path, log, report)
     study = WearStudy(omega=w_end, hb=wp.hb, rc=rc, base=base, unworn=unworn, histories=histories, tracked_pair=i0,
                       operating_point=point)
     if schedule is not None:
@@ -94,13 +97,13 @@ def worn_steady_state(model, law, opt: WearOptions | None = None, *, eps_path=No
 
 
 def _every_method(wp, x0, opt: WearOptions, track: int, rc, schedule, histories: dict, w_end: float,
-                  eps_path, log) -> dict:
+                  eps_path, log, report=None) -> dict:
     """Each of ``opt.methods``'s march from ``x0`` (``histories`` holds the ones already run: a
     dwell's lead), along a dwell's ``schedule`` if any; a march that lost the vibration is
     re-solved at a finer Nh at ``w_end`` [rad/s] (:func:`finer_nh_resolve`). {method: history}."""
     for m in opt.methods:
         if m not in histories:
-            histories[m] = march(wp, x0, m, opt, track, opt.block_tol) if schedule is None else \
+            histories[m] = march(wp, x0, m, opt, track, opt.block_tol, report=report) if schedule is None else \
                 _replay(wp, x0, m, opt, track, opt.block_tol, rc, schedule)
         h = histories[m]
         if log is not None:
