@@ -260,10 +260,12 @@ class Wear:
     length_m: float = param(0.0, "m", "length scale of the wear law: the frictional power per unit area averaged "
                                       "over ℓ on each flank (a Gaussian weighted by the tributary areas) before "
                                       "Archard's law; 0: node-wise, the paper's eq. 21 (docs/wear.md)", min=0.0)
-    length_over: str = param("slip", "", "length_m > 0: the pairs the frictional power is averaged over — \"all\" "
-                                        "(a stuck pair wears beside slipping ones) or \"slip\" (only pairs that "
-                                        "slip in contact wear, at the mean over the slipping pairs within ℓ; "
-                                        "docs/wear.md)", choices=("all", "slip"))
+    length_over: str = param("slip", "", "length_m > 0: how the rate takes ℓ — \"pressure\" (each pair wears "
+                                        "under its own pressure capped at the mean pressure within ℓ; continuous "
+                                        "where a pair starts or stops slipping), \"slip\" (only pairs that slip in "
+                                        "contact wear, at the mean over the slipping pairs within ℓ) or \"all\" "
+                                        "(a stuck pair wears beside slipping ones); docs/wear.md",
+                             choices=("pressure", "slip", "all"))
     response_detunings: list = param([], "", "the wear response curve: the worn steady state at each f / f_r "
                                              "(f_r the friction-damped resonance), e.g. [0.98, 0.99, 1.0, 1.01]; "
                                              "[]: none (one pseudo-time march a point)", min=0.5, max=2.0)

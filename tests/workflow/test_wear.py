@@ -775,9 +775,84 @@ def test_slip_averaged_law_keeps_stuck_pairs_unworn_and_settles():
     _rate_derivatives_match_finite_differences(wp, x, W)
 
 
-def _averaged_block_problems():
-    """(x0, dense, free): hb_problem's three pairs 1 mm apart, the slip-averaged
-    law at ℓ = 3 mm, the wear problem with J formed and matrix-free."""
+def test_pressure_capped_law_in_closed_form():
+    """wear.length_over = "pressure": r_i = q_i min(1, p̄_i / P_i), P = q2 / q a pair's
+    work-weighted mean pressure, p̄ = S q2 / S q its mean over ℓ. On a uniform pressure field
+    every pair keeps its node-wise rate; a pressure peak is cut to the flank's mean (ℓ ≫ the
+    spacing: p̄ = Σ A q2 / Σ A q); ℓ → 0 is the node-wise law; a pair's rate goes to 0 with its
+    own work whether it sticks (q ∝ t) or unloads (q ∝ t, q2 ∝ t²); and (M, E) are the
+    derivatives of r in (q, q2) (central differences, the capped set held)."""
+    from workflow.engine.wear.law import averaging
+
+    pos = np.column_stack([np.arange(5) * 1e-3, np.zeros(5), np.zeros(5)])
+    area = np.array([1.0, 2.0, 1.5, 0.5, 1.0]) * 1e-6
+    q = np.array([3.0, 0.0, 1.0, 4.0, 2.0]) * 1e-12
+    wide = averaging(pos, area, np.zeros(5), 10.0, over="pressure")
+    uniform = wide.linearised(q, 7e6 * q)[0]
+    np.testing.assert_allclose(uniform, q, rtol=1e-12)
+    P = np.array([5.0, 0.0, 6.0, 30.0, 4.0]) * 1e6           # pair 3 bears on an edge
+    r = wide.linearised(q, P * q)[0]
+    pbar = np.sum(area * P * q) / np.sum(area * q)            # 13.4 MPa: only pair 3 lies above it
+    np.testing.assert_allclose(r, [q[0], 0.0, q[2], q[3] * pbar / P[3], q[4]], rtol=1e-7)
+    tiny = averaging(pos, area, np.zeros(5), 1e-5, over="pressure")
+    np.testing.assert_allclose(tiny.linearised(q, P * q)[0], q, rtol=1e-12)
+    for t in (1e-3, 1e-6):                                   # pair 3 sticks / lifts off
+        stick = q.copy(), (P * q).copy()
+        stick[0][3] *= t
+        stick[1][3] *= t
+        lift = q.copy(), (P * q).copy()
+        lift[0][3] *= t
+        lift[1][3] *= t * t
+        assert wide.linearised(*stick)[0][3] <= t * q[3] and wide.linearised(*lift)[0][3] <= t * q[3]
+    r, M, E = wide.linearised(q, P * q)
+    for i in (0, 2, 3, 4):
+        for arr, D in ((0, M), (1, E)):
+            plus, minus = [q.copy(), P * q], [q.copy(), P * q]
+            h = 1e-6 * plus[arr][i]
+            plus[arr][i] += h
+            minus[arr][i] -= h
+            fd = (wide.linearised(*plus)[0] - wide.linearised(*minus)[0]) / (2 * h)
+            np.testing.assert_allclose(fd, D[:, i], rtol=1e-6, atol=1e-9 * np.abs(D).max())
+    two = averaging(pos, area, np.array([0, 0, 0, 1, 1]), 10.0, over="pressure")
+    pbar0 = np.sum((area * P * q)[:3]) / np.sum((area * q)[:3])                # flank 0 without pair 3's edge
+    np.testing.assert_allclose(two.linearised(q, P * q)[0][:3], [q[0], 0.0, q[2] * pbar0 / P[2]], rtol=1e-7)
+    with pytest.raises(ValueError, match="q2"):
+        wide.linearised(q)
+
+
+def test_pressure_capped_law_settles_in_the_node_wise_steps():
+    """The block model (test_length_scale_march_reaches_a_worn_steady_state) and hb_problem's
+    three pairs with the pressure-capped law: the stuck middle pair never wears, the march is
+    steady in as many steps as the node-wise law's (within 20 %: the law is continuous where a
+    pair starts or stops slipping, so no pair chatters), and the rate's derivatives through the
+    vibration match finite differences."""
+    from workflow.engine import WearOptions, worn_steady_state
+    from workflow.engine.contact import ContactLaw
+    from workflow.engine.wear.law import averaging
+
+    m = _reduced_block_model()
+    law = ContactLaw(mu=np.full(m.n_pairs, 0.3), eps_n=1e5, eps_t=1e5, gap=np.zeros(m.n_pairs))
+    base = dict(methods=("pseudo-time",), nh=2, nit=32, k_w=1e-14, cycles_per_block=1e6, frequency_hz=20.0,
+                eps_check_factor=0.0, nh_check=False, compare_unworn=False, resonance_shift=False)
+    node = worn_steady_state(m, law, WearOptions(**base)).histories["pseudo-time"]
+    for ell in (1e-3, 1e-2):
+        opt = WearOptions(**base, length_m=ell, length_over="pressure")
+        h = worn_steady_state(m, law, opt).histories["pseudo-time"]
+        assert h.steady and h.W[1] == 0.0 == node.W[1]
+        assert len(h.cycles) <= 1.2 * len(node.cycles)
+
+    hb, x, pos, area, W = _three_pairs_worn()
+    wp = WearProblem(hb, area=area, k_w=1e-14, averaging=averaging(pos, area, np.zeros(hb.p), 10.0, over="pressure"),
+                     structured=False)
+    local = WearProblem(hb, area=area, k_w=1e-14).evaluate(x, W).rate
+    st = wp.evaluate(x, W)
+    assert np.all((st.rate > 0) == (local > 0)) and np.any(st.rate < local)      # a pair is capped here
+    _rate_derivatives_match_finite_differences(wp, x, W)
+
+
+def _averaged_block_problems(over: str = "slip"):
+    """(x0, dense, free): hb_problem's three pairs 1 mm apart, the law with a length scale
+    ``over`` at ℓ = 3 mm, the wear problem with J formed and matrix-free."""
     from workflow.engine.wear.law import averaging
 
     hb = hb_problem(20.0, nh=3, nit=32)
@@ -785,32 +860,36 @@ def _averaged_block_problems():
     p = hb.p
     pos = np.column_stack([np.arange(p) * 1e-3, np.zeros(p), np.zeros(p)])
     area = np.array([1e-6, 2e-6, 1.5e-6])
-    avg = averaging(pos, area, np.zeros(p), 3e-3, over="slip")
+    avg = averaging(pos, area, np.zeros(p), 3e-3, over=over)
     dense, free = (WearProblem(hb_problem(20.0, nh=3, nit=32), area=area, k_w=1e-14, structured=s, averaging=avg)
                    for s in (False, True))
     return x0, dense, free
 
 
-def test_matrix_free_step_with_a_length_scale_is_a_w_method():
-    """With the rate averaged (rate = M q) the matrix-free step keeps the vibration rows and the
-    rate M q exact and takes M's diagonal into the wear rows' derivatives (a W-method,
-    :func:`workflow.engine.wear.structured.augmented_step`): one step is the exact solution of
-    that system, to the structured GMRES's tolerance."""
+@pytest.mark.parametrize("over", ["slip", "pressure"])
+def test_matrix_free_step_with_a_length_scale_is_a_w_method(over):
+    """With the rate averaged the matrix-free step keeps the vibration rows and the averaged
+    rate exact and takes each pair's own part of the rate's derivatives into the wear rows (a
+    W-method, :func:`workflow.engine.wear.structured.augmented_step`): one step is the exact
+    solution of that system, to the structured GMRES's tolerance. "slip": the own part is M_ii
+    times the local rate's derivatives; "pressure": M_ii times those of q plus E_ii times q2's."""
     from workflow.engine.linsolve import GMRES_RTOL
     from workflow.engine.wear.pseudotime import _augmented_step
 
-    x0, dense, free = _averaged_block_problems()
+    x0, dense, free = _averaged_block_problems(over)
     p, n = dense.p, dense.n
     W = np.array([1e-7, 0.0, 2e-7])
     st, sf = dense.evaluate(x0, W, jacobian=True), free.evaluate(x0, W, jacobian=True)
     m = np.diagonal(sf.rate_map)
     assert np.any(sf.rate_map - np.diag(m))              # the averaging couples pairs here
     np.testing.assert_array_equal(sf.rate, st.rate)
-    local_Gx = np.linalg.solve(st.rate_map[np.ix_(m > 0, m > 0)], st.G_x[m > 0])   # M⁻¹ (M G_x,loc)
-    Gx = np.zeros_like(st.G_x)
-    Gx[m > 0] = m[m > 0, None] * local_Gx
+    g, gw = m[:, None] * st.g, np.diagonal(st.G_W)         # the formed ∂rate/∂W's diagonal
+    if over == "pressure":
+        assert np.any(np.diagonal(st.q2_map))
+        g = g + np.diagonal(st.q2_map)[:, None] * st.g2
+    Gx = dense.hb.penalty_rows(g[:, None, :])[:, 0, :]
     h = 1e6
-    A = np.block([[st.J, st.R_W], [-h * Gx, np.eye(p) - h * np.diag(m * sf.G_W)]])
+    A = np.block([[st.J, st.R_W], [-h * Gx, np.eye(p) - h * np.diag(gw)]])
     dz = np.linalg.solve(A, np.concatenate([-st.R, h * st.rate]))
     dx, dW = _augmented_step(free, sf, h)
     np.testing.assert_allclose(dx, dz[:n], rtol=0, atol=1e3 * GMRES_RTOL * np.abs(dz[:n]).max())
@@ -818,13 +897,14 @@ def test_matrix_free_step_with_a_length_scale_is_a_w_method():
 
 
 @pytest.mark.slow
-def test_matrix_free_march_with_a_length_scale_reaches_the_formed_worn_state(monkeypatch):
+@pytest.mark.parametrize("over", ["slip", "pressure"])
+def test_matrix_free_march_with_a_length_scale_reaches_the_formed_worn_state(monkeypatch, over):
     """The W-method march (test_matrix_free_step_with_a_length_scale_is_a_w_method), J never
-    formed, ends on the formed-J march's worn state within 10 × their rtol (measured 1.4e-4 at
-    rtol 1e-3, 7e-5 at 1e-4, 1.2e-5 at 1e-5), the stuck pair unworn."""
+    formed, ends on the formed-J march's worn state within 10 × their rtol (measured, "slip":
+    1.4e-4 at rtol 1e-3, 7e-5 at 1e-4, 1.2e-5 at 1e-5), the stuck pair unworn."""
     import workflow.engine.hb as hbmod
 
-    x0, dense, free = _averaged_block_problems()
+    x0, dense, free = _averaged_block_problems(over)
     kw = dict(cycles_per_block=5e5, steady_tol=1e-4, tol=1e-9, rtol=1e-3, max_steps=2000)
     formed = pseudo_time_wear(dense, x0, **kw)
 

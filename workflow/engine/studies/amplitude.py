@@ -223,21 +223,21 @@ class AmplitudeProblem:
         o, a = self.tip(x)
         sig = self.sigma
         R = np.append(st.R, sig * (a / self.target - 1.0))
-        out = WearState(R=R, rate=st.rate, lam=st.lam, slip=st.slip, rate_map=st.rate_map)
+        out = WearState(R=R, rate=st.rate, lam=st.lam, slip=st.slip, rate_map=st.rate_map, q2_map=st.q2_map)
         if not jacobian:
             return out
         hb, wp = self.wp.hb, self.wp
         R_s = -self._r_dyn + hb.apply_contact_blocks(st.G, self._a_dyn.reshape(-1, 1))[:, 0]
-        rate_s = np.einsum("pa,pa->p", st.g, self._a_dyn.ravel()[wp._rows])
-        if st.rate_map is not None:
-            rate_s = st.rate_map @ rate_s
+        a_dyn = self._a_dyn.ravel()[wp._rows]
+        rate_s = st.averaged(np.einsum("pa,pa->p", st.g, a_dyn),
+                             None if st.g2 is None else np.einsum("pa,pa->p", st.g2, a_dyn))
         w = np.conj(o) @ self.C / max(a, 1e-300)             # ∂‖o₁‖/∂U₁ as Re(w dU₁)
         gc = np.zeros((hb.nc, hb.nr))
         gc[1], gc[2] = w.real, w.imag                        # U₁ = c₁ − i c₂
         gx = (self._Tc.T @ gc if self._Tc is not None else gc).ravel()
         gs = float(np.real(np.conj(o) @ self.d)) / max(a, 1e-300)
         c_x, c_s = (sig / self.target) * gx, (sig / self.target) * gs
-        out.G, out.g, out.w, out.G_W = st.G, st.g, st.w, st.G_W
+        out.G, out.g, out.w, out.G_W, out.g2, out.G_W2 = st.G, st.g, st.w, st.G_W, st.g2, st.G_W2
         if not dense:           # the border of the vibration's blocks (:mod:`workflow.engine.wear.structured`)
             out.border = Border(R_s, rate_s, c_x, c_s)
             return out

@@ -1,6 +1,6 @@
 """Archard fretting wear on the harmonic-balance solution, to the worn steady state (paper eqs. 20–22).
 
-* :mod:`.law` — the wear per cycle of every pair (eq. 21/22b) and its averaging over a length;
+* :mod:`.law` — the wear per cycle of every pair (eq. 21/22b) and the law with a length scale;
 * :mod:`.problem` — the coupled problem R(x; W) = 0 with the rates, one state and its derivatives;
 * :mod:`.history` — a march's path and its worn-steady-state test;
 * :mod:`.reference` — the reference march in physical time by blocks of cycles (paper refs. 5, 7);

@@ -51,21 +51,44 @@ def wear_per_cycle(lam: np.ndarray, uT: np.ndarray, area, k_w: float) -> np.ndar
     return k_w * np.sum(0.5 * (p + np.roll(p, 1, axis=0)) * ds, axis=0)
 
 
-#: the pairs an averaged rate is shared over (:class:`Averaging`)
-AVERAGING_OVER = ("slip", "all")
+def pressure_work(lam: np.ndarray, uT: np.ndarray, area, k_w: float) -> np.ndarray:
+    """``k_w ∮ p_N² |du_T|`` (p,) [m·Pa/cycle]: the frictional work per cycle weighted once more
+    by the pressure, with the trapezoid of :func:`wear_per_cycle`. Over q (that function's rate)
+    it is the pair's work-weighted mean contact pressure [Pa] (:class:`Averaging`, "pressure")."""
+    uT = np.asarray(uT, dtype=float)
+    if uT.shape[-1] == 3:
+        uT = uT[..., 1:]
+    p = pressure(lam, area)
+    pm = 0.5 * (p + np.roll(p, 1, axis=0))
+    return k_w * np.sum(pm * pm * slip_increments(uT), axis=0)
+
+
+#: how an averaged rate is formed (:class:`Averaging`)
+AVERAGING_OVER = ("pressure", "slip", "all")
 
 
 class Averaging:
-    """The wear law with a length scale: rate_i = k_w Σ_j M_ij q_j, q the cycle's frictional work
-    per unit area [J/m² per cycle → m per cycle through k_w], M from S (p, p), a row-stochastic
-    Gaussian of width ℓ weighted by the tributary areas within each flank.
+    """The wear law with a length scale ℓ, from S (p, p), a row-stochastic Gaussian of width ℓ
+    weighted by the tributary areas within each flank; q the pair's local rate k_w ∮ p_N |du_T|
+    [m/cycle] (the cycle's frictional work per unit area through k_w).
 
-    * ``over = "all"``: M = S. Every pair within ℓ of a slipping one wears, a stuck one too.
-    * ``over = "slip"``: M_ij = χ_i S_ij / Σ_k S_ik χ_k, χ_i = 1 where pair i slips in contact
-      (q_i > 0). A slipping pair wears at the mean q of the slipping pairs within ℓ of it; a stuck
-      or open pair wears nothing, as the stick zone of a partial-slip fretting scar stays unworn.
-      The worn steady states are the node-wise law's (q = 0 everywhere); only the path to them is
-      smoothed. χ is piecewise constant in the state, so the derivatives take it as fixed.
+    * ``over = "pressure"``: each pair wears under its own contact pressure capped at the mean
+      pressure of the pairs within ℓ, r_i = q_i min(1, p̄_i / P_i), with P_i = q2_i / q_i the
+      pair's work-weighted mean pressure (q2 = k_w ∮ p_N² |du_T|, :func:`pressure_work`) and
+      p̄_i = (S q2)_i / (S q)_i the same mean over ℓ. A pressure peak narrower than ℓ (an edge
+      whose pressure grows as 1/h with the contact mesh) wears at its neighbourhood's level; a
+      pair below it keeps its node-wise rate. r_i is continuous in the
+      state: it goes to 0 with the pair's own work q_i, whether it sticks or lifts off, and p̄
+      weights each neighbour by its work. ℓ → 0 is the node-wise law exactly (p̄ = P).
+    * ``over = "slip"`` (the default): r = M q, M_ij = χ_i S_ij / Σ_k S_ik χ_k, χ_i = 1 where
+      pair i slips in contact (q_i > 0). A slipping pair wears at the mean q of the slipping
+      pairs within ℓ of it; a stuck or open pair wears nothing. Its rate jumps from 0 to its
+      neighbours' mean where it starts or stops slipping, and the pseudo-time march's steps
+      chatter there (docs/wear.md).
+    * ``over = "all"``: r = S q. Every pair within ℓ of a slipping one wears, a stuck one too.
+
+    In all three the worn steady states are the node-wise law's (q = 0 everywhere): r = 0
+    exactly where q = 0. They change only the path to them, and so which one it ends on.
     """
 
     def __init__(self, S, over: str = "slip"):
@@ -73,21 +96,58 @@ class Averaging:
             raise ValueError(f"wear averaging over {over!r}: one of {', '.join(AVERAGING_OVER)}")
         self.S, self.over = np.asarray(S, dtype=float), over
 
+    @property
+    def needs_q2(self) -> bool:
+        """Whether the rate needs each pair's :func:`pressure_work` beside q."""
+        return self.over == "pressure"
+
     def operator(self, q) -> np.ndarray:
-        """M (p, p) at the local rates ``q`` (p,) [m/cycle]: the averaged rate is ``M @ q``."""
+        """M (p, p) of "slip" and "all" at the local rates ``q`` (p,) [m/cycle]: r = M q."""
         if self.over == "all":
             return self.S
+        if self.over != "slip":
+            raise ValueError(f"wear averaging over {self.over!r} is not a linear map of q: use linearised")
         chi = (np.asarray(q) > 0.0).astype(float)
         share = self.S @ chi                       # > 0 wherever χ = 1 (S_ii > 0)
         return (chi / np.where(share > 0.0, share, 1.0))[:, None] * self.S
 
+    def linearised(self, q, q2=None) -> tuple:
+        """(r, M, E): the averaged rate r (p,) [m/cycle] at the local rates ``q`` (and, for
+        "pressure", ``q2``, :func:`pressure_work`) and its first variation ``δr = M δq + E δq2``
+        (the slipping set and the capped set held), E (p, p) or None where r does not take q2.
+        Capped rows of "pressure", r_i = p̄_i q_i² / q2_i with p̄ = S q2 / S q:
+        ∂r_i/∂q_j = 2 δ_ij r_i / q_i − r_i S_ij / (S q)_i and
+        ∂r_i/∂q2_j = −δ_ij r_i / q2_i + (q_i² / q2_i) S_ij / (S q)_i; the others r_i = q_i."""
+        q = np.asarray(q, dtype=float)
+        if self.over != "pressure":
+            M = self.operator(q)
+            return M @ q, M, None
+        if q2 is None:
+            raise ValueError("wear averaging over the pressure needs each pair's pressure work q2")
+        q2 = np.asarray(q2, dtype=float)
+        Sq, Sq2 = self.S @ q, self.S @ q2
+        on = (q > 0.0) & (q2 > 0.0)
+        pbar = np.where(on, Sq2 / np.where(on, Sq, 1.0), 0.0)
+        own = np.where(on, q2 / np.where(on, q, 1.0), 0.0)
+        cap = on & (own > pbar)
+        r = q.copy()
+        qq = np.where(cap, q * q / np.where(cap, q2, 1.0), 0.0)          # q_i² / q2_i [m/cycle / Pa]
+        r[cap] = pbar[cap] * qq[cap]
+        n = len(q)
+        M, E = np.eye(n), np.zeros((n, n))
+        c = np.flatnonzero(cap)
+        M[c] = -(r[c] / Sq[c])[:, None] * self.S[c]
+        M[c, c] += 2.0 * r[c] / q[c]
+        E[c] = (qq[c] / Sq[c])[:, None] * self.S[c]
+        E[c, c] -= r[c] / q2[c]
+        return r, M, E
+
 
 def averaging(position, area, flank, length: float, over: str = "slip") -> Averaging | None:
-    """The averaging of the frictional power over ``length`` [m] (a Gaussian weighted by the
-    tributary areas, within each flank: :func:`workflow.engine.wear.measures.filter_matrix`) among
-    the pairs ``over`` selects (:class:`Averaging`), or None for length 0 — the node-wise law.
-    Averaging q (not p or the slip alone) keeps the worn steady state what it is: no slip
-    anywhere, no wear anywhere."""
+    """The wear law with the length scale ``length`` [m] (a Gaussian weighted by the tributary
+    areas, within each flank: :func:`workflow.engine.wear.measures.filter_matrix`) taken as
+    ``over`` says (:class:`Averaging`), or None for length 0 — the node-wise law. Each choice
+    keeps the worn steady state what it is: no slip anywhere, no wear anywhere."""
     from workflow.engine.wear.measures import filter_matrix
 
     if length <= 0:

@@ -16,7 +16,7 @@ import scipy.linalg
 from workflow.engine.errors import SolverError
 from workflow.engine.solvers import newton
 from workflow.engine.wear import structured as matrix_free
-from workflow.engine.wear.law import pressure, wear_per_cycle
+from workflow.engine.wear.law import pressure, pressure_work, wear_per_cycle
 
 @dataclass
 class WearState:
@@ -39,9 +39,37 @@ class WearState:
     G: np.ndarray | None = None   # contact blocks (p, 3nc, 3nc) (HBProblem.contact_blocks)
     g: np.ndarray | None = None   # ∂rate_i/∂a_i (p, 3nc) [m/cycle per N]
     w: np.ndarray | None = None   # ∂R/∂W_i on pair i's rows (p, 3nc) [N/m]
-    #: the averaging's map at this state, rate = M · local rate (:meth:`law.Averaging.operator`),
-    #: or None: the node-wise law
+    #: M = ∂rate/∂q (p, p) of a law with a length scale at this state, q the local rates
+    #: (:meth:`law.Averaging.linearised`; "slip" and "all": rate = M q), or None: the node-wise law
     rate_map: np.ndarray | None = None
+    #: E (p, p) of a law whose averaged rate takes the pressure work q2 too, δrate = M δq +
+    #: E δq2 (:meth:`law.Averaging.linearised`), or None; with it ∂q2_i/∂a_i (p, 3nc) [m·Pa/cycle
+    #: per N] and ∂q2_i/∂W_i (p,) [Pa/cycle]
+    q2_map: np.ndarray | None = None
+    g2: np.ndarray | None = None
+    G_W2: np.ndarray | None = None
+
+    def averaged(self, dq, dq2=None):
+        """The averaged rate's variation (p, …) from the local rates' ``dq`` and, where the law
+        takes it (:attr:`q2_map`), the pressure works' ``dq2`` (p, …): ``M dq + E dq2``."""
+        if self.rate_map is None:
+            return dq
+        out = self.rate_map @ dq
+        return out if self.q2_map is None else out + self.q2_map @ dq2
+
+    def own(self) -> tuple:
+        """(g̃ (p, 3nc), G̃_W (p,)): the part of each pair's averaged rate's derivatives that
+        goes through its own predictor and W — the diagonal of :meth:`averaged` (all of it for
+        the node-wise law). The matrix-free step takes these (a W-method,
+        :func:`workflow.engine.wear.structured.augmented_step`)."""
+        if self.rate_map is None:
+            return self.g, self.G_W
+        m = np.diagonal(self.rate_map)
+        g, gw = m[:, None] * self.g, m * self.G_W
+        if self.q2_map is not None:
+            e = np.diagonal(self.q2_map)
+            g, gw = g + e[:, None] * self.g2, gw + e * self.G_W2
+        return g, gw
 
     @property
     def has_jacobian(self) -> bool:
@@ -120,15 +148,20 @@ class WearProblem:
         lam = res.lam
         slip = res.lam_x_T / law.eps_t[None, :, None]
         rate = wear_per_cycle(lam, slip, self.area, self.k_w)
-        S = None if self.averaging is None else self.averaging.operator(rate)
-        st = WearState(R=R, rate=rate if S is None else S @ rate, lam=lam, slip=slip, J=J, rate_map=S)
+        S = E = None
+        if self.averaging is not None:
+            q2 = pressure_work(lam, slip, self.area, self.k_w) if self.averaging.needs_q2 else None
+            rate, S, E = self.averaging.linearised(rate, q2)
+        st = WearState(R=R, rate=rate, lam=lam, slip=slip, J=J, rate_map=S, q2_map=E)
         if not jacobian:
             return st
-        g = self.rate_sensitivity(res, law, lam, slip)
+        g, g2 = self.rate_sensitivity(res, law, lam, slip, q2=E is not None)
         # W_i enters a only through pair i's normal shift: da_{j,i,N}/dW_i = ε_N,i const_j
         daW = np.zeros((self.p, 3 * self.nc))
         daW[:, 0::3] = law.eps_n[:, None] * self._const[None, :]
         st.G_W = np.einsum("pa,pa->p", g, daW)
+        if g2 is not None:
+            st.g2, st.G_W2 = g2, np.einsum("pa,pa->p", g2, daW)
         # ∂R/∂W_i: pair i's contact block times da_i/dW_i, on pair i's rows only
         w = np.einsum("pab,pb->pa", G, daW)
         st.G, st.g, st.w = G, g, w
@@ -137,16 +170,18 @@ class WearProblem:
         # chain to x: a = a_F − A y + ε (y + shift)  ⇒  da/dy = diag(ε) − A; every row of a
         # belongs to one pair, so ∂rate/∂x has row i = g_i · (diag ε − A)[pair i's rows]
         st.G_x = hb.penalty_rows(g[:, None, :])[:, 0, :]
-        if S is not None:                   # rate = S · rate_local: its derivatives likewise
-            st.G_x = S @ st.G_x
-            st.G_W = S * st.G_W[None, :]
+        if S is not None:                   # δrate = M δq (+ E δq2): the same chain for each
+            G2_x = None if g2 is None else hb.penalty_rows(g2[:, None, :])[:, 0, :]
+            st.G_x = st.averaged(st.G_x, G2_x)
+            st.G_W = st.averaged(np.diag(st.G_W), None if g2 is None else np.diag(st.G_W2))
         st.R_W = np.zeros((self.n, self.p))
         st.R_W[self._rows, np.arange(self.p)[:, None]] = w
         return st
 
-    def rate_sensitivity(self, res, law, lam, slip):
-        """∂rate_i/∂a_i (p, 3nc) [m/cycle per N]: the wear rate's derivative in pair i's
-        predictor (eq. 21 through the DLFT's dλ/da)."""
+    def rate_sensitivity(self, res, law, lam, slip, q2: bool = False):
+        """(∂q_i/∂a_i (p, 3nc) [m/cycle per N], ∂q2_i/∂a_i or None): the local wear rate's
+        derivative in pair i's predictor (eq. 21 through the DLFT's dλ/da) and, if
+        ``q2``, that of the pressure work (:func:`workflow.engine.wear.law.pressure_work`)."""
         hb, p, nc, nit = self.hb, self.p, self.nc, self.nit
         ncol = 3 * nc
         dlam = res.dlam                                        # (nit, p, 3, ncol): dλ/da_i
@@ -164,7 +199,11 @@ class WearProblem:
         ds = np.einsum("kic,kicn->kin", tdir, dX - np.roll(dX, 1, axis=0))
         pm = 0.5 * (pN + np.roll(pN, 1, axis=0))
         dpm = 0.5 * (dp + np.roll(dp, 1, axis=0))
-        return self.k_w * (np.einsum("kin,ki->in", dpm, s) + np.einsum("ki,kin->in", pm, ds))   # (p, ncol)
+        g = self.k_w * (np.einsum("kin,ki->in", dpm, s) + np.einsum("ki,kin->in", pm, ds))   # (p, ncol)
+        if not q2:
+            return g, None
+        g2 = np.einsum("kin,ki->in", 2.0 * pm[..., None] * dpm, s) + np.einsum("ki,kin->in", pm * pm, ds)
+        return g, self.k_w * g2
 
     # solves --------------------------------------------------------------
     def solve_hb(self, x0, W, *, tol, maxiter=50, dense: bool | None = None) -> tuple:

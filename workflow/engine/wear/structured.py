@@ -49,14 +49,14 @@ def r_w_times(st, v) -> np.ndarray:
     return out if getattr(st, "border", None) is None else np.append(out, 0.0)
 
 
-def rate_x_times(wp, st, v, border: bool = True) -> np.ndarray:
+def rate_x_times(wp, st, v, border: bool = True, g=None) -> np.ndarray:
     """``∂q/∂x · v`` (p,) [m/cycle] of the local rates q (before any averaging) for unknowns v
     (n,): g_i · (∂a/∂x v) on pair i's rows (and, if ``border``, ∂rate/∂s · v_s for a bordered
-    state's load scale)."""
+    state's load scale); ``g`` (p, 3nc) another per-pair sensitivity than ``st.g``."""
     b = getattr(st, "border", None)
     v = np.asarray(v, dtype=float)
     da = wp.hb.penalty_apply(v if b is None else v[:-1]).ravel()[wp._rows]          # (p, 3nc)
-    out = np.einsum("pa,pa->p", st.g, da)
+    out = np.einsum("pa,pa->p", st.g if g is None else g, da)
     return out if b is None or not border else out + b.rate_s * v[-1]
 
 
@@ -81,27 +81,22 @@ def solve(wp, st, b):
     return _finite(lin.solve(-np.asarray(b, dtype=float), border=None if border is None else border.bordered()))
 
 
-def _own_share(st):
-    """M_ii (p,) of a state's averaging map (1 for the node-wise law): the part of each pair's
-    averaged rate that is its own (:class:`workflow.engine.wear.law.Averaging`)."""
-    return 1.0 if getattr(st, "rate_map", None) is None else np.diagonal(st.rate_map)
-
-
 def augmented_step(wp, st, h: float):
     """(Δx, ΔW) of the linearly implicit step (module docstring), or None where a solve failed.
     A bordered state's load scale s enters the wear rate too: ΔW takes ∂rate/∂s Δs, and the
     border's column takes ∂R/∂W D⁻¹ h ∂rate/∂s.
 
-    With a length scale (rate = M q, M a (p, p) averaging map) the step keeps the rate M q and
-    the vibration rows exact and takes only M's diagonal into the wear rows' derivatives — a
+    With a length scale (the rate couples the pairs, :class:`workflow.engine.wear.law.Averaging`)
+    the step keeps the averaged rate and the vibration rows exact and takes only each pair's own part of the averaged rate's
+    derivatives into the wear rows (:meth:`workflow.engine.wear.problem.WearState.own`) — a
     W-method: the step stays consistent (first order, as the linearly implicit step is), its
     error estimate judges it, and the rank-one pair blocks keep the matrix-free solve."""
-    m = _own_share(st)
-    D = 1.0 - h * m * st.G_W
+    g, gw = st.own()
+    D = 1.0 - h * gw
     if not np.all(np.abs(D) > 0):
         return None
-    hm = h * m / D
-    B = np.broadcast_to(hm, D.shape)[:, None, None] * st.w[:, :, None] * st.g[:, None, :]
+    hm = h / D
+    B = hm[:, None, None] * st.w[:, :, None] * g[:, None, :]
     lin = _factored(wp, st.G + B)
     if lin is None:
         return None
@@ -111,4 +106,4 @@ def augmented_step(wp, st, h: float):
     dx = _finite(lin.solve(st.R + r_w_times(st, c), border=border))  # (J + B-part) dx = −R − ∂R/∂W c
     if dx is None:
         return None
-    return dx, c + hm * rate_x_times(wp, st, dx, border=False) + (0.0 if b is None else h * b.rate_s * dx[-1] / D)
+    return dx, c + hm * rate_x_times(wp, st, dx, border=False, g=g) + (0.0 if b is None else h * b.rate_s * dx[-1] / D)

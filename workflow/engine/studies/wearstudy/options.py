@@ -23,8 +23,8 @@ class WearOptions:
     comparison); ``operating_point`` "frequency" (``frequency_hz``) or "detuning"
     (``detuning`` × the friction-damped resonance, :mod:`workflow.engine.studies.operating`);
     ``length_m``: the wear law's length scale ℓ [m] (0: node-wise, eq. 21;
-    :func:`workflow.engine.wear.law.averaging`) and ``length_over`` the pairs it averages over
-    ("slip" or "all", :class:`workflow.engine.wear.law.Averaging`); ``measure_length_m``: ℓ [m]
+    :func:`workflow.engine.wear.law.averaging`) and ``length_over`` how the rate takes it
+    ("pressure", "slip" or "all", :class:`workflow.engine.wear.law.Averaging`); ``measure_length_m``: ℓ [m]
     of the filtered profile among the wear measures
     (:mod:`workflow.engine.wear.measures`); ``resonance_shift``: find the friction-damped
     resonance of the worn and the new model (two FRF searches).
