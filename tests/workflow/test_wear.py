@@ -369,6 +369,18 @@ def _reduced_block_model():
                         area=np.full(p, 1e-6), gap=np.zeros(p), flank=np.zeros(p, int), position=pos)
 
 
+def _block_marches():
+    """(model, law, options, node-wise march) of the block model's wear tests: 3 pairs 1 mm apart,
+    the middle one preloaded twice as hard, μ = 0.3, pseudo-time at 20 Hz, Nh = 2."""
+    from workflow.engine import WearOptions, worn_steady_state
+
+    m = _reduced_block_model()
+    law = ContactLaw(mu=np.full(m.n_pairs, 0.3), eps_n=1e5, eps_t=1e5, gap=np.zeros(m.n_pairs))
+    base = dict(methods=("pseudo-time",), nh=2, nit=32, k_w=1e-14, cycles_per_block=1e6, frequency_hz=20.0,
+                eps_check_factor=0.0, nh_check=False, compare_unworn=False, resonance_shift=False)
+    return m, law, base, worn_steady_state(m, law, WearOptions(**base)).histories["pseudo-time"]
+
+
 def test_wear_stage_on_a_reduced_model(tmp_path, monkeypatch):
     import csv
     import json
@@ -699,13 +711,8 @@ def test_length_scale_march_reaches_a_worn_steady_state(tmp_path):
     (measured 8.7 / 28.4 / 58.8 µm), steady with every averaged rate ~0; with ℓ = 10 mm ≫ the spacing every pair wears at the flank's mean rate,
     the stuck pair with its slipping neighbours, and there is no worn steady state."""
     from workflow.engine import WearOptions, worn_steady_state
-    from workflow.engine.contact import ContactLaw
 
-    m = _reduced_block_model()
-    law = ContactLaw(mu=np.full(m.n_pairs, 0.3), eps_n=1e5, eps_t=1e5, gap=np.zeros(m.n_pairs))
-    base = dict(methods=("pseudo-time",), nh=2, nit=32, k_w=1e-14, cycles_per_block=1e6, frequency_hz=20.0,
-                eps_check_factor=0.0, nh_check=False, compare_unworn=False, resonance_shift=False)
-    node = worn_steady_state(m, law, WearOptions(**base)).histories["pseudo-time"]
+    m, law, base, node = _block_marches()
     ell = worn_steady_state(m, law, WearOptions(**base, length_m=1e-3, length_over="all")).histories["pseudo-time"]
     assert node.steady and ell.steady and node.W[1] == 0.0 < ell.W[1]
     # steady: the wear still to come over a block of cycles is below wear.steady_tol of max W
@@ -753,14 +760,9 @@ def test_slip_averaged_law_keeps_stuck_pairs_unworn_and_settles():
     still to come below wear.steady_tol of max W); and the derivatives match finite differences
     with the stick/slip set held (it does not change under a 1e-10 perturbation)."""
     from workflow.engine import WearOptions, worn_steady_state
-    from workflow.engine.contact import ContactLaw
     from workflow.engine.wear.law import averaging
 
-    m = _reduced_block_model()
-    law = ContactLaw(mu=np.full(m.n_pairs, 0.3), eps_n=1e5, eps_t=1e5, gap=np.zeros(m.n_pairs))
-    base = dict(methods=("pseudo-time",), nh=2, nit=32, k_w=1e-14, cycles_per_block=1e6, frequency_hz=20.0,
-                eps_check_factor=0.0, nh_check=False, compare_unworn=False, resonance_shift=False)
-    node = worn_steady_state(m, law, WearOptions(**base)).histories["pseudo-time"]
+    m, law, base, node = _block_marches()
     for ell in (1e-3, 1e-2):
         h = worn_steady_state(m, law, WearOptions(**base, length_m=ell, length_over="slip")).histories["pseudo-time"]
         assert h.steady and h.W[1] == 0.0 == node.W[1]
@@ -827,14 +829,9 @@ def test_pressure_capped_law_settles_in_the_node_wise_steps():
     pair starts or stops slipping, so no pair chatters), and the rate's derivatives through the
     vibration match finite differences."""
     from workflow.engine import WearOptions, worn_steady_state
-    from workflow.engine.contact import ContactLaw
     from workflow.engine.wear.law import averaging
 
-    m = _reduced_block_model()
-    law = ContactLaw(mu=np.full(m.n_pairs, 0.3), eps_n=1e5, eps_t=1e5, gap=np.zeros(m.n_pairs))
-    base = dict(methods=("pseudo-time",), nh=2, nit=32, k_w=1e-14, cycles_per_block=1e6, frequency_hz=20.0,
-                eps_check_factor=0.0, nh_check=False, compare_unworn=False, resonance_shift=False)
-    node = worn_steady_state(m, law, WearOptions(**base)).histories["pseudo-time"]
+    m, law, base, node = _block_marches()
     for ell in (1e-3, 1e-2):
         opt = WearOptions(**base, length_m=ell, length_over="pressure")
         h = worn_steady_state(m, law, opt).histories["pseudo-time"]
