@@ -35,6 +35,17 @@ def slip_increments(uT: np.ndarray) -> np.ndarray:
     return np.sqrt(np.sum(d * d, axis=-1))
 
 
+def _interval_pressure_and_slip(lam, uT, area) -> tuple:
+    """(p̄_k, ‖Δu_T‖_k) (nit, p): the trapezoidal pressure [Pa] and the slip increment [m] of
+    every interval k−1 → k of the period (periodic wrap); uT (nit, p, 2) or (nit, p, 3) with its
+    normal part dropped."""
+    uT = np.asarray(uT, dtype=float)
+    if uT.shape[-1] == 3:
+        uT = uT[..., 1:]
+    p = pressure(lam, area)
+    return 0.5 * (p + np.roll(p, 1, axis=0)), slip_increments(uT)
+
+
 def wear_per_cycle(lam: np.ndarray, uT: np.ndarray, area, k_w: float) -> np.ndarray:
     """Archard wear depth per cycle ΔW (p,) [m/cycle] (eq. 21, 22b).
 
@@ -43,24 +54,16 @@ def wear_per_cycle(lam: np.ndarray, uT: np.ndarray, area, k_w: float) -> np.ndar
           displacements [n, t1, t2], whose normal part is dropped).
     area: (p,) tributary areas [m²]; k_w: Archard coefficient [m²/N].
     """
-    uT = np.asarray(uT, dtype=float)
-    if uT.shape[-1] == 3:
-        uT = uT[..., 1:]
-    p = pressure(lam, area)
-    ds = slip_increments(uT)
-    return k_w * np.sum(0.5 * (p + np.roll(p, 1, axis=0)) * ds, axis=0)
+    pm, ds = _interval_pressure_and_slip(lam, uT, area)
+    return k_w * np.sum(pm * ds, axis=0)
 
 
 def pressure_work(lam: np.ndarray, uT: np.ndarray, area, k_w: float) -> np.ndarray:
     """``k_w ∮ p_N² |du_T|`` (p,) [m·Pa/cycle]: the frictional work per cycle weighted once more
     by the pressure, with the trapezoid of :func:`wear_per_cycle`. Over q (that function's rate)
     it is the pair's work-weighted mean contact pressure [Pa] (:class:`Averaging`, "pressure")."""
-    uT = np.asarray(uT, dtype=float)
-    if uT.shape[-1] == 3:
-        uT = uT[..., 1:]
-    p = pressure(lam, area)
-    pm = 0.5 * (p + np.roll(p, 1, axis=0))
-    return k_w * np.sum(pm * pm * slip_increments(uT), axis=0)
+    pm, ds = _interval_pressure_and_slip(lam, uT, area)
+    return k_w * np.sum(pm * pm * ds, axis=0)
 
 
 #: how an averaged rate is formed (:class:`Averaging`)
