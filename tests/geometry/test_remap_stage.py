@@ -75,6 +75,7 @@ def worn_run(upstream, tmp_path_factory):
     return s, out, lines
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_remap_stage_outputs(upstream, worn_run):
     root, scene, W = upstream
     s, tmp_path, lines = worn_run
@@ -156,6 +157,7 @@ def test_zero_wear_reassembly_has_no_frequency_shift(upstream, tmp_path):
     np.testing.assert_allclose(s["frf_peak_amplitude_m"]["worn"], s["frf_peak_amplitude_m"]["new"], rtol=1e-6)
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_worn_reduced_model_keeps_the_full_worn_tied_frequencies(upstream, worn_run):
     """The worn reduced model's tied frequencies are those of the re-assembled
     full worn model (the freq shift computation) to reduction accuracy."""
@@ -181,6 +183,7 @@ def test_worn_reduced_model_keeps_the_full_worn_tied_frequencies(upstream, worn_
     assert abs(s["frf_tied_hz"]["worn"] - s["frf_tied_hz"]["new"]) < 1e-3 * s["frf_tied_hz"]["new"]
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_worn_static_state_is_the_new_one_with_wear_as_gap(upstream, worn_run):
     """The worn bundle's gap carries W and its geometry the removed material:
     its static contact state equals the new model's with the wear applied in

@@ -261,6 +261,7 @@ def _element_sizes(mesh, p) -> tuple[np.ndarray, np.ndarray]:
     return size, dist
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_flank_size_refines_the_solid_next_to_the_flanks_only(tmp_path, read_msh):
     """geometry.h_flank: within flank_zone of the flanks the tetrahedra are as fine as in a sector
     meshed at h_flank throughout (gmsh's Delaunay edges are ~1.3 × its size either way); beyond

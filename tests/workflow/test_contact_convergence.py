@@ -159,6 +159,7 @@ def quick_model(scene, tmp_path_factory):
     return cc.build_model(scene, 4, 2, tmp_path_factory.mktemp("cc"))
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_every_node_layout_closes_the_midside_interpenetration(scene, quick_model):
     """Under the centrifugal preload, contact at the vertices alone lets the flanks
     interpenetrate at midside nodes (by µm: the order of the wear depth); with

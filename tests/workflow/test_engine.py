@@ -219,6 +219,7 @@ def test_a_march_that_loses_the_vibration_is_re_solved_at_a_finer_nh_and_says_wh
     assert "raise hb.harmonics" in line and "max_steps" not in line, line
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_a_band_too_big_to_keep_is_condensed_point_by_point_with_the_same_sweeps(monkeypatch):
     """The band's condensations are made when a sweep reaches them once the whole band would
     not fit in engine.linear.KEEP_BYTES (512 pairs, Nh = 7: 302 MB a frequency): the sweeps

@@ -235,6 +235,7 @@ def test_error_decreases_with_harmonics(study):
     assert err[5] < 0.05
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_collocated_forms_give_the_same_frf(collocated):
     """With nit = 2Nh+1, HBM, TCM and HDHB are the same equations in other unknowns."""
     summary, out = collocated
@@ -285,6 +286,7 @@ def test_stage_contract():
     assert set(mod.SECTIONS) == {"contact", "hb", "sweep", "excitation", "pseudotime"}
 
 
+@pytest.mark.slow  # 2–3 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_newton_powell_cascade_finds_the_same_frf_as_powell(tmp_path):
     """hb.solver = newton-powell (Newton steps, then Powell from the best iterate) solves the same
     equations as Powell alone: same converged FRF."""
@@ -339,6 +341,7 @@ def test_join_sweeps_puts_chunks_back_in_order():
     assert j.total_seconds == 5.0 and j.cpu_seconds == 8.0 and j.dlft_max_passes == 3
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_arclength_sweep_traces_the_same_frf_as_the_grid(tmp_path):
     """sweep.method = arclength: continuation through the friction-damped resonance; its
     points lie on the grid sweep's curve and its error is measured by interpolation."""

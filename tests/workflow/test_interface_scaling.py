@@ -152,6 +152,7 @@ def test_structured_equals_dense_on_the_quick_sector(tmp_path, monkeypatch):
         assert abs(s.amplitude[i] - d.amplitude[i]) <= 1e-5 * d.amplitude[i]
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_structured_split_accounts_for_the_linear_solves(tmp_path):
     """workflow.bench.structured_split on the 8-pair sector: the factorisations and GMRES
     iterations it counts are those of the sequence it records, their seconds lie
@@ -170,8 +171,9 @@ def test_structured_split_accounts_for_the_linear_solves(tmp_path):
     assert row["factorizations"] == seq.count("F") >= 1
     assert row["gmres_iterations"] == sum(int(s) for s in seq if s != "F")
     assert row["solves"] == len(seq) - seq.count("F")
-    # the parts and the sweep are timed by separate clock reads, and the sweep's seconds exclude
-    # its grid's condensation, timed apart: on a loaded 2-core machine the parts of a 30 ms sweep
-    # measured 1.4 ms above it (2026-11-28), so the containment holds to a few ms, not exactly
-    assert 0 < row["factor_s"] + row["gmres_s"] <= 1.1 * row["seconds"] + 0.005
+    # every factorisation and GMRES solve runs inside the sweep, whose seconds leave out its grid's
+    # condensation (timed apart, and a block factorisation may wait on it): the parts are bounded
+    # by the two together, up to the clock reads' own microseconds
+    whole = row["seconds"] + row["condense_s_per_point"] * row["points"]
+    assert 0 < row["factor_s"] + row["gmres_s"] <= whole + 1e-4
     assert row["s_per_iteration"] == pytest.approx(row["seconds"] / row["iterations"])

@@ -561,6 +561,7 @@ def test_cascade_resumes_a_guess_that_ran_out_of_iterations_while_converging(mon
     assert pr.iterations == longer.iterations and np.array_equal(pr.result.x, longer.x)
 
 
+@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_cascade_ends_with_newton_on_the_whole_budget(monkeypatch):
     """Attempt 9: from the 6-pair model's linear solution at 24 Hz, Newton creeps for some
     30 steps before its stick/slip pattern settles; every shorter attempt fails (the point
