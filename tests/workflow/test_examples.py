@@ -17,3 +17,6 @@ def test_example_runs(path, capsys):
     # the friction-damped peak lies below the tied linear one (friction only damps)
     peak, tied = (float(out.split(k)[1].split()[0].rstrip(")").rstrip(";")) for k in (" Hz, ", "(tied "))
     assert 0 < peak < tied
+    # an answer the Nh-check finds unconverged is never printed without its warning
+    if "change at 1.5×Nh" in out and float(out.split("change at 1.5×Nh ")[1].split()[0]) > 1e-3:
+        assert "check: Nh-check" in out, out
