@@ -12,7 +12,7 @@ import ctypes
 import os
 import sys
 
-__all__ = ["blas_cores", "blas_threads", "large_blas", "launched"]
+__all__ = ["blas_cores", "blas_threads", "corenames", "large_blas", "launched"]
 
 #: Environment variables set by MPI launchers (Open MPI, MPICH/Hydra, PMIx, Slurm's PMI).
 LAUNCHER_ENV = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "PMI_RANK", "MPI_LOCALNRANKS")
@@ -42,14 +42,36 @@ def _openblas_handles():
 _HANDLES: list = [None, []]
 
 
-def _find_openblas():
-    out = []
+def _openblas_paths() -> list[str]:
+    """The files of every OpenBLAS loaded in this process (Linux: /proc/self/maps)."""
     try:
         with open("/proc/self/maps") as fh:
-            paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ln.split()[-1].startswith("/")})
+            return sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ln.split()[-1].startswith("/")})
     except OSError:
-        return out
-    for path in paths:
+        return []
+
+
+def corenames() -> list[tuple[str, str]]:
+    """(file, kernels) of every OpenBLAS loaded in this process (``openblas_get_corename``):
+    "Prescott" on a modern CPU means OpenBLAS did not know it (:mod:`workflow.blas_kernels`)."""
+    out = []
+    for path in _openblas_paths():
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for name in ("openblas_get_corename", "openblas_get_corename64_", "scipy_openblas_get_corename64_"):
+            fn = getattr(lib, name, None)
+            if fn is not None:
+                fn.restype = ctypes.c_char_p
+                out.append((os.path.basename(path), fn().decode()))
+                break
+    return out
+
+
+def _find_openblas():
+    out = []
+    for path in _openblas_paths():
         try:
             lib = ctypes.CDLL(path)
         except OSError:
