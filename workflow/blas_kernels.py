@@ -50,16 +50,38 @@ def coretype(cpuinfo: str) -> str | None:
 def choose(environ=os.environ, cpuinfo_path: str = "/proc/cpuinfo") -> str | None:
     """Set ``OPENBLAS_CORETYPE`` in ``environ`` from the CPU (:func:`coretype`) unless it is set
     or NumPy is already loaded (OpenBLAS reads it once, when it is loaded; child processes
-    inherit it). Returns the core type in force (None: OpenBLAS's own detection)."""
+    inherit it) — then warn where NumPy's OpenBLAS runs kernels older than the CPU's. Returns
+    the core type in force (None: OpenBLAS's own detection)."""
     if "OPENBLAS_CORETYPE" in environ:
         return environ["OPENBLAS_CORETYPE"] or None
-    if "numpy" in sys.modules:
-        return None
     try:
         with open(cpuinfo_path) as fh:
             core = coretype(fh.read())
     except OSError:
         return None
-    if core is not None:
-        environ["OPENBLAS_CORETYPE"] = core
+    if core is None:
+        return None
+    if "numpy" in sys.modules:
+        _warn_if_outdated(core)
+        return None
+    environ["OPENBLAS_CORETYPE"] = core
     return core
+
+
+#: OpenBLAS's kernels for CPUs without AVX2: on a CPU that has it, OpenBLAS did not know the model
+OUTDATED = frozenset({"prescott", "core2", "penryn", "dunnington", "nehalem", "atom", "northwood", "banias"})
+
+
+def _warn_if_outdated(core: str) -> None:
+    """NumPy came first (a notebook's ``import numpy``): say so if its OpenBLAS runs kernels
+    older than the CPU's, and how to choose them (the variable is read only at load)."""
+    import warnings
+
+    from workflow.engine.blas import corenames
+
+    old = sorted({name for _, name in corenames() if name.lower() in OUTDATED})
+    if old:
+        warnings.warn(f"OpenBLAS runs its {', '.join(old)} kernels on a CPU with {core}'s instruction sets: "
+                      f"dense linear algebra ~5x slower. Set OPENBLAS_CORETYPE={core} before NumPy is imported, "
+                      "or import workflow first (docs/performance.md, \"The BLAS kernels\")", RuntimeWarning,
+                      stacklevel=3)

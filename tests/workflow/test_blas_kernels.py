@@ -34,7 +34,11 @@ def test_a_choice_is_made_only_before_numpy_and_never_over_the_users(tmp_path, m
     import numpy  # noqa: F401  (OpenBLAS is loaded: too late to choose)
 
     env = {}
+    monkeypatch.setattr("workflow.engine.blas.corenames", lambda: [("libopenblas.so", "Haswell")])
     assert blas_kernels.choose(env, str(path)) is None and env == {}
+    monkeypatch.setattr("workflow.engine.blas.corenames", lambda: [("libopenblas.so", "Prescott")])
+    with pytest.warns(RuntimeWarning, match="OPENBLAS_CORETYPE=SkylakeX"):
+        assert blas_kernels.choose(env, str(path)) is None and env == {}
     monkeypatch.delitem(sys.modules, "numpy")
     assert blas_kernels.choose(env, str(path)) == "SkylakeX" and env == {"OPENBLAS_CORETYPE": "SkylakeX"}
     assert blas_kernels.choose({}, str(tmp_path / "missing")) is None    # no /proc/cpuinfo: OpenBLAS decides
