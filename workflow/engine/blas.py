@@ -42,24 +42,25 @@ def _openblas_handles():
 _HANDLES: list = [None, []]
 
 
-def _openblas_paths() -> list[str]:
-    """The files of every OpenBLAS loaded in this process (Linux: /proc/self/maps)."""
+def _openblas_libs():
+    """(file, ctypes library) of every OpenBLAS loaded in this process (Linux: /proc/self/maps)."""
     try:
         with open("/proc/self/maps") as fh:
-            return sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ln.split()[-1].startswith("/")})
+            paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ln.split()[-1].startswith("/")})
     except OSError:
-        return []
+        return
+    for path in paths:
+        try:
+            yield path, ctypes.CDLL(path)
+        except OSError:
+            continue
 
 
 def corenames() -> list[tuple[str, str]]:
-    """(file, kernels) of every OpenBLAS loaded in this process (``openblas_get_corename``):
-    "Prescott" on a modern CPU means OpenBLAS did not know it (:mod:`workflow.blas_kernels`)."""
+    """(file name, kernels) of every OpenBLAS loaded in this process (``openblas_get_corename``):
+    "Prescott" on a CPU with AVX2 means OpenBLAS did not know the CPU and took its SSE3 kernels."""
     out = []
-    for path in _openblas_paths():
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
+    for path, lib in _openblas_libs():
         for name in ("openblas_get_corename", "openblas_get_corename64_", "scipy_openblas_get_corename64_"):
             fn = getattr(lib, name, None)
             if fn is not None:
@@ -71,11 +72,7 @@ def corenames() -> list[tuple[str, str]]:
 
 def _find_openblas():
     out = []
-    for path in _openblas_paths():
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
+    for _, lib in _openblas_libs():
         for suffix in ("", "64_"):
             for prefix in ("openblas", "scipy_openblas"):
                 try:
