@@ -286,7 +286,6 @@ def test_stage_contract():
     assert set(mod.SECTIONS) == {"contact", "hb", "sweep", "excitation", "pseudotime"}
 
 
-@pytest.mark.slow  # 2–3 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_newton_powell_cascade_finds_the_same_frf_as_powell(tmp_path):
     """hb.solver = newton-powell (Newton steps, then Powell from the best iterate) solves the same
     equations as Powell alone: same converged FRF."""

@@ -77,7 +77,7 @@ def _engine_point(model, law, omega, nh=15, nit=128):
     return hb, pr.result.x, rc
 
 
-@pytest.mark.parametrize("omega,cN", [(1.3, 0.0), pytest.param(1.2, 0.1, marks=pytest.mark.slow)])  # the damped case in make test-slow
+@pytest.mark.parametrize("omega,cN", [(1.3, 0.0), (1.2, 0.1)])
 def test_jenkins_multipliers_match_event_driven_shooting(omega, cN):
     """Engine HB (DLFT, Nh = 15, nit = 128) + the monodromy of its linearisation (anchors as
     states, the switching instants located between the samples) vs central differences of the

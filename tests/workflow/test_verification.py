@@ -227,7 +227,6 @@ def test_hb_penalty_limit_is_the_large_penalty_answer():
     assert np.array(amp[:3]) / amp[4] == pytest.approx([0.0410 / 0.0533, 0.0467 / 0.0533, 0.0517 / 0.0533], abs=0.003)
 
 
-@pytest.mark.slow  # 4–9 s on the 2-core machine: make test-slow keeps make test within 3 min
 def test_hb_two_dof_damper_against_time_integration_default_penalty():
     """The project's default settings (the automatic penalty, the cascade) on the 2-DOF damper
     with a motion-dependent normal load, three frequencies around the tied resonance (the pad
