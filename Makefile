@@ -11,7 +11,8 @@ DEB_PKGS    := python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh \
                python3-scipy python3-venv libopenblas0-pthread
 # numpy<2: Debian's dolfinx/petsc4py are compiled against NumPy 1.x.
 # numba ≥ 0.60 from PyPI (Debian's 0.56 refuses numpy 1.26); installed with "numpy<2" so pip keeps 1.x.
-# pytest-xdist: the suite on every core (2 workers: 7 → 3 min on the 2-core CI machine).
+# pytest-xdist: the suite on every core (2 workers: 7 → 3 min on the 2-core CI machine); worksteal:
+# an idle worker takes queued tests from the busy one, so the suite does not end on one core.
 PIP_PKGS    := "numpy<2" "numba>=0.60" matplotlib pyvista vtk pytest pytest-xdist hypothesis
 STAMP_DEB   := $(VENV)/.deb-ok
 STAMP_PIP   := $(VENV)/.pip-ok
@@ -20,7 +21,7 @@ OUT         ?= results/demo
 PYTEST_ARGS ?=
 # Test workers (pytest-xdist), each on one BLAS thread so that workers × threads ≤ cores.
 TEST_JOBS   ?= auto
-PYTEST      := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_JOBS)
+PYTEST      := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q -n $(TEST_JOBS) --dist worksteal
 
 export PYVISTA_OFF_SCREEN := true
 export OMP_NUM_THREADS ?= 2

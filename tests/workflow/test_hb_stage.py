@@ -286,6 +286,7 @@ def test_stage_contract():
     assert set(mod.SECTIONS) == {"contact", "hb", "sweep", "excitation", "pseudotime"}
 
 
+@pytest.mark.slow  # 2–6 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_newton_powell_cascade_finds_the_same_frf_as_powell(tmp_path):
     """hb.solver = newton-powell (Newton steps, then Powell from the best iterate) solves the same
     equations as Powell alone: same converged FRF."""
@@ -365,6 +366,7 @@ def test_arclength_sweep_traces_the_same_frf_as_the_grid(tmp_path):
     assert s_grid["runs"][0]["error"] <= run["error"] < 0.15
 
 
+@pytest.mark.slow  # 2–6 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_stability_columns_and_summary(tmp_path):
     """hb.stability: frf.csv carries stable and floquet_max per converged point, summary.json
     runs[].stable / floquet_max, and the log says it; a damped friction-damped response through

@@ -103,6 +103,7 @@ def test_renders_safely_after_dolfinx_import(tmp_path):
     image_checks(path, 1600)
 
 
+@pytest.mark.slow  # 2–6 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_figures_together_share_one_render_process(tmp_path, monkeypatch):
     """render.together: after dolfinx, several figures come from one child
     process (one interpreter start), in the order asked, each right."""

@@ -336,6 +336,7 @@ def test_quick_sector_is_stable_around_resonance(tmp_path):
         assert st.truncation_change < 1e-3, (f, st.truncation_change)
 
 
+@pytest.mark.slow  # 2–6 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_frf_stability_of_every_point_matches_shooting():
     """engine.frf with stability on: every converged point of the Jenkins oscillator's sweep
     through its resonance carries its largest multiplier; at two points it is the event-driven

@@ -227,6 +227,7 @@ def test_hb_penalty_limit_is_the_large_penalty_answer():
     assert np.array(amp[:3]) / amp[4] == pytest.approx([0.0410 / 0.0533, 0.0467 / 0.0533, 0.0517 / 0.0533], abs=0.003)
 
 
+@pytest.mark.slow  # 2–6 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_hb_two_dof_damper_against_time_integration_default_penalty():
     """The project's default settings (the automatic penalty, the cascade) on the 2-DOF damper
     with a motion-dependent normal load, three frequencies around the tied resonance (the pad
@@ -259,6 +260,7 @@ def test_hb_two_dof_damper_against_time_integration_large_penalty():
 
 
 # ------------------------------------------------------------------ the stage
+@pytest.mark.slow  # 2–6 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_verification_scene_writes_table_figure_and_summary(tmp_path, monkeypatch):
     """The pipeline runs the stage from a scene; summary.json carries verification.rows with
     the table's columns and max_error_nonstop; Nh = 1 vs 3 on the Coulomb and 2-DOF cases."""
@@ -319,6 +321,7 @@ def test_hb_pad_chain_slip_band_against_time_integration():
     assert max(r["error"] for r in rows) < 0.002
 
 
+@pytest.mark.slow  # 2–6 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_stop_regime_point_without_neighbours_converges_by_continuation_in_nh():
     """The first point of a sweep has no neighbour to start from. On the Coulomb oscillator in
     the stop regime (μN/F0 = 0.7, c = 0, β = 0.5: the mass sticks twice a period, ε = 10³k)
