@@ -178,7 +178,7 @@ def test_the_tied_frequencies_come_from_the_condensations_basis(rotating_bundle,
     np.testing.assert_allclose(s, s0, atol=1e-9)
 
 
-@pytest.mark.parametrize("split", [10.0, 3.0])
+@pytest.mark.parametrize("split", [10.0, pytest.param(3.0, marks=pytest.mark.slow)])  # the lower split in make test-slow
 def test_the_high_modes_series_condenses_as_the_rank_update_and_the_lu_do(rotating_bundle, monkeypatch, split):
     """Tied modes far above the excitation enter Z_r through their power series in
     (b/a)·μ (reduction.condense.HighModeSeries): Z_r, F_r and their ω-derivatives equal the

@@ -77,6 +77,7 @@ def test_wear_changes_are_between_the_finest_meshes_that_have_it():
     assert summarise(rows[-2:], None)["max_wear_change_last"] is None
 
 
+@pytest.mark.slow  # 1.5–5 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_figures_with_the_wear_on_the_coarser_meshes_only(tmp_path):
     from workflow.report.convergence import plot
 
@@ -174,6 +175,7 @@ def test_every_node_layout_closes_the_midside_interpenetration(scene, quick_mode
     assert 0.0 < s["vertex_load_share"] < 1.0
 
 
+@pytest.mark.slow  # 1.5–5 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_linear_layout_closes_the_midside_interpenetration_with_the_vertex_pairs(tmp_path_factory):
     """The scene's layout ("linear"): the vertex pairs only, P1 areas summing to the flank area, and
     under the preload the midside gaps — the means of their edges' vertex gaps — are ≥ 0 to round-off

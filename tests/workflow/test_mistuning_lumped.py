@@ -163,7 +163,7 @@ def test_two_blade_model_is_the_time_integrators_system():
     assert model.O[0] @ np.arange(model.size) == 1.0 and model.O.sum() == 1.0
 
 
-@pytest.mark.parametrize("level, ratio", [("macro", 0.84), ("micro", 1.0)])
+@pytest.mark.parametrize("level, ratio", [pytest.param("macro", 0.84, marks=pytest.mark.slow), ("micro", 1.0)])  # macro in make test-slow
 def test_two_blade_hb_default_grid_within_budget(level, ratio):
     """The engine's defaults (HBM, Nh = 7, nit = 64, automatic penalty) at the friction-damped peak
     (pads slipping ~88 % of the period) and at the tied resonance (stuck ~78–83 %): every point

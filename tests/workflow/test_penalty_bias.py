@@ -56,6 +56,7 @@ def test_eps_limit_den_hartog_beats_default_and_flags_preasymptotic():
     assert abs(high["limit"] - df) < 0.1 * abs(amp[1.0] - df)
 
 
+@pytest.mark.slow  # 1.5–5 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_eps_limit_light_pad_chain_nonmonotone_spread_bounds_bias():
     """The light-pad chain (issue 47: light pads on springs on rigid ground), Nh = 7,
     nit = 60, at 0.95 ω₁: A(ε) rises then falls (×1, ×10, ×100: +0.44, +0.60, +0.02 % against

@@ -303,6 +303,7 @@ def test_arclength_sweep_short_of_its_band_is_unconverged(tmp_path):
     assert missed_from == pytest.approx(f[ok].max(), abs=0.006)
 
 
+@pytest.mark.slow  # 1.5–5 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_arclength_sweep_ends_on_f_stop_and_keeps_the_band(tmp_path, monkeypatch):
     """The trace lands on f_stop; points traced outside the band (past a fold) are left out,
     so the peak is the band's (it was reported at 179.3 Hz of 191.3–233.9 Hz)."""

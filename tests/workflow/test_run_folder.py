@@ -4,6 +4,8 @@ from __future__ import annotations
 import json
 import os
 
+import pytest
+
 from fakestages import fakes, run  # noqa: F401 (fakes is a fixture)
 from workflow.pipeline import lock_out
 
@@ -85,6 +87,7 @@ def test_heartbeat_lines_while_a_stage_is_silent(tmp_path):
     assert "still computing" in (tmp_path / "log").read_text()
 
 
+@pytest.mark.slow  # 1.5–5 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_quiet_silences_library_logging(tmp_path, fakes):
     """The form compiler logs its gcc calls at INFO on the root logger (cold cache): they go to
     run.log, never to the terminal, quiet or not."""

@@ -425,6 +425,7 @@ def test_a_point_lost_both_ways_is_approached_in_frequency_steps(monkeypatch):
     assert not run.converged[0] and run.converged[1:].all()
 
 
+@pytest.mark.slow  # 1.5–5 s on a cold 2-core clone: make test-slow keeps make test within 3 min
 def test_a_point_without_a_root_nearby_is_found_from_twice_the_time_samples():
     """The cascade's smooth guess for a variant sampled at nit ≥ 64: HBM at 2·nit. Coulomb
     oscillator, μN/F0 = 0.5, ζ = 0.02, Nh = 7, nit = 64, β = 0.5 (stops): every other attempt
