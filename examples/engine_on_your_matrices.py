@@ -27,7 +27,7 @@ study = engine.frf(model, law, [engine.Variant("hbm", 3, 32)], band_hz=(94.0, 10
 run = study.runs[0]
 print(f"peak {run.peak_hz():.2f} Hz, {np.nanmax(run.amplitude):.3e} m (tied {study.tied.max():.3e} m); "
       f"{run.converged_points}/{len(run.freqs_hz)} converged; change at 1.5×Nh {study.nh_check['max_rel_change']:.1e}")
-# Every study judges its own convergence: here Nh = 3 is not enough (the peak moves by ~5 % at
+# Every study judges its own convergence: here Nh = 3 is not enough (the peak moves by 4.5 % at
 # Nh = 5), and the study says so. At Nh = 7, nit = 64 the change is 2.5e-5 and the peak 1.797e-4 m.
 for line in study.unconverged() + study.warnings():
     print("check:", line)

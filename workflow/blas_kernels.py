@@ -5,8 +5,8 @@ OpenBLAS built with DYNAMIC_ARCH picks its kernels from the CPU model when it is
 Debian 12's (0.3.21, SciPy's BLAS and LAPACK) and NumPy 1.26's wheel (0.3.23) do not know the
 Intel server CPUs that came after them (Sapphire and Emerald Rapids, models 143 and 207) and fall
 back to their oldest x86-64 kernels, "Prescott" (SSE3). Measured on a 2-core Emerald Rapids
-machine (one thread, 2026-11-30): a 2256² complex inverse 8.5 s on Prescott, 1.7 s on SkylakeX;
-a 2256² complex product 7.5 s against 1.3 s (``python -m workflow.bench.blas_kernels`` prints the
+machine (one thread, 2026-11-30): a 2256² complex inverse 8.5 s on Prescott, 1.8 s on SkylakeX;
+a 2256² complex product 7.1 s against 1.3 s (``python -m workflow.bench.blas_kernels`` prints the
 kernels loaded and times both).
 
 The choice reads only the instruction sets (/proc/cpuinfo's flags): an Intel CPU with the

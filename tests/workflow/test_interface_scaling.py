@@ -171,9 +171,9 @@ def test_structured_split_accounts_for_the_linear_solves(tmp_path):
     assert row["factorizations"] == seq.count("F") >= 1
     assert row["gmres_iterations"] == sum(int(s) for s in seq if s != "F")
     assert row["solves"] == len(seq) - seq.count("F")
-    # every factorisation and GMRES solve runs inside the sweep, whose seconds leave out its grid's
-    # condensation (timed apart, and a block factorisation may wait on it): the parts are bounded
-    # by the two together, up to the clock reads' own microseconds
+    # every factorisation and GMRES solve runs inside the sweep's clock interval, and the sweep's
+    # seconds leave out its grid's condensation (timed apart, inside the same interval): the parts
+    # are bounded by the two together, up to the clock reads' own microseconds
     whole = row["seconds"] + row["condense_s_per_point"] * row["points"]
     assert 0 < row["factor_s"] + row["gmres_s"] <= whole + 1e-4
     assert row["s_per_iteration"] == pytest.approx(row["seconds"] / row["iterations"])
