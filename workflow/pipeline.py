@@ -412,6 +412,17 @@ def lock_out(out: Path) -> int:
     return fd
 
 
+def _blas_line() -> str:
+    """What the run's dense linear algebra runs on: the kernels of every OpenBLAS loaded (NumPy's,
+    SciPy's; :mod:`workflow.blas_kernels`), which set a run's seconds as much as the machine."""
+    from workflow.engine.blas import corenames
+
+    cores = sorted({core for _, core in corenames()})
+    chosen = os.environ.get("OPENBLAS_CORETYPE")
+    return (f"BLAS: OpenBLAS kernels {', '.join(cores) or '(none found)'}"
+            + (f" (OPENBLAS_CORETYPE={chosen})" if chosen else ""))
+
+
 def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: RunLog,
          model: dict | None = None, grp=None) -> dict:
     grp = grp or mpi.Serial()
@@ -419,6 +430,7 @@ def _run(scene: Scene, p: Plan, out: Path, cache_root: Path, fresh: bool, log: R
     log.info(f"scene {scene.path or '(in memory)'}: {scene.title}")
     log.info("stages: " + " → ".join(p.stages) + (f" (bundle from {p.external['bundle']})"
                                                     if "bundle" in p.external else ""))
+    log.info(_blas_line())
     status: dict[str, str] = {}
     timings: dict[str, float] = {}
     summaries: dict[str, dict] = {}

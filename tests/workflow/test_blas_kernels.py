@@ -57,3 +57,18 @@ def test_the_loaded_openblas_runs_the_kernels_chosen():
     if not chosen or not cores:
         pytest.skip("no core type chosen here, or no OpenBLAS found")
     assert {core.lower() for _, core in cores} == {chosen.lower()}, cores
+
+
+def test_a_run_says_which_kernels_its_blas_runs():
+    """run.log's BLAS line names every loaded OpenBLAS's kernels and the core type in force."""
+    import os
+
+    from workflow.engine.blas import corenames
+    from workflow.pipeline import _blas_line
+
+    line = _blas_line()
+    assert line.startswith("BLAS: OpenBLAS kernels ")
+    for _, core in corenames():
+        assert core in line
+    if os.environ.get("OPENBLAS_CORETYPE"):
+        assert f"OPENBLAS_CORETYPE={os.environ['OPENBLAS_CORETYPE']}" in line
