@@ -517,3 +517,40 @@ def test_an_interrupted_monte_carlo_resumes_from_its_kept_patterns(tmp_path, mon
     assert rows(again) == plain and len(solved) == 2 and again.damaged == ["pattern-1"]
     solved.clear()
     assert rows(Progress(tmp_path / "progress", "another-key")) == plain and len(solved) == 5
+
+
+def test_the_monte_carlo_deals_every_pattern_once_after_rank_0s_own_work(monkeypatch):
+    """Over the ranks of a communicator each pattern is solved once; with ``offset`` = 1 (the
+    stage: rank 0 solves the scene's own pattern first) rank 0 takes the patterns dealt after
+    that item, so every rank ends with as many items of work as the others, give or take one."""
+    from types import SimpleNamespace
+
+    def fake_response(rc, law, variant, freqs, **kw):
+        a = 1.0 + float(np.max(rc))
+        return SimpleNamespace(peak={"amplitude_m": a, "hz": 100.0, "blade": 0, "resolved": True,
+                                     "at_band_edge": False},
+                               tied_peak={"amplitude_m": a, "resolved": True}, converged=np.ones(3, bool))
+
+    class OneRank:                                  # a rank of a communicator, seeing its own rows
+        def __init__(self, rank, size):
+            self.rank, self.size = rank, size
+
+        def Get_rank(self):
+            return self.rank
+
+        def Get_size(self):
+            return self.size
+
+        def allgather(self, rows):
+            return [rows]
+
+    monkeypatch.setattr(ms, "forced_response", fake_response)
+    kw = dict(n_sectors=5, std=0.02, samples=7, seed=3, tuned_peak_m=1.0, tuned_tied_m=1.0)
+    for size in (1, 2, 3):
+        for offset in (0, 1):
+            dealt = [[r["pattern"] for r in ms.monte_carlo(lambda d: d, None, None, [1.0], comm=OneRank(k, size),
+                                                           offset=offset, **kw)] for k in range(size)]
+            assert sorted(i for part in dealt for i in part) == list(range(7))
+            work = [len(part) + (offset if k == 0 else 0) for k, part in enumerate(dealt)]
+            assert max(work) - min(work) <= 1, (size, offset, dealt)
+            assert all((i + offset) % size == k for k, part in enumerate(dealt) for i in part)

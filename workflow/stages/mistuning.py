@@ -112,6 +112,11 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
     seeds = [ms.travelling_wave(U, N, eo) if ok else None for U, ok in zip(ref.Ur, ref.converged)]
     law_w = ms.tiled_law(law, N, eo)
 
+    if mt.samples and rank() != 0:
+        # rank 0 alone solves the scene's own pattern, its checks and its wear (only its summary is
+        # kept); the other ranks start on the Monte Carlo, whose patterns are dealt after that work
+        _monte_carlo(mt, sub, mass, law_w, v, freqs, seeds, (a_t, a_tied), hb, {}, log)
+        return {}
     rc = WholeDiskCoordinates(sub, dev, mass)
     resp = ms.forced_response(rc, law_w, v, freqs, seeds=seeds, tol=hb.tol, maxiter=hb.max_iterations,
                               progress=getattr(log, "progress", None))
@@ -168,7 +173,7 @@ def _monte_carlo(mt, sub, mass, law_w, v, freqs, seeds, tuned: tuple, hb, af: di
     rows = ms.monte_carlo(lambda d: WholeDiskCoordinates(sub, d, mass), law_w, v, freqs, n_sectors=sub.n_sectors,
                           std=mt.std, samples=mt.samples, seed=mt.seed, tuned_peak_m=tuned[0], tuned_tied_m=tuned[1],
                           seeds=seeds, comm=world(), log=log.note if hasattr(log, "note") else None,
-                          store=store, tol=hb.tol, maxiter=hb.max_iterations)
+                          store=store, offset=1, tol=hb.tol, maxiter=hb.max_iterations)
     _log_kept(store, len(rows), world(), log)
     for kind in ("tied", "friction"):
         values = [r[f"af_{kind}"] for r in rows]

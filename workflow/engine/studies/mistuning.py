@@ -257,7 +257,7 @@ def whitehead_bound(n_sectors: int) -> float:
 
 def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, samples: int, seed: int,
                 tuned_peak_m: float, tuned_tied_m: float, seeds=None, comm=None, log=None, store=None,
-                **solve) -> list[dict]:
+                offset: int = 0, **solve) -> list[dict]:
     """Amplification factors of ``samples`` patterns (:func:`pattern` with seeds ``seed + 1 + i``):
     rows {"pattern", "seed", "af_tied", "af_friction", "peak_hz", "blade", "converged",
     "peak_resolved", "tied_peak_resolved", "peak_at_band_edge", "seconds"}, each a peak tracking on the grid
@@ -265,13 +265,14 @@ def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, 
     ``make_rc(deviations)`` → the disk's whole-disk coordinates; ``tuned_*_m`` [m]: the tuned
     peaks the factors divide by; ``solve``: :func:`forced_response`'s ``tol``, ``maxiter``, … (the
     scene's, as for its own pattern). Patterns are shared over the ranks of ``comm`` (every rank
-    gets every row). ``store``: where finished rows are kept as they come and found again after an
+    gets every row): pattern i to rank ``(i + offset) mod size``, as if ``offset`` items of other work
+    (rank 0's own pattern and checks) had been dealt first. ``store``: where finished rows are kept as they come and found again after an
     interruption — ``get(name)`` → the row or None, ``put(name, row)`` (the pipeline's
     :class:`workflow.progress.Progress`); a kept row whose seed is not its pattern's is computed
     again."""
     size, rank = (1, 0) if comm is None else (comm.Get_size(), comm.Get_rank())
     rows = []
-    for i in range(rank, int(samples), size):
+    for i in (k for k in range(int(samples)) if (k + int(offset)) % size == rank):
         name = f"pattern-{i}"
         kept = None if store is None else store.get(name)
         if isinstance(kept, dict) and kept.get("pattern") == i and kept.get("seed") == seed + 1 + i:
