@@ -265,9 +265,10 @@ def monte_carlo(make_rc, law, variant, freqs_hz, *, n_sectors: int, std: float, 
     ``make_rc(deviations)`` → the disk's whole-disk coordinates; ``tuned_*_m`` [m]: the tuned
     peaks the factors divide by; ``solve``: :func:`forced_response`'s ``tol``, ``maxiter``, … (the
     scene's, as for its own pattern). Patterns are shared over the ranks of ``comm`` (every rank
-    gets every row): pattern i to rank ``(i + offset) mod size``, as if ``offset`` items of other work
-    (rank 0's own pattern and checks) had been dealt first. ``store``: where finished rows are kept as they come and found again after an
-    interruption — ``get(name)`` → the row or None, ``put(name, row)`` (the pipeline's
+    gets every row): pattern i to rank ``(i + offset) mod size``, as if ``offset`` items of other
+    work (rank 0's own pattern and checks) had been dealt first. ``store``: where finished rows
+    are kept as they come and found again after an interruption — ``get(name)`` → the row or
+    None, ``put(name, row)`` (the pipeline's
     :class:`workflow.progress.Progress`); a kept row whose seed is not its pattern's is computed
     again."""
     size, rank = (1, 0) if comm is None else (comm.Get_size(), comm.Get_rank())
