@@ -173,7 +173,8 @@ class WearProblem:
         if S is not None:                   # δrate = M δq (+ E δq2): the same chain for each
             G2_x = None if g2 is None else hb.penalty_rows(g2[:, None, :])[:, 0, :]
             st.G_x = st.averaged(st.G_x, G2_x)
-            st.G_W = st.averaged(np.diag(st.G_W), None if g2 is None else np.diag(st.G_W2))
+            # M diag(G_W) (+ E diag(G_W2)) by columns: no (p, p) product with a diagonal
+            st.G_W = S * st.G_W[None, :] + (0.0 if E is None else E * st.G_W2[None, :])
         st.R_W = np.zeros((self.n, self.p))
         st.R_W[self._rows, np.arange(self.p)[:, None]] = w
         return st

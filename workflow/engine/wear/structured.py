@@ -87,8 +87,9 @@ def augmented_step(wp, st, h: float):
     border's column takes ∂R/∂W D⁻¹ h ∂rate/∂s.
 
     With a length scale (the rate couples the pairs, :class:`workflow.engine.wear.law.Averaging`)
-    the step keeps the averaged rate and the vibration rows exact and takes only each pair's own part of the averaged rate's
-    derivatives into the wear rows (:meth:`workflow.engine.wear.problem.WearState.own`) — a
+    the step keeps the averaged rate and the vibration rows exact and takes only each pair's own
+    part of the averaged rate's derivatives into the wear rows
+    (:meth:`workflow.engine.wear.problem.WearState.own`) — a
     W-method: the step stays consistent (first order, as the linearly implicit step is), its
     error estimate judges it, and the rank-one pair blocks keep the matrix-free solve."""
     g, gw = st.own()
