@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from workflow.bench import interface_scaling as bench
+from workflow.costs import interface_scaling as bench
 from workflow.errors import SceneError
 from workflow.params import flank_grid
 
@@ -50,7 +50,7 @@ def test_study_stops_before_a_case_over_the_memory_limit(tmp_path):
         made.append(p)
         raise AssertionError("must not be reached")
 
-    import workflow.bench.interface_scaling as mod
+    import workflow.costs.interface_scaling as mod
 
     rows_in = [dict(pairs=16, peak_gb=1.0), dict(pairs=32, peak_gb=2.0)]
     logs = []
@@ -72,7 +72,7 @@ def test_study_stops_before_a_case_over_the_memory_limit(tmp_path):
 def test_a_short_sweep_is_repeated_and_its_fastest_run_kept(tmp_path, monkeypatch):
     """Sweeps under REPEAT_BELOW_S run REPEATS times (a noisy sub-second sweep moved the fitted growth
     by ±0.05); a long one runs once."""
-    import workflow.bench.interface_scaling as mod
+    import workflow.costs.interface_scaling as mod
 
     times = {16: [0.9, 0.7, 0.8], 512: [25.0]}
     calls = []

@@ -3,7 +3,7 @@
 ``python -m workflow.bench.structured_split REDUCED.npz --method hdhb [--nh 7] [--nit 64]
 [--points 9] [--out split.json]``
 
-One sweep of :func:`workflow.bench.interface_scaling.worker` (the ``interface-scaling``
+One sweep of :func:`workflow.costs.interface_scaling.worker` (the ``interface-scaling``
 band, Newton through the cascade, the structured linear solve forced, one BLAS thread except
 in the structured solve from :data:`workflow.engine.linsolve.THREADED_MIN_DOFS` contact DOFs up)
 with :class:`workflow.engine.linsolve.StructuredSolve` timed from outside: seconds and count of
@@ -26,7 +26,7 @@ def split(reduced: Path, method: str, nh: int = 7, nit: int = 64, points: int = 
     """The worker's row plus ``factor_s``, ``factorizations``, ``gmres_s``,
     ``gmres_iterations``, ``solves``, ``s_per_iteration`` and ``sequence``."""
     from workflow.engine import linsolve
-    from workflow.bench.interface_scaling import worker
+    from workflow.costs.interface_scaling import worker
 
     stats = {"factor_s": 0.0, "factorizations": 0, "gmres_s": 0.0, "gmres_iterations": 0, "solves": 0}
     seq = []

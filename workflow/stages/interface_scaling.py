@@ -1,6 +1,6 @@
 """Interface-scaling stage: HB cost against the number of contact pairs (issue #16).
 
-Runs :func:`workflow.bench.interface_scaling.study`: for each pair count of
+Runs :func:`workflow.costs.interface_scaling.study`: for each pair count of
 ``interface_scaling.pairs`` the scene's sector with ``nodes_along ×
 nodes_across`` contact vertices per flank (two flanks) is meshed, assembled
 and reduced (the pipeline, in a private cache under the stage folder), then
@@ -28,7 +28,7 @@ PRODUCES = ("interface_scaling",)
 def run(scene, inputs: dict, out: Path, log) -> dict:
     import shutil
 
-    from workflow.bench import interface_scaling as bench
+    from workflow.costs import interface_scaling as bench
     from workflow.errors import SolverError
     from workflow.stages.reduction import rigid_contact_only
 

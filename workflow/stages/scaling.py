@@ -1,6 +1,6 @@
 """Scaling stage: assembly and reduction cost against DOFs on 1 and N processes (issue 9).
 
-Runs :func:`workflow.bench.scaling.study` on the default sector refined by
+Runs :func:`workflow.costs.scaling.study` on the default sector refined by
 ``scaling.factors`` — each mesh made once (gmsh), then assembled and reduced
 in fresh processes, under ``mpirun -n P`` for every P of ``scaling.procs`` —
 and stops before a mesh whose extrapolated peak memory exceeds
@@ -24,7 +24,7 @@ PRODUCES = ("scaling",)
 
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
-    from workflow.bench import scaling as bench
+    from workflow.costs import scaling as bench
     from workflow.errors import SolverError
 
     sc = scene["scaling"]
