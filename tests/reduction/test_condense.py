@@ -272,3 +272,33 @@ def test_the_diagonals_equal_those_of_the_condensed_stiffness(rotating_bundle):
     rc = relative_coordinates(model)
     assert cd.tied_basis(rc) is None
     np.testing.assert_array_equal(cd.diagonal(rc, 2.9, 2), np.diagonal(condense(rc, 2.9, 2).Zr, axis1=1, axis2=2))
+
+
+def test_the_recovery_map_is_the_recovery_column_by_column(rotating_bundle, monkeypatch):
+    """recover_map's (C, d) through the tied basis is the affine map recover applies: d the
+    recovery of Ur = 0, C's column k that of the unit relative harmonic k less d — statically,
+    at the first tied frequency and above, harmonics 0–2. Both are the same sums in another
+    order: round-off (1e-10 of the largest entry, as the tied basis against the LU above). Where
+    recover takes the LU path, there is no map to form."""
+    import reduction.condense as cd
+    from reduction.condense import recover_map
+    from reduction.reduce import reduce_bundle
+
+    bundle, summary, _ = rotating_bundle
+    rc = relative_coordinates(reduce_bundle(bundle, 10))
+    w1 = 2 * np.pi * summary["first_tied_hz"]
+    for omega in (0.0, w1, 3 * w1):
+        for j in (0, 1, 2):
+            C, d = recover_map(rc, omega, j)
+            Ur = np.zeros((j + 1, rc.n_rel), complex)
+            d_ref = recover(rc, omega, Ur)[j]
+            C_ref = np.empty_like(C)
+            for k in range(rc.n_rel):
+                Ur[j, k] = 1.0
+                C_ref[:, k] = recover(rc, omega, Ur)[j] - d_ref
+                Ur[j, k] = 0.0
+            _close(d, d_ref, 1e-10)
+            _close(C, C_ref, 1e-10)
+    monkeypatch.setattr(cd, "TIED_BASIS", False)
+    rc.tied = None
+    assert recover_map(rc, w1, 1) is None
