@@ -302,3 +302,53 @@ def test_the_recovery_map_is_the_recovery_column_by_column(rotating_bundle, monk
     monkeypatch.setattr(cd, "TIED_BASIS", False)
     rc.tied = None
     assert recover_map(rc, w1, 1) is None
+
+
+def test_the_blockwise_coordinates_condense_as_the_dense_qr_does(rotating_bundle, monkeypatch):
+    """A pair's rows of B touch only its two nodes, so T is made block by block (sparse): B T =
+    [I, 0] to round-off, and Z_r, F_r and the recovered response equal those of the dense QR of
+    the whole Bᵀ (T_r = Bᵀ(BBᵀ)⁻¹ is the same; the null bases differ by a rotation) statically
+    and at the first tied frequency — to round-off (1e-10 of the largest entry, as the tied
+    basis against the LU above)."""
+    import scipy.sparse as sp
+
+    import reduction.condense as cd
+    from reduction.reduce import reduce_bundle
+
+    bundle, summary, _ = rotating_bundle
+    model = reduce_bundle(bundle, 10)
+    rc_b, T = cd._relative(model)
+    assert sp.issparse(T) and T.nnz <= 6 * model.B.shape[1] + model.M.shape[0]
+    _close(model.B @ T.toarray(), np.eye(*model.B.shape), 1e-13)
+    monkeypatch.setattr(cd, "BLOCK_MAX", 0)
+    rc_d, Td = cd._relative(model)
+    assert isinstance(Td, np.ndarray)
+    rng = np.random.default_rng(1)
+    Ur = 1e-6 * (rng.standard_normal((3, rc_b.n_rel)) + 1j * rng.standard_normal((3, rc_b.n_rel)))
+    for omega in (0.0, 2 * np.pi * summary["first_tied_hz"]):
+        cb, cdn = cd.condense(rc_b, omega, 2), cd.condense(rc_d, omega, 2)
+        _close(cb.Zr, cdn.Zr, 1e-10)
+        _close(cb.Fr, cdn.Fr, 1e-10)
+        _close(recover(rc_b, omega, Ur), recover(rc_d, omega, Ur), 1e-10)
+
+
+def test_a_model_with_other_loads_shares_the_coordinates_and_tied_basis(rotating_bundle):
+    """A scaled excitation (``replace(model, f_harmonic=…)``, as the wear stage's held force
+    does) reuses the kept coordinates and tied basis: the same matrices, only Tᵀ f new, so
+    F_r scales and Z_r does not change."""
+    from dataclasses import replace
+
+    from reduction.reduce import reduce_bundle
+
+    bundle, summary, _ = rotating_bundle
+    model = reduce_bundle(bundle, 10)
+    rc = relative_coordinates(model)
+    omega = 2 * np.pi * 0.9 * summary["first_tied_hz"]
+    c = condense(rc, omega, 1)
+    scaled = replace(model, f_harmonic=2.5 * model.f_harmonic)
+    rc2 = relative_coordinates(scaled)
+    assert rc2 is not rc and rc2.M is rc.M and rc2.tied is rc.tied
+    c2 = condense(rc2, omega, 1)
+    _close(c2.Zr, c.Zr, 1e-14)
+    _close(c2.Fr[1], 2.5 * c.Fr[1], 1e-12)
+    _close(c2.Fr[0], c.Fr[0], 1e-12)

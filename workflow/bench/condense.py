@@ -32,7 +32,7 @@ def compare(path: Path, nh: int = 7, freqs_hz=(200.0, 212.0, 224.0)) -> dict:
     try:
         for name, tied, series in (("lu", False, False), ("tied_basis", True, False), ("series", True, True)):
             cd.TIED_BASIS, cd.SERIES_MIN_DOFS = tied, (flags[1] if series else np.inf)
-            rc = cd._relative(model)        # fresh coordinates: no basis kept from the other path
+            rc = cd._relative(model)[0]     # fresh coordinates: no basis kept from the other path
             t = time.perf_counter()
             tm = cd.tied_basis(rc)
             if tm is not None:

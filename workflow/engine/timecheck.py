@@ -251,26 +251,14 @@ def prewarp(rho_inf: float, h: float, omega: float) -> tuple[float, float, float
     return float(a1), float(a2), float(b1), float(b2)
 
 
-def _basis_T(B: np.ndarray) -> np.ndarray:
-    """``T`` with ``B T = [I, 0]``, the same construction as
-    :func:`reduction.condense.relative_coordinates` (QR of Bᵀ, deterministic), so that
-    ``q = T z`` for its coordinates ``z = [u_r; y]``."""
-    n_rel, m = B.shape
-    Q, R = np.linalg.qr(B.T, mode="complete")
-    T = np.empty((m, m))
-    T[:, :n_rel] = sla.solve_triangular(R[:n_rel], Q[:, :n_rel].T, lower=False).T
-    T[:, n_rel:] = Q[:, n_rel:]
-    return T
-
-
 def q_harmonics(model, omega: float, Ur: np.ndarray, rc=None) -> np.ndarray:
     """Complex harmonics (Nh+1, m) of the reduced coordinates q from the relative ones ``Ur``
     (Nh+1, 3p) at ω [rad/s]: :func:`reduction.condense.recover` with every coordinate observed
     (``O = T``: the tied remainder solved per harmonic, docs/contracts.md §5)."""
-    from reduction.condense import recover, relative_coordinates
+    from reduction.condense import coordinate_basis, recover, relative_coordinates
 
     rc = relative_coordinates(model) if rc is None else rc
-    T = _basis_T(np.asarray(model.B, dtype=float))
+    T = coordinate_basis(model)
     return recover(replace(rc, O=T, tied=None), float(omega), np.asarray(Ur, dtype=complex))
 
 
