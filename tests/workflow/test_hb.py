@@ -264,3 +264,18 @@ def test_residual_does_not_keep_a_view_of_the_callers_x(method):
     xt, Rt = at(0.5)
     xt[:] = -1e3                     # a line search that overwrites its trial point
     assert np.array_equal(pr.residual(x.copy()), R)
+
+
+def test_a_load_whose_norm_overflows_is_refused_not_converged():
+    """Every tolerance is relative to ‖F‖, so with ‖F‖ = inf any residual would pass: an
+    excitation of 1e300 N solved to NaN and was called converged at 0 iterations. The problem
+    refuses such a load by name; the solvers' one test never accepts a NaN or infinite norm,
+    nor an infinite scale."""
+    from workflow.engine.solvers import within_tolerance
+
+    pr, _ = root_problem()
+    with pytest.raises(SceneError, match="excitation.amplitude"):
+        HBProblem(pr.Zr, 1e300 * pr.Fr, pr.law, 3, 7, "hbm")
+    assert within_tolerance(1.0, 1e-8, 1e9) and not within_tolerance(1.0, 1e-8, 1e7)
+    for norm, scale in ((np.nan, 1.0), (np.inf, 1.0), (1.0, np.inf), (np.inf, np.inf), (0.0, np.nan)):
+        assert not within_tolerance(norm, 1e-8, scale)

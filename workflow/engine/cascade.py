@@ -292,14 +292,14 @@ def _resumable(res, norms: dict) -> bool:
 
 def _satisfied(prob, guesses, tol):
     """(a converged result for a guess with R = 0 already or None, {index: ‖R‖})."""
-    from workflow.engine.solvers import SolveResult
+    from workflow.engine.solvers import SolveResult, within_tolerance
 
     norms = {}
     for k, x0 in enumerate(guesses):
         if x0 is None:
             continue
         norms[k] = float(np.linalg.norm(prob.residual(x0)))
-        if norms[k] <= tol * prob.residual_scale():
+        if within_tolerance(norms[k], tol, prob.residual_scale()):
             return SolveResult(x=np.asarray(x0, float), converged=True, iterations=0, residual_norm=norms[k],
                                reason="converged", function_evaluations=1), k, norms
     return None, None, norms
@@ -396,10 +396,10 @@ def _at_law(prob, pr: PointResult, tol: float) -> PointResult:
     law's own ε: accepted by its residual there, else polished by Newton from it."""
     if not pr.converged:
         return pr
-    from workflow.engine.solvers import SolveResult
+    from workflow.engine.solvers import SolveResult, within_tolerance
 
     norm = float(np.linalg.norm(prob.residual(pr.result.x)))
-    if norm <= tol * prob.residual_scale():
+    if within_tolerance(norm, tol, prob.residual_scale()):
         return replace(pr, result=replace(pr.result, residual_norm=norm))
     res = run_solver(prob, pr.result.x, "newton", tol, POLISH_STEPS)
     if not res.converged:

@@ -185,6 +185,10 @@ class HBProblem:
             self._const = np.ones(nc)                              # a constant in every sample
         self.r_F = self._apply_L(self._Lr, Fc)
         self.a_F = self._apply_L(self._Lp, Fc)
+        if not np.isfinite(np.linalg.norm(self.r_F)):
+            # every tolerance is relative to ‖F‖: an infinite one would accept any residual
+            raise SceneError("hb: the load's norm ‖F_r‖ overflows (excitation.amplitude or the "
+                             "preload too large for double precision)")
         self._refresh_penalty()
 
     def load_terms(self, F_coef) -> tuple[np.ndarray, np.ndarray]:

@@ -65,6 +65,12 @@ def _finite(a) -> bool:
     return bool(np.all(np.isfinite(a)))
 
 
+def within_tolerance(norm: float, tol: float, scale: float) -> bool:
+    """‖R‖ ≤ tol·‖F‖ with both finite: the one convergence test of the solvers (a NaN or an
+    infinite norm, or an infinite scale that would accept any residual, is never converged)."""
+    return bool(np.isfinite(norm) and np.isfinite(scale) and norm <= tol * scale)
+
+
 class DenseLU:
     """The Newton linear solver on a dense J: LU (least squares if singular).
 
@@ -297,7 +303,7 @@ def newton(fun_jac, x0, *, fun=None, tol: float = 1e-8, scale: float = 1.0, maxi
     lm = _LMFallback() if lm_fallback else None
     inexact, eta = getattr(lin, "inexact", False), None    # eta: the last step's linear tolerance (None: tight)
     for it in range(maxiter + 1):
-        if norm <= tol * scale:
+        if within_tolerance(norm, tol, scale):
             return done("converged", True, R, it)
         if it == maxiter:
             return done("max iterations", False, R, it)
@@ -391,7 +397,7 @@ def powell(fun, fun_jac, x0, *, tol: float = 1e-8, scale: float = 1.0, maxfev: i
         x, R = last["x"], last["R"]
         status = None
     norm = float(np.linalg.norm(R)) if R is not None else float("nan")
-    converged = R is not None and norm <= tol * scale
+    converged = R is not None and within_tolerance(norm, tol, scale)
     if reason is None:
         reason = "converged" if converged else _MINPACK.get(status, f"stalled: MINPACK status {status}")
         if not converged and status == 1:
