@@ -170,6 +170,38 @@ def manifest(folder: str | os.PathLike) -> dict[str, list]:
     return out
 
 
+#: the key of a cache entry's record that holds the digest of the record itself
+RECORD_DIGEST = "record_sha256"
+
+
+def _record_digest(record: dict) -> str:
+    """SHA-256 of ``record``'s canonical JSON (sorted keys, compact), without :data:`RECORD_DIGEST`."""
+    import hashlib
+
+    plain = {k: v for k, v in record.items() if k != RECORD_DIGEST}
+    text = json.dumps(plain, sort_keys=True, separators=(",", ":"), default=json_default)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def seal_record(record: dict) -> dict:
+    """``record`` (JSON-able) as it will read back, with its own digest under
+    :data:`RECORD_DIGEST`: the record holds the stage's summary, so an edit or damage that
+    leaves it valid JSON is caught like a damaged file (:func:`record_problem`)."""
+    plain = json.loads(json.dumps(record, default=json_default))
+    plain[RECORD_DIGEST] = _record_digest(plain)
+    return plain
+
+
+def record_problem(record: dict) -> str | None:
+    """None if ``record`` (read back from JSON) is as :func:`seal_record` sealed it, else why not."""
+    digest = record.get(RECORD_DIGEST)
+    if digest is None:
+        return "its record .stage.json has no digest of its own (written by an older version)"
+    if _record_digest(record) != digest:
+        return "its record .stage.json changed since it was written (digest differs)"
+    return None
+
+
 def verify_manifest(folder: str | os.PathLike, recorded: dict) -> str | None:
     """None if every file of ``recorded`` (:func:`manifest`) is in ``folder`` unchanged,
     else a short description of the first difference."""

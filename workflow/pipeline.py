@@ -75,7 +75,7 @@ from typing import Iterator
 from workflow import mpi, progress
 from workflow import stages as registry
 from workflow.errors import OutputError, SceneError
-from workflow.io import atomic_dir, manifest, verify_manifest, write_json
+from workflow.io import atomic_dir, manifest, record_problem, seal_record, verify_manifest, write_json
 from workflow.runlog import RunLog, heartbeat, library_logging
 from workflow.scene import Scene
 
@@ -294,8 +294,9 @@ def check_entry(entry: Path) -> tuple[dict | None, str | None]:
     """``(record, None)`` for a usable entry; ``(None, why)`` for a damaged one;
     ``(None, None)`` when there is no entry.
 
-    Usable: ``.stage.json`` parses and every file it lists has the size and
-    SHA-256 recorded when the entry was written.
+    Usable: ``.stage.json`` parses, holds the digest of its own content it was written with
+    (:func:`workflow.io.seal_record`), and every file it lists has the size and SHA-256
+    recorded when the entry was written.
     """
     f = entry / STAGE_FILE
     try:
@@ -310,7 +311,7 @@ def check_entry(entry: Path) -> tuple[dict | None, str | None]:
         return None, "its record .stage.json is not valid JSON"
     if not isinstance(got, dict) or "files" not in got:
         return None, "it has no file checksums (written by an older version)"
-    problem = verify_manifest(entry, got["files"])
+    problem = record_problem(got) or verify_manifest(entry, got["files"])
     return (None, problem) if problem else (got, None)
 
 
@@ -535,7 +536,7 @@ def _compute(scene: Scene, module: ModuleType, inputs: dict, entry: Path, key: s
                "sections": json.loads(scene.canonical(module.SECTIONS)), "mpi_ranks": grp.size}
         try:
             got["files"] = manifest(tmp)
-            write_json(tmp / STAGE_FILE, got)
+            write_json(tmp / STAGE_FILE, seal_record(got))
         except BaseException as exc:
             cm.__exit__(type(exc), exc, exc.__traceback__)
             raise
@@ -561,7 +562,7 @@ def _compute_here(scene: Scene, module: ModuleType, inputs: dict, entry: Path, k
                "sections": json.loads(scene.canonical(module.SECTIONS))}
         # Last file written: an entry without it is never trusted.
         got["files"] = manifest(tmp)
-        write_json(tmp / STAGE_FILE, got)
+        write_json(tmp / STAGE_FILE, seal_record(got))
     _remove(progress_folder(entry))
     log.info(f"{name}: computed in {seconds:.1f} s")
     return json.loads((entry / STAGE_FILE).read_text())

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from fakestages import fakes, run  # noqa: F401 (fakes is a fixture)
-from workflow.io import manifest, verify_manifest
+from workflow.io import manifest, record_problem, seal_record, verify_manifest
 
 
 def write_scene(tmp_path, outputs=("frf",), extra=""):
@@ -46,12 +46,30 @@ def test_manifest_detects_truncation_edit_and_deletion(tmp_path):
     assert verify_manifest(d, None) is not None
 
 
+def test_a_sealed_record_reads_back_whole_and_any_edit_is_caught():
+    """The record's digest is over its JSON as it reads back (NumPy numbers, NaN, nested
+    summaries): unchanged it passes; one number, one key or the digest itself changed, it
+    does not; a record without a digest (an older version's) is not trusted."""
+    import numpy as np
+
+    rec = seal_record({"stage": "hb", "summary": {"peak": {"hz": np.float64(212.15), "m": float("nan")},
+                                                  "rows": [1, 2.5, None]}, "files": {}})
+    back = json.loads(json.dumps(rec, indent=2))
+    assert record_problem(back) is None
+    for edit in (lambda r: r["summary"]["peak"].update(hz=213.15), lambda r: r["summary"].update(x=0),
+                 lambda r: r.update(record_sha256="0" * 64), lambda r: r.pop("record_sha256")):
+        bad = json.loads(json.dumps(back))
+        edit(bad)
+        assert record_problem(bad) is not None
+
+
 @pytest.mark.parametrize("stage, damage", [
     ("hb", "truncate"),          # head -c 300 over frf.csv
     ("wear", "delete"),          # a table missing
     ("reduction", "truncate"),   # reduced.npz truncated while downstream is cached
     ("hb", "edit"),              # same size, one byte changed
     ("hb", "record"),            # .stage.json itself damaged
+    ("hb", "summary"),           # .stage.json still valid JSON, a number of its summary edited
 ])
 def test_damaged_entry_is_recomputed_with_warning(tmp_path, capsys, fakes, stage, damage):
     sc = write_scene(tmp_path, ["wear"])
@@ -67,6 +85,10 @@ def test_damaged_entry_is_recomputed_with_warning(tmp_path, capsys, fakes, stage
         target.unlink()
     elif damage == "edit":
         target.write_bytes(good[:-1] + bytes([good[-1] ^ 1]))
+    elif damage == "summary":
+        rec = json.loads((e / ".stage.json").read_text())
+        rec["summary"]["edited"] = 1.0
+        (e / ".stage.json").write_text(json.dumps(rec, indent=2))
     else:
         (e / ".stage.json").write_text((e / ".stage.json").read_text()[:40])
 
@@ -93,7 +115,7 @@ def test_entry_without_checksums_is_not_trusted(tmp_path, capsys, fakes):
     rec_file = entry(tmp_path, "modes") / ".stage.json"
     rec = json.loads(rec_file.read_text())
     del rec["files"]
-    rec_file.write_text(json.dumps(rec))
+    rec_file.write_text(json.dumps(seal_record(rec)))        # its own digest right: the files' are gone
     assert bw(capsys, tmp_path, sc)[0] == 0
     assert fakes.ran() == ["modes"]
 
