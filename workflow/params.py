@@ -33,9 +33,11 @@ class Model:
 
 @dataclass
 class Material:
-    young: float = param(110e9, "Pa", "Young's modulus (Ti-6Al-4V)", min=0.0, min_exclusive=True)
+    young: float = param(110e9, "Pa", "Young's modulus (Ti-6Al-4V); an engineering solid's range, in which the "
+                                      "eigensolvers' scaling holds", min=1e3, max=1e13)
     poisson: float = param(0.33, "", "Poisson's ratio", min=-0.99, max=0.499)
-    density: float = param(4430.0, "kg/m³", "mass density", min=0.0, min_exclusive=True)
+    density: float = param(4430.0, "kg/m³", "mass density; an engineering solid's range, in which the "
+                                            "eigensolvers' scaling holds", min=1.0, max=1e5)
 
 
 @dataclass
@@ -96,7 +98,7 @@ class Contact:
                                            "unresolved harmonics (≈ the static condensed stiffness on the dovetail, "
                                            "up to 1e3× it on inertia-dominated contacts; workflow/engine/penalty.py); "
                                            "> 0: this many times each pair's static condensed stiffness",
-                                  min=0.0)
+                                  min=0.0, max=1e6)
     eps_check: float = param(10.0, "", "re-solve each result's peak (march the wear again) with ε multiplied by "
                                        "this and report the "
                                        "change (0: off)", min=0.0)
@@ -118,16 +120,17 @@ class Contact:
 class HB:
     methods: list = param(["hbm"], "", "formulations: hbm (AFT), tcm (collocation), hdhb (time samples)",
                           item_choices=("hbm", "tcm", "hdhb"))
-    harmonics: list = param([3], "", "numbers of harmonics Nh (≥ 1: harmonic 1 is the response)", min=1)
-    time_samples: list = param([0], "", "nit per period; 0: the smallest power of 2 ≥ 4(2Nh+1), at least 64 (HDHB always uses 2Nh+1)", min=0)
+    harmonics: list = param([3], "", "numbers of harmonics Nh (≥ 1: harmonic 1 is the response)", min=1, max=256)
+    time_samples: list = param([0], "", "nit per period; 0: the smallest power of 2 ≥ 4(2Nh+1), at least 64 (HDHB always uses 2Nh+1)", min=0,
+                               max=16384)
     solver: str = param("newton", "", "nonlinear solver, first of the cascade (workflow/engine/cascade.py); "
                                       "newton-powell: ≤30 Newton steps along the ε-path, hybrid Powell from the "
                                       "best iterate, then pseudo-transient continuation from the best guess",
                         choices=("newton", "powell", "newton-powell", "pseudo-time"))
     tol: float = param(1e-8, "", "residual tolerance relative to ‖F_r‖", min=0.0, min_exclusive=True)
     max_iterations: int = param(100, "", "solver iterations at most", min=1)
-    reference_harmonics: int = param(0, "", "Nh of the converged reference for the error table (0: off)", min=0)
-    reference_time_samples: int = param(256, "", "nit of the reference", min=3)
+    reference_harmonics: int = param(0, "", "Nh of the converged reference for the error table (0: off)", min=0, max=256)
+    reference_time_samples: int = param(256, "", "nit of the reference", min=3, max=16384)
     reference_check: bool = param(True, "", "re-solve the reference's peak with 2×nit, 1.5×Nh and a larger ε and "
                                             "report how much it moves (its own uncertainty: the nit and Nh trials)")
     nh_check: bool = param(True, "", "re-solve each variant's peak (and march the wear again) with 1.5×Nh and "
@@ -172,7 +175,7 @@ class Sweep:
     f_start_hz: float = param(0.0, "Hz", "first frequency (0: 0.9 × the first tied bending frequency)", min=0.0)
     f_stop_hz: float = param(0.0, "Hz", "last frequency (0: 1.1 × the first tied bending frequency)", min=0.0)
     points: int = param(50, "", "frequencies in the sweep (paper: 50); with method = arclength, of the linear "
-                                "reference curves only", min=1)
+                                "reference curves only", min=1, max=100000)
     method: str = param("grid", "", "grid: the fixed frequencies, secant predictor (the error table compares "
                                     "points); arclength: pseudo-arclength continuation from f_start to f_stop, "
                                     "step control, follows turning points",
@@ -314,7 +317,7 @@ class Remap:
     max_fraction: float = param(0.3, "", "largest node motion allowed, as a fraction of the local element size",
                                 min=0.0, min_exclusive=True, max=1.0)
     reassemble: bool = param(True, "", "re-assemble and re-reduce the worn model, report frequency shifts")
-    image_width: int = param(1600, "px", "figure width", min=200)
+    image_width: int = param(1600, "px", "figure width (the off-screen renderer's limit: 8192)", min=200, max=8192)
 
 
 @dataclass
@@ -327,11 +330,11 @@ class Extreme:
                           item_choices=("hbm", "tcm", "hdhb"))
     solvers: list = param(["newton", "powell", "pseudo-time"], "", "solvers of the matrix",
                           item_choices=("newton", "powell", "pseudo-time"))
-    harmonics: int = param(3, "", "Nh of the base cases", min=0)
-    time_samples: int = param(32, "", "nit of the base cases (HDHB always 2Nh+1)", min=1)
+    harmonics: int = param(3, "", "Nh of the base cases", min=0, max=256)
+    time_samples: int = param(32, "", "nit of the base cases (HDHB always 2Nh+1)", min=1, max=16384)
     frequency_ratio: float = param(0.97, "", "base frequency / first tied resonance", min=0.0, min_exclusive=True)
-    max_harmonics: int = param(31, "", "Nh of the high-order case", min=1)
-    max_time_samples: int = param(1024, "", "nit of the fine time-grid case", min=3)
+    max_harmonics: int = param(31, "", "Nh of the high-order case", min=1, max=256)
+    max_time_samples: int = param(1024, "", "nit of the fine time-grid case", min=3, max=16384)
     penalty_decades: int = param(3, "", "ε from 10^-d to 10^d × the reference stiffness", min=0, max=12)
     wear_k: float = param(1e-11, "m²/N", "Archard coefficient of the very-large-wear case", min=0.0,
                           min_exclusive=True)
@@ -360,8 +363,8 @@ class Scaling:
 @dataclass
 class NonlinearModes:
     mode: int = param(0, "", "tied mode whose nonlinear mode is followed (0: the lowest)", min=0)
-    harmonics: int = param(7, "", "Nh of the EPMC", min=1)
-    time_samples: int = param(0, "", "nit per period (0: the smallest power of 2 ≥ 4(2Nh+1), at least 64)", min=0)
+    harmonics: int = param(7, "", "Nh of the EPMC", min=1, max=256)
+    time_samples: int = param(0, "", "nit per period (0: the smallest power of 2 ≥ 4(2Nh+1), at least 64)", min=0, max=16384)
     amplitude_range: list = param([0.1, 3000.0], "", "modal amplitudes of the backbone, in units of the first "
                                                      "slip onset of the tied mode (from, to)", min=0.0)
     points: int = param(41, "", "backbone points at least (log-spaced in amplitude)", min=3)
@@ -388,9 +391,9 @@ class Verification:
                         "friction cases with exact references (workflow/verification/suite.py); pad-chain adds a "
                         "lumped cantilever with 8 root pads (≈ 12 s of time integration)",
                         item_choices=("coulomb", "coulomb-damped", "coulomb-stop", "2dof-damper", "pad-chain"))
-    harmonics: list = param([1, 3, 7, 15], "", "numbers of harmonics Nh of the project's HB", min=1)
+    harmonics: list = param([1, 3, 7, 15], "", "numbers of harmonics Nh of the project's HB", min=1, max=256)
     time_samples: int = param(0, "", "nit per period (0: the smallest power of 2 ≥ 4(2Nh+1), at least 64)",
-                              min=0)
+                              min=0, max=16384)
     penalty_factor: float = param(0.0, "", "ε_N = ε_T = this × the case's stiffness (k, or the stiffest pad); "
                                            "0: the project's default penalty", min=0.0)
     wear_cases: list = param(["jenkins", "punch", "punch-layer", "mdr"], "",
@@ -419,12 +422,12 @@ class ContactConvergence:
     nodes_across: list = param([2, 3, 4], "", "flank vertices across the flank, one entry per contact mesh", min=2)
     harmonics: int = param(1, "", "Nh of the FRF peak and wear solves; the problem has (2Nh+1)·3·pairs "
                                   "unknowns, solved by dense LU below 500 of them and by the structured, "
-                                  "matrix-free Newton solve above (docs/solver-guide.md)", min=0)
+                                  "matrix-free Newton solve above (docs/solver-guide.md)", min=0, max=256)
     wear_harmonics: int = param(0, "", "Nh of the wear marches alone (0: harmonics); the worn steady state "
                                        "may converge in Nh sooner than the FRF peak — a wear step solves the "
                                        "augmented system by dense LU below 500 HB unknowns and matrix-free "
-                                       "above (workflow/engine/wear/structured.py)", min=0)
-    time_samples: int = param(32, "", "nit per period (≥ 2Nh+1)", min=1)
+                                       "above (workflow/engine/wear/structured.py)", min=0, max=256)
+    time_samples: int = param(32, "", "nit per period (≥ 2Nh+1)", min=1, max=16384)
     band: float = param(0.1, "", "peak search band: ± this fraction of the first tied frequency", min=0.0,
                         min_exclusive=True, max=0.5)
     points: int = param(9, "", "frequencies of the coarse grid that brackets the peak", min=3)
@@ -463,8 +466,8 @@ class InterfaceScaling:
                                                          "nodes_along × nodes_across ≥ 2 × 2 vertices each)", min=8)
     methods: list = param(["hbm", "hdhb"], "", "HB formulations", item_choices=("hbm", "tcm", "hdhb"))
     solvers: list = param(["newton"], "", "HB solvers (the cascade's)", item_choices=("newton", "pseudo-time"))
-    harmonics: int = param(7, "", "harmonics Nh of every case", min=1)
-    time_samples: int = param(64, "", "DLFT samples per period of HBM (HDHB uses 2·Nh+1)", min=3)
+    harmonics: int = param(7, "", "harmonics Nh of every case", min=1, max=256)
+    time_samples: int = param(64, "", "DLFT samples per period of HBM (HDHB uses 2·Nh+1)", min=3, max=16384)
     points: int = param(9, "", "frequencies of the fixed band through the first tied resonance (±10 %)", min=1)
     max_gb: float = param(8.0, "GB", "stop before a pair count whose extrapolated peak memory exceeds this",
                           min=0.0, min_exclusive=True)
@@ -529,9 +532,9 @@ class Mistuning:
     seed: int = param(1, "", "seed of the drawn pattern (the Monte Carlo's patterns use seed + 1 …)", min=0)
     blade_modes: int = param(10, "", "fixed-interface modes of the blade substructure", min=1)
     disk_modes: int = param(10, "", "fixed-interface modes of the disk per nodal diameter", min=1)
-    harmonics: int = param(3, "", "Nh of the whole disk's HB", min=1)
+    harmonics: int = param(3, "", "Nh of the whole disk's HB", min=1, max=256)
     time_samples: int = param(0, "", "nit (0: the smallest multiple of N/gcd(N, EO) at or above the engine's "
-                                     "default, so that every sector's delay is whole samples)", min=0)
+                                     "default, so that every sector's delay is whole samples)", min=0, max=16384)
     band: float = param(0.03, "", "half-width of the friction grid's band around the tuned friction-damped "
                                   "peak (relative); the tied response and the peak search span twice it",
                         min=0.0, min_exclusive=True, max=0.5)

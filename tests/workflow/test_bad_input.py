@@ -40,7 +40,7 @@ def one_line_error(rc, err, *needles):
 
 
 @pytest.mark.parametrize("text, needles", [
-    ("[material]\ndensity = -4430.0\n", ["material.density", "must be > 0"]),
+    ("[material]\ndensity = -4430.0\n", ["material.density", "must be ≥ 1.0"]),
     ("[material]\ndensity = nan\n", ["material.density"]),
     ("[material]\nyoung = inf\n", ["material.young", "finite"]),
     ("[sweep]\nf_start_hz = -100.0\n", ["sweep.f_start_hz", "≥ 0"]),

@@ -26,7 +26,12 @@ OK_SCENE = "[run]\noutputs = ['modes']\n"
 
 # (id, --set value, words the error line must contain)
 SET_CASES = [
-    ("young-zero", "material.young=0", ["--set material.young=0", "material.young", "> 0"]),
+    ("young-zero", "material.young=0", ["--set material.young=0", "material.young", "≥ 1000.0"]),
+    ("density-tiny", "material.density=1e-300", ["material.density", "≥ 1.0"]),
+    ("harmonics-huge", "hb.harmonics=[10000]", ["hb.harmonics", "≤ 256"]),
+    ("samples-huge", "hb.time_samples=[1000000]", ["hb.time_samples", "≤ 16384"]),
+    ("points-huge", "sweep.points=1000000000000", ["sweep.points", "≤ 100000"]),
+    ("image-huge", "remap.image_width=1000000", ["remap.image_width", "≤ 8192"]),
     ("young-negative", "material.young=-1e9", ["material.young"]),
     ("young-string", "material.young='abc'", ["material.young", "must be a number"]),
     ("poisson-half", "material.poisson=0.5", ["material.poisson", "≤ 0.499"]),

@@ -46,6 +46,12 @@ def test_user_penalties_are_validated_with_their_key():
         penalty.choose(np.eye(3), eps_n=float("nan"))
     en, et = penalty.choose(np.eye(3), eps_n=5.0, eps_t=7.0)
     assert en[0] == 5.0 and et[0] == 7.0
+    # beyond USER_MAX × a pair's static stiffness (1 N/m here) no tolerance is left: refused by key
+    assert penalty.choose(np.eye(3), eps_n=penalty.USER_MAX)[0][0] == penalty.USER_MAX
+    with pytest.raises(SceneError, match="contact.eps_n = 1e\\+18 N/m is 1e\\+18 ×"):
+        penalty.choose(np.eye(3), eps_n=1e18)
+    with pytest.raises(SceneError, match="contact.eps_t"):
+        penalty.choose(np.diag([1.0, 1e-3, 1e-3]), eps_t=2e3)
     with pytest.raises(BundleError, match="static condensed stiffness"):
         penalty.reference_stiffness(np.zeros((3, 3)))
 

@@ -58,7 +58,7 @@ def test_unknown_geometry_key_named(tmp_path):
     ("[hb]\nmax_iterations = 2.5\n", r"hb\.max_iterations must be an integer"),
     ("[contact]\nmu = nan\n", r"contact\.mu must be finite"),
     ("[contact]\nmu = -0.1\n", r"contact\.mu = -0\.1 must be ≥ 0"),
-    ("[material]\nyoung = 0.0\n", r"material\.young = 0\.0 must be > 0"),
+    ("[material]\nyoung = 0.0\n", r"material\.young = 0\.0 must be ≥ 1000\.0"),
     ('[hb]\nmethods = ["hbm", "magic"]\n', r"hb\.methods contains 'magic'"),
     ('[run]\noutputs = ["everything"]\n', r"run\.outputs contains 'everything'"),
     ("[geometry]\nspan = inf\n", r"geometry\.span must be finite"),

@@ -875,7 +875,12 @@ class StructuredSolve:
         A = np.vstack([B, np.sqrt(nu) * np.eye(k)])
         rhs = np.zeros(A.shape[0])
         rhs[0] = beta1
-        y = np.linalg.lstsq(A, rhs, rcond=None)[0]
+        if not np.all(np.isfinite(A)):
+            return None
+        try:
+            y = np.linalg.lstsq(A, rhs, rcond=None)[0]
+        except np.linalg.LinAlgError:       # the SVD of an overflowing J (a penalty of 1e300 N/m): no step
+            return None
         dx = V[:, :k] @ y
         return dx if np.all(np.isfinite(dx)) else None
 

@@ -61,6 +61,11 @@ from workflow.engine.errors import BundleError, SceneError
 CAP = 1.0e3
 #: harmonics 2…HARMONICS at the tied frequency sample the unresolved range
 HARMONICS = 32
+#: a user's ε_N or ε_T (contact.eps_n, eps_t) at most this multiple of the static stiffness of
+#: every pair: the ε-check and :func:`eps_limit` solve again up to 100 × it, and with the DLFT's
+#: Jacobian conditioned as ε/k a relative tolerance of 1e-8 has no digits left past ~1e8 × k
+#: (ε_N = 1e18 N/m on the quick sector, 5e12 × k: no frequency point in 300 s)
+USER_MAX = 1.0e6
 #: the ε-continuation starts at this multiple of the reference stiffness.
 START_FACTOR = 1.0
 #: the ε-check re-solves with ε multiplied by this.
@@ -125,13 +130,22 @@ def choose(Zr0: np.ndarray, eps_n: float = 0.0, eps_t: float = 0.0, factor: floa
     direction (``k_unresolved`` from :func:`unresolved_stiffness`; None — a model
     with no tied mode to sample at — gives CAP·k).
 
-    A user value that is negative or not finite is a :class:`SceneError` naming
-    ``contact.eps_n`` / ``contact.eps_t`` / ``contact.penalty_factor``.
+    A user value that is negative or not finite, or ε above :data:`USER_MAX` × a pair's static
+    stiffness, is a :class:`SceneError` naming ``contact.eps_n`` / ``contact.eps_t`` /
+    ``contact.penalty_factor``.
     """
     for key, v in (("contact.eps_n", eps_n), ("contact.eps_t", eps_t), ("contact.penalty_factor", factor)):
         if not np.isfinite(v) or v < 0:
             raise SceneError(f"{key} = {v!r}: must be a finite number ≥ 0")
     p = np.asarray(Zr0).shape[-1] // 3
+    if eps_n > 0 or eps_t > 0:
+        ref = reference_stiffness(Zr0)
+        for key, v, col in (("contact.eps_n", eps_n, 0), ("contact.eps_t", eps_t, 1)):
+            if v > 0 and v > USER_MAX * float(np.min(ref[:, col])):
+                raise SceneError(f"{key} = {v:.3g} N/m is {v / float(np.min(ref[:, col])):.2g} × the static "
+                                 f"stiffness at a pair ({float(np.min(ref[:, col])):.3g} N/m): above "
+                                 f"{USER_MAX:.0e} × it the DLFT's Jacobian leaves double precision no room "
+                                 f"for hb.tol (the automatic rule, 0, takes up to {CAP:.0e} ×)")
     k = None if (eps_n > 0 and eps_t > 0) else reference_stiffness(Zr0)
     if k is None:
         auto = None
