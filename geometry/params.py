@@ -178,7 +178,7 @@ def check_params(p: SectorParams) -> None:
 
 
 def _fail(name: str, why: str) -> None:
-    raise GeometryError(f"geometry parameter {name!r}: {why}")
+    raise GeometryError(f"geometry.{name}: {why}")
 
 
 def _check_types(p: SectorParams) -> None:
@@ -224,7 +224,8 @@ def _check_types(p: SectorParams) -> None:
     da, dc = p.axial_length / (p.nodes_along - 1), p.flank_length / (p.nodes_across - 1)
     dc *= math.sqrt(p.flank_grading) if p.nodes_across > 3 else 1.0   # the Bump's end cells (symmetric: ≤ 3 stay even)
     if max(da, dc) / min(da, dc) > MAX_FLANK_ASPECT:
-        name = "nodes_along" if da > dc else "nodes_across"
+        # either key can be at fault: the one the user changed is named first (the scene's blame)
+        name = "nodes_along and geometry.nodes_across"
         _fail(name, f"flank cells would be {1e3 * da:.3g} mm (along) × {1e3 * dc:.3g} mm (across), "
                     f"aspect {max(da, dc) / min(da, dc):.3g} > {MAX_FLANK_ASPECT}; the tetrahedra on "
                     f"them would be slivers: balance nodes_along and nodes_across")

@@ -65,7 +65,7 @@ def layout_of(geometry_info: dict | None) -> str:
     params = (geometry_info or {}).get("params") or {}
     layout = params.get("contact_nodes", "vertices")
     if layout not in NODE_LAYOUTS:
-        raise GeometryError(f"geometry parameter 'contact_nodes' = {layout!r} is not one of {NODE_LAYOUTS}")
+        raise GeometryError(f"geometry.contact_nodes = {layout!r} is not one of {NODE_LAYOUTS}")
     return layout
 
 

@@ -310,7 +310,11 @@ def cmd_show(args) -> int:
     cache = args.cache.resolve() if args.cache else default_cache(out)
     print(f"\n# stages for outputs {scene['run'].outputs} (cache {cache}):")
     if "bundle" in p.external:
-        print(f"#   model bundle: {p.external['bundle']} (replaces geometry + assembly)")
+        from reduction.bundle import read_bundle
+
+        b = read_bundle(p.external["bundle"])       # a missing or damaged file: the error run would stop on
+        print(f"#   model bundle: {p.external['bundle']} ({b.n_dofs} DOFs, {b.contact.n_pairs} contact pairs; "
+              "replaces geometry + assembly)")
     for name in p.stages:
         module = p.modules[name]
         got, damage = check_entry(cache / name / p.keys[name]) if getattr(module, "CACHE", True) else (None, None)

@@ -322,6 +322,11 @@ def run_scene(scene: Scene, out: str | os.PathLike, *, cache: str | os.PathLike 
     """Run the stages ``scene`` needs; write ``out``; return the summary dict."""
     out = Path(out).resolve()
     cache_root = Path(cache).resolve() if cache else default_cache(out)
+    if out == cache_root or cache_root in out.parents:
+        # the run folder links each stage to its entry in the cache: one inside the other's
+        # entries would link to itself (found only after every stage had run)
+        raise OutputError(f"the run folder {out} is {'the' if out == cache_root else 'inside the'} cache folder "
+                          f"{cache_root}: choose another --out or --cache")
     grp = mpi.group()
     if grp.parallel:
         grp.together(mpi.init_petsc)  # collective: never first inside a rank-0-only stage

@@ -164,11 +164,14 @@ def parse_override(text: str) -> tuple[str, str, Any]:
         raise SceneError(f"--set {text!r}: expected section.key=value (e.g. contact.mu=0.3)")
     raw = raw.strip()
     try:
-        value = tomllib.loads(f"v = {raw}")["v"]
+        doc = tomllib.loads(f"v = {raw}")
     except tomllib.TOMLDecodeError:
         # Not a TOML value: take it as a bare string, so hb.solver=powell works.
-        value = raw
-    return parts[0], parts[1], value
+        return parts[0], parts[1], raw
+    if list(doc) != ["v"]:
+        # a value with a line break can carry more TOML ("0.3\n[hb]\ntol=5"), which was dropped
+        raise SceneError(f"--set {text!r}: the value holds more than one TOML value; give one")
+    return parts[0], parts[1], doc["v"]
 
 
 def resolve(raw: dict, path: Path | None = None, overrides: Iterable[str] = ()) -> Scene:
@@ -205,7 +208,7 @@ def resolve(raw: dict, path: Path | None = None, overrides: Iterable[str] = ()) 
             raise SceneError(f"{_blame(str(exc), from_set, path)}{exc}") from None
         except TypeError as exc:  # a dataclass without defaults for some field
             raise SceneError(f"{_where(path)}[{name}]: {exc}") from None
-    _check_geometry(resolved["geometry"], path)
+    _check_geometry(resolved["geometry"], path, from_set)
     return Scene(resolved, path, overrides)
 
 
@@ -239,7 +242,7 @@ def _resolve_paths(section: str, cls, table: dict, base: Path) -> dict:
     return table
 
 
-def _check_geometry(params, path: Path | None) -> None:
+def _check_geometry(params, path: Path | None, from_set: dict[str, str]) -> None:
     """Run the geometry engineer's own validation when it is available.
 
     It names the parameter at fault (a :class:`GeometryError`), so a bad
@@ -249,8 +252,12 @@ def _check_geometry(params, path: Path | None) -> None:
         from geometry.params import check_params
     except ImportError:
         return
+    from workflow.errors import GeometryError
+
     try:
         check_params(params)
+    except GeometryError as exc:
+        raise GeometryError(f"{_blame(str(exc), from_set, path)}{exc}") from None
     except ModuleNotFoundError as exc:
         if not (exc.name or "").startswith("geometry"):
             raise  # a missing helper module of geometry/ while it is being written: skip

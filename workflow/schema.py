@@ -77,6 +77,10 @@ def coerce(section: str, key: str, f: dataclasses.Field, value: Any) -> Any:
 
 
 def _example(default, value) -> str:
+    """The items of a list example for a value that is not a list."""
+    if isinstance(value, str) and value.startswith("[") and value.endswith("]"):
+        # [hbm, tcm] is no TOML (bare words) and came as one string: its items quoted
+        return ", ".join(f'"{v.strip()}"' for v in value[1:-1].split(",") if v.strip())
     return repr(value) if isinstance(value, (int, float, str)) and not isinstance(value, bool) else repr(default[0])
 
 

@@ -82,5 +82,5 @@ def test_cyclic_must_be_a_boolean():
     from geometry.params import SectorParams, check_params
     from workflow.errors import GeometryError
 
-    with pytest.raises(GeometryError, match="'cyclic'"):
+    with pytest.raises(GeometryError, match="geometry.cyclic"):
         check_params(SectorParams(cyclic=1))

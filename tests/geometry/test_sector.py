@@ -336,7 +336,7 @@ BAD = [
 def test_bad_parameters_raise_naming_the_parameter(tmp_path, kw, name):
     with pytest.raises(GeometryError) as err:
         build_sector(replace(D, **kw), tmp_path / "s.msh")
-    assert f"'{name}'" in str(err.value)
+    assert f"geometry.{name}" in str(err.value)
     assert not (tmp_path / "s.msh").exists()
 
 

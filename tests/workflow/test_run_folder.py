@@ -145,3 +145,13 @@ def test_first_run_killed_hard_does_not_block_the_next(tmp_path, capsys, fakes):
     rc, _, err = _run(capsys, tmp_path, ["modes"])
     assert rc == 0, err
     assert not (out / ".run.log.tmp").exists() and (out / "run.log").is_file()
+
+
+@pytest.mark.parametrize("where", ["same", "inside"])
+def test_a_run_folder_in_the_cache_is_refused_before_any_stage(tmp_path, capsys, fakes, where):
+    """The run folder links each stage to its cache entry: --out equal to --cache (or inside
+    it) was found only after every stage had run, by a link in the way. One error, nothing run."""
+    out = tmp_path / "c" if where == "same" else tmp_path / "c" / "run"
+    rc, _, err = run(capsys, "run", _scene(tmp_path, ["modes"]), "--out", out, "--cache", tmp_path / "c", "--quiet")
+    assert rc == 2 and err.startswith("error: ") and err.count("\n") == 1 and "--cache" in err
+    assert fakes.ran() == [] and not out.exists()

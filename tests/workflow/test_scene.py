@@ -84,6 +84,7 @@ def test_int_accepted_for_float_and_canonical_form(tmp_path):
     ('hb.solver="powell"', ("hb", "solver", "powell")),
     ("rotation.stress_stiffening=false", ("rotation", "stress_stiffening", False)),
     ("model.bundle=some/dir", ("model", "bundle", "some/dir")),
+    ("hb.harmonics=[3,\n5]", ("hb", "harmonics", [3, 5])),        # a TOML array may span lines
 ])
 def test_parse_override(text, expected):
     assert parse_override(text) == expected
@@ -92,6 +93,13 @@ def test_parse_override(text, expected):
 @pytest.mark.parametrize("bad", ["contact", "contact.mu", "mu=0.3", "a.b.c=1", ".mu=1"])
 def test_malformed_override(bad):
     with pytest.raises(SceneError, match="section.key=value"):
+        parse_override(bad)
+
+
+@pytest.mark.parametrize("bad", ["contact.mu=0.3\n[hb]\ntol=5", "contact.mu=0.3\nw = 1"])
+def test_an_override_carrying_more_toml_is_refused(bad):
+    """The rest of the value after a line break was parsed and dropped without a word."""
+    with pytest.raises(SceneError, match="more than one TOML value"):
         parse_override(bad)
 
 

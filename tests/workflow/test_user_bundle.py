@@ -66,6 +66,17 @@ def test_per_pair_mu_used_and_reported(tmp_path, capsys, monkeypatch):
     assert "[excitation]  # not used" in out and "[contact]  # not used" not in out
 
 
+def test_show_reads_the_bundle_and_refuses_a_missing_one(tmp_path, capsys):
+    """``show`` lists the bundle with its size, and where the folder is missing it stops on the
+    error ``run`` would stop on (it listed the bundle as the model source and exited 0)."""
+    rc, _, err = run(capsys, "show", _scene(tmp_path), "--out", tmp_path / "out", "--cache", tmp_path / "cache")
+    assert rc == 2 and err.startswith("error: ") and err.count("\n") == 1 and "bundle" in err
+    _bundle(tmp_path / "bundle", static_load=-200.0)
+    rc, out, err = run(capsys, "show", _scene(tmp_path), "--out", tmp_path / "out", "--cache", tmp_path / "cache")
+    assert rc == 0, err
+    assert "144 DOFs, 6 contact pairs" in out
+
+
 def test_lifting_preload_blames_the_bundle(tmp_path, capsys, monkeypatch):
     monkeypatch.delenv("BLADEWEAR_CACHE", raising=False)
     _bundle(tmp_path / "bundle", static_load=10.0, mu=None)
