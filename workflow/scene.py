@@ -112,6 +112,9 @@ def section_values(obj) -> dict:
 
 def find_scene(name: str | Path) -> Path:
     """A scene file: an existing path, or the name of a shipped scene (``quick``)."""
+    if not str(name).strip():
+        names = ", ".join(s for s, _ in shipped_scenes()) or "none"
+        raise SceneError(f"no scene given: name a scene file or a shipped scene ({names})")
     p = Path(name)
     if p.is_file():
         return p.resolve()

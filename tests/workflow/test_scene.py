@@ -145,6 +145,9 @@ def test_shipped_scenes_resolve():
 def test_unknown_scene_name():
     with pytest.raises(SceneError, match="no-such-scene not found.*quick"):
         find_scene("no-such-scene")
+    for empty in ("", "  "):        # was "scene . is not a file": the current folder
+        with pytest.raises(SceneError, match="no scene given.*quick"):
+            find_scene(empty)
 
 
 def test_resolve_without_file():
