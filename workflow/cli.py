@@ -42,7 +42,8 @@ EXIT_UNCONVERGED = 3
 EXIT_INTERRUPTED = 130
 
 EPILOG = """exit status:
-  0    finished, every result converged
+  0    finished, every result converged (a check above its tolerance, or one that could not
+       run, is a warning: printed, and listed in summary.json "warnings")
   2    error (bad scene key, bundle file, option or output folder; one line 'error: ...')
   3    finished, with unconverged results (listed in summary.json "unconverged", the log and the report)
   130  interrupted (Ctrl-C / SIGTERM); completed stages stay cached (and a long stage's finished pieces)
@@ -277,6 +278,11 @@ def cmd_run(args) -> int:
     bad = summary.get("unconverged") or {}
     if not args.quiet and _rank() == 0:
         print(f"{out / 'summary.json'}")
+    checks = summary.get("warnings") or {}
+    if checks and _rank() == 0:
+        for name, lines in checks.items():
+            for line in lines:
+                print(f"warning: {name}: {line}", file=sys.stderr)
     if bad:
         if _rank() == 0:
             n = sum(len(v) for v in bad.values())

@@ -32,7 +32,10 @@ Unconverged results
     A stage's summary may hold ``"unconverged": [str, …]``, one line per
     result that did not converge (what and why). The run still finishes;
     ``summary.json`` gets ``"unconverged": {stage: [...]}`` (empty when all
-    converged), the lines are logged as warnings and the CLI exits 3.
+    converged), the lines are logged as warnings and the CLI exits 3. Its
+    ``"warnings"`` (converged results whose checks exceed their tolerance, or
+    checks that could not run) go to ``summary.json`` ``"warnings"`` the same
+    way and to the terminal; the exit status stays 0.
 
 Run folder
     ``<out>/<stage>`` are relative symbolic links to the cache entries,
@@ -495,6 +498,9 @@ def _finish(scene, p, out, cache_root, status, timings, summaries, log, t_start,
     for name, lines in summary["unconverged"].items():
         for line in lines:
             log.warning(f"{name}: not converged: {line}")
+    for name, lines in summary["warnings"].items():
+        for line in lines:
+            log.warning(f"{name}: check: {line}")
     _switch(out, folders or {}, p, uncached or {},
             {"scene.json": json.loads(scene.canonical()), "summary.json": summary})
     n_bad = sum(len(v) for v in summary["unconverged"].values())
@@ -757,17 +763,18 @@ def _summary(scene: Scene, p: Plan, cache_root, status, timings, summaries) -> d
          "cache": str(cache_root) if cache_root else None,
          "stages": dict(status), "timings": dict(timings),
          "keys": {n: p.keys[n] for n in status if n in p.keys},
-         "unconverged": unconverged(summaries)}
+         "unconverged": unconverged(summaries), "warnings": unconverged(summaries, "warnings")}
     for name, entry in summaries.items():
         s[name] = entry
     return s
 
 
-def unconverged(summaries: dict) -> dict[str, list[str]]:
-    """``{stage: [line, …]}`` of the stages whose summary lists unconverged results."""
+def unconverged(summaries: dict, key: str = "unconverged") -> dict[str, list[str]]:
+    """``{stage: [line, …]}`` of the stages whose summary lists unconverged results (``key``
+    "warnings": converged results whose checks exceed their tolerance or could not run)."""
     out = {}
     for name, entry in summaries.items():
-        lines = entry.get("unconverged") if isinstance(entry, dict) else None
+        lines = entry.get(key) if isinstance(entry, dict) else None
         if lines:
             out[name] = [str(x) for x in (lines if isinstance(lines, (list, tuple)) else [lines])]
     return out

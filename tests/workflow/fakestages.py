@@ -82,6 +82,8 @@ def run(scene, inputs, out, log):
     summary = {{"name": NAME, "contact_pairs": 8, "files": ["data.txt", "figure.png", "table.csv"]}}
     if os.environ.get("FAKE_UNCONVERGED") == NAME:
         summary["unconverged"] = [NAME + ": 2/15 frequencies did not converge (max iterations)"]
+    if os.environ.get("FAKE_WARNING") == NAME:
+        summary["warnings"] = ["Nh-check: the peak moves by 5.00e-03 (> 0.001); raise hb.harmonics"]
     return summary
 '''
 
@@ -133,6 +135,7 @@ def install(tmp_path: Path, monkeypatch) -> Fakes:
     monkeypatch.setenv("FAKE_TRACE", str(fakes.trace))
     monkeypatch.delenv("FAKE_CRASH", raising=False)
     monkeypatch.delenv("FAKE_UNCONVERGED", raising=False)
+    monkeypatch.delenv("FAKE_WARNING", raising=False)
     monkeypatch.delenv("BLADEWEAR_CACHE", raising=False)
     return fakes
 

@@ -137,6 +137,18 @@ def test_unconverged_results_exit_3_and_are_listed(tmp_path, capsys, fakes, monk
     assert rc == 3 and fakes.ran() == []
 
 
+def test_a_check_above_its_tolerance_is_printed_and_listed_exit_0(tmp_path, capsys, fakes, monkeypatch):
+    """A converged result whose check exceeds its tolerance is no unconverged result (exit 0),
+    but it is said: one warning line on the terminal, summary.json "warnings", the log."""
+    monkeypatch.setenv("FAKE_WARNING", "hb")
+    rc, _, err = bw(capsys, tmp_path, write_scene(tmp_path, ["frf"]))
+    assert rc == 0 and "Traceback" not in err
+    assert "warning: hb: Nh-check: the peak moves by 5.00e-03" in err
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["unconverged"] == {} and list(s["warnings"]) == ["hb"]
+    assert "hb: check: Nh-check" in (tmp_path / "out" / "run.log").read_text()
+
+
 def test_all_converged_exit_0_empty_unconverged(tmp_path, capsys, fakes):
     rc, _, err = bw(capsys, tmp_path, write_scene(tmp_path, ["frf"]))
     assert rc == 0, err

@@ -75,13 +75,31 @@ def test_headline_peak_and_status_follow_convergence(tmp_path):
         conv[bad] = False
         hb, _, _ = _hb_folder(tmp_path, conv)
         assert hl.worst(hl.hb_headline(hb, tmp_path, damping)[1]) == status
-    # Nh check over tolerance: amber with its reason; the ε sensitivity alone does not make amber.
+    # ε check over tolerance (the penalty's bias on the answer): amber with its change; so is the Nh
+    # check, with its reason.
     hb, _, _ = _hb_folder(tmp_path, ok)
     hb["eps_check"]["max_rel_change"] = 5e-3
-    assert hl.worst(hl.hb_headline(hb, tmp_path, damping)[1]) == "green"
+    c = [c for c in hl.hb_headline(hb, tmp_path, damping)[1] if c.name == "ε check"][0]
+    assert c.status == "amber" and "5.00e-03" in c.reason and "ε × 10" in c.reason
+    hb["eps_check"]["max_rel_change"] = 2e-4
     hb["nh_check"]["max_rel_change"] = 5e-3
     c = [c for c in hl.hb_headline(hb, tmp_path, damping)[1] if c.name == "Nh check"][0]
     assert c.status == "amber" and "5.00e-03" in c.reason and "Nh = 5" in c.reason
+
+
+def test_a_sliding_curve_rising_to_the_band_edge_has_no_peak(tmp_path):
+    """The sliding (μ = 0) curve's largest value at an end of the band is no resonance peak: the
+    headline reports none there (it reported the band's first frequency), and its peak inside."""
+    damping = {"alpha": 0.0, "beta_total": 2 * 0.002 / (2 * np.pi * 210.0)}
+    hb, f, _ = _hb_folder(tmp_path, np.ones(15, bool))
+    v, _ = hl.hb_headline(hb, tmp_path, damping)
+    assert v["sliding_peak_hz"] == f[np.argmin(abs(f - 203.0))]
+    lin = ["frequency_hz,tied_m,sliding_m"] + [f"{fi!r},{ti!r},{si!r}" for fi, ti, si in
+                                               zip(f, sdof(f, 210.0, 0.002), sdof(f, 185.0, 0.002))]
+    (tmp_path / "linear.csv").write_text("\n".join(lin) + "\n")
+    v, _ = hl.hb_headline(hb, tmp_path, damping)
+    assert v["sliding_peak_hz"] is None and v["sliding_peak_amplitude_m"] is None
+    assert v["tied_peak_hz"] == 210.0
 
 
 def test_tied_peak_missed_by_the_grid_is_amber(tmp_path):

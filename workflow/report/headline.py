@@ -186,6 +186,20 @@ def time_check(hb: dict) -> Check:
         f"{float(c['tolerance']):.2e})"))
 
 
+def eps_check(hb: dict) -> Check:
+    """The ε-check of the hb summary (``eps_check``: the peak re-solved with ε × factor): the
+    penalty model's own error, amber above :data:`EPS_TOL` or where it could not run."""
+    c = hb.get("eps_check") or {}
+    if not c or not c.get("factor"):
+        return Check("peak", "ε check", "none", "no ε check in this run (contact.eps_check = 0)")
+    ch = c.get("max_rel_change")
+    if ch is None:
+        return Check("peak", "ε check", "amber", "ε-check: the peak could not be re-solved with the larger ε")
+    st = "green" if float(ch) <= EPS_TOL else "amber"
+    return Check("peak", "ε check", st, f"ε-check: the peak moves by {float(ch):.2e} with ε × {float(c['factor']):g} "
+                                        f"(tolerance {EPS_TOL:g})")
+
+
 def _check_of(hb: dict, key: str, name: str, scene_key: str, passed) -> Check:
     c = hb.get(key) or {}
     if not c:
@@ -203,6 +217,7 @@ def reference_checks(hb: dict, run: dict) -> list[Check]:
     the reference's own convergence (2×nit, 1.5×Nh)."""
     out = []
     out.append(nh_check("peak", "peak", hb))
+    out.append(eps_check(hb))
     out.append(branch_check(hb))
     out.append(time_check(hb))
     ref = hb.get("reference")
@@ -278,8 +293,10 @@ def hb_headline(hb: dict, folder: Path | None, damping: dict | None) -> tuple[di
     if lin:
         fl = np.array([float(r["frequency_hz"]) for r in lin])
         _, vals["tied_peak_hz"], vals["tied_peak_amplitude_m"] = grid_peak(fl, [float(r["tied_m"]) for r in lin])
-        _, vals["sliding_peak_hz"], vals["sliding_peak_amplitude_m"] = grid_peak(
+        i_s, vals["sliding_peak_hz"], vals["sliding_peak_amplitude_m"] = grid_peak(
             fl, [float(r["sliding_m"]) for r in lin])
+        if i_s in (0, len(fl) - 1):     # the largest value at an end of the band is no peak
+            vals["sliding_peak_hz"] = vals["sliding_peak_amplitude_m"] = None
         check = tied_peak_check(fl, hb.get("tied_frequency_hz"), damping)
         if check.status == "amber":  # the grid misses the tied peak: read it off the mode instead
             ft, zeta = hb["tied_frequency_hz"], tied_damping_ratio(damping, hb["tied_frequency_hz"])

@@ -228,11 +228,18 @@ class FRFStudy:
         return out
 
     def warnings(self) -> list[str]:
-        """Converged results whose convergence checks exceed their tolerance: the
-        Nh-check of the peaks and the reference's own check (2×nit, 1.5×Nh). The
-        ε-check is the penalty model's sensitivity, reported, not a convergence
-        test (:mod:`workflow.engine.studies.epscheck`)."""
+        """Converged results whose checks exceed their tolerance: the Nh-check of the
+        peaks, the ε-check (the peak's sensitivity to the contact penalty: the penalty
+        model's own error, :mod:`workflow.engine.studies.epscheck`) and the reference's
+        own check (2×nit, 1.5×Nh); and the checks that could not run."""
         out = []
+        ec = self.eps_check or {}
+        if ec.get("within_tolerance") is False:
+            out.append(f"ε-check: the peak moves by {ec['max_rel_change']:.2e} (> {penalty.CHECK_TOL:g}) with ε × "
+                       f"{ec.get('factor', 10):g}: the contact penalty biases the answer by about that much")
+        elif ec and ec.get("max_rel_change") is None:
+            out.append("ε-check: the peak could not be re-solved with the larger ε; how much the contact "
+                       "penalty biases the answer is unknown")
         nc = self.nh_check or {}
         if nc and nc.get("max_rel_change") is None:
             why = next((r["reason"] for r in nc.get("runs", []) if r.get("reason")), "the solver gave up")
