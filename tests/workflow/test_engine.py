@@ -270,3 +270,33 @@ def test_a_band_too_big_to_keep_is_condensed_point_by_point_with_the_same_sweeps
     np.testing.assert_array_equal(part.omegas, grid.omegas[1:3])
     np.testing.assert_array_equal(part[1].Zr, real(rc, grid.omegas[2], 2).Zr)
     assert part.seconds == grid.seconds > 0.0       # one clock for a grid and its slices
+
+
+@pytest.mark.slow  # the quick sector's model (≈ 10 s): make test-slow
+def test_the_stuck_reference_is_the_friction_peaks_limit_where_tied_is_not(tmp_path):
+    """On the quick sector half the pairs are open under the preload. With μ = 1e3 and a load
+    1e-3 of the scene's, nothing slips: the friction-damped peak is the stuck reference's (the
+    pairs closed in the static state held, the open ones free), to the penalty's own bias — the
+    ε-check's change, ×10/9 for a 1/ε approach, twice that — and the peak searches' tolerance.
+    The tied reference
+    (every pair held) is another structure: its peak is > 1e-3 away in frequency (measured
+    0.26 %, 2026-11-30)."""
+    from dataclasses import replace
+
+    from quickmodel import quick_reduced
+
+    model = quick_reduced(tmp_path)
+    model = replace(model, f_harmonic=1e-3 * model.f_harmonic)
+    law = engine.contact_law(model, mu=1e3)
+    study = engine.frf(model, law, [engine.Variant("hbm", 3, 64)], points=9,
+                       options=engine.FRFOptions(time_check=False, branch_check=False, nh_check=False))
+    sp, pk = study.stuck_peak, study.peak
+    assert sp is not None and pk is not None
+    from workflow.engine.studies.study import PEAK_XTOL
+
+    # the penalty's bias, and the two peak searches' own tolerance in frequency (measured: 3.5e-8
+    # in amplitude, 5e-7 in frequency; nothing slips, so the ε-check's change is 0)
+    bound = 2 * (10 / 9) * study.eps_check["max_rel_change"] + 2 * PEAK_XTOL
+    assert abs(pk["amplitude_m"] / sp["amplitude_m"] - 1) <= bound, (pk, sp, bound)
+    assert abs(pk["hz"] / sp["hz"] - 1) <= bound, (pk, sp, bound)
+    assert abs(study.tied_hz / sp["hz"] - 1) > 1e-3

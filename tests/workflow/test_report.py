@@ -100,6 +100,11 @@ def test_a_sliding_curve_rising_to_the_band_edge_has_no_peak(tmp_path):
     v, _ = hl.hb_headline(hb, tmp_path, damping)
     assert v["sliding_peak_hz"] is None and v["sliding_peak_amplitude_m"] is None
     assert v["tied_peak_hz"] == 210.0
+    # the stuck reference's peak, refined by the engine, and the ratio to it
+    assert v["stuck_peak_hz"] is None and v["amplitude_ratio_stuck"] is None
+    hb["stuck_peak"] = {"hz": 209.5, "amplitude_m": 2 * v["peak_amplitude_m"], "grid_hz": 209.0}
+    v, _ = hl.hb_headline(hb, tmp_path, damping)
+    assert v["stuck_peak_hz"] == 209.5 and v["amplitude_ratio_stuck"] == pytest.approx(0.5)
 
 
 def test_tied_peak_missed_by_the_grid_is_amber(tmp_path):

@@ -1,9 +1,9 @@
-"""Linear limits of the friction interface: tied modes, the band, tied and sliding FRFs.
+"""Linear limits of the friction interface: tied modes, the band, tied, sliding and stuck FRFs.
 
-The friction-damped response lies between the interface *tied* (u_r = 0,
-μ → ∞) and *sliding* (μ = 0, normal contact kept) linear responses; the
-first tied mode the tip load excites and the tip observes sets the default
-band (±10 %).
+The friction-damped response lies between the interface *stuck* (the pairs in contact in the
+static state held, μ → ∞) and *sliding* (μ = 0, normal contact kept) linear responses; *tied*
+(u_r = 0 at every pair) glues the separated pairs too. The first tied mode the tip load
+excites and the tip observes sets the default band (±10 %).
 """
 from __future__ import annotations
 
@@ -167,29 +167,70 @@ def _solve_or_inf(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     return scipy.linalg.lu_solve((lu, piv), b, check_finite=False)
 
 
-def linear_frfs(rc, cond: list, static) -> tuple[np.ndarray, np.ndarray]:
-    """First-harmonic observed amplitude (m) with the interface tied and sliding.
+def _held(static) -> tuple[np.ndarray, np.ndarray]:
+    """(sliding, stuck) masks of the relative DOFs held at u = 0 about the static state: the
+    normal DOF of every pair in contact (sliding), or its three DOFs (stuck); a separated pair
+    is free in both."""
+    closed = np.repeat(static.state != 0, 3)
+    normal = np.zeros(closed.size, bool)
+    normal[0::3] = closed[0::3]
+    return normal, closed
 
-    Tied: u_r = 0. Sliding (μ = 0): pairs in contact in the static state keep
-    u_N = 0, tangential DOFs are free (λ_T = 0); separated pairs are free.
-    The friction-damped peak lies between the two resonances. ``inf`` where
-    the linear system is singular (an undamped resonance on a grid point).
+
+def _held_response(rc, c, held: np.ndarray) -> float:
+    """First-harmonic observed amplitude (m) at ``c.omega`` with the relative DOFs ``held`` at 0
+    and the others force-free; inf where that system is singular."""
+    from reduction.condense import recover
+
+    free = ~held
+    z = np.zeros((2, held.size), complex)
+    with np.errstate(all="ignore"):
+        z[1, free] = _solve_or_inf(c.Zr[1][np.ix_(free, free)], c.Fr[1, free])
+        return float(np.linalg.norm(recover(rc, c.omega, z)[1])) if np.all(np.isfinite(z)) else np.inf
+
+
+def linear_frfs(rc, cond: list, static) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First-harmonic observed amplitude (m) with the interface tied, sliding and stuck.
+
+    Tied: u_r = 0 at every pair, separated ones too. Sliding (μ = 0): pairs in contact in the
+    static state keep u_N = 0, tangential DOFs are free (λ_T = 0); separated pairs are free.
+    Stuck: pairs in contact in the static state keep u_r = 0, separated ones are free — the
+    friction-damped response's limit for μ → ∞ at small amplitude, where tied glues the
+    separated pairs too. ``inf`` where the linear system is singular (an undamped resonance on
+    a grid point).
     """
     from reduction.condense import recover
 
-    r = rc.n_rel
-    free_n = np.repeat(static.state == 0, 3)
-    fixed = np.zeros(r, bool)
-    fixed[0::3] = ~free_n[0::3]
-    free = ~fixed
-    tied, slide = [], []
+    normal, closed = _held(static)
+    tied, slide, stuck = [], [], []
     for c in cond:
-        z = np.zeros((2, r), complex)
         with np.errstate(all="ignore"):
             try:
-                tied.append(np.linalg.norm(recover(rc, c.omega, z)[1]))
+                tied.append(np.linalg.norm(recover(rc, c.omega, np.zeros((2, rc.n_rel), complex))[1]))
             except np.linalg.LinAlgError:
                 tied.append(np.inf)
-            z[1, free] = _solve_or_inf(c.Zr[1][np.ix_(free, free)], c.Fr[1, free])
-            slide.append(np.linalg.norm(recover(rc, c.omega, z)[1]) if np.all(np.isfinite(z)) else np.inf)
-    return np.array(tied), np.array(slide)
+        slide.append(_held_response(rc, c, normal))
+        stuck.append(_held_response(rc, c, closed))
+    return np.array(tied), np.array(slide), np.array(stuck)
+
+
+def stuck_peak(rc, static, freqs_hz, stuck, xtol: float = 1e-6) -> dict | None:
+    """The stuck response's resonance peak (:func:`linear_frfs`): its largest grid value refined
+    between the two grid neighbours (bounded scalar search to ``xtol`` relative in frequency,
+    one condensation at Nh = 1 a try) — {"hz", "amplitude_m", "grid_hz"} — or None where the
+    largest value is at an end of the band (no peak in it) or not finite."""
+    from scipy.optimize import minimize_scalar
+
+    a = np.asarray(stuck, float)
+    if a.size < 3 or not np.all(np.isfinite(a)):
+        return None
+    i = int(np.argmax(a))
+    if i in (0, a.size - 1):
+        return None
+    closed = _held(static)[1]
+    amp = lambda f: _held_response(rc, condensed(rc, 2 * np.pi * f, 1), closed)  # noqa: E731
+    lo, hi = float(freqs_hz[i - 1]), float(freqs_hz[i + 1])
+    res = minimize_scalar(lambda f: -amp(f), bounds=(lo, hi), method="bounded",
+                          options={"xatol": xtol * float(freqs_hz[i])})
+    hz, am = (float(res.x), float(-res.fun)) if -res.fun >= a[i] else (float(freqs_hz[i]), float(a[i]))
+    return {"hz": hz, "amplitude_m": am, "grid_hz": float(freqs_hz[i])}

@@ -59,9 +59,10 @@ def _frf_csv(path: Path, runs, ref) -> str:
 def _linear_csv(path: Path, study) -> str:
     from workflow.io import write_text
 
-    write_text(path, _csv([[_g(float(f)), _g(float(a)), _g(float(b))]
-                           for f, a, b in zip(study.freqs_hz, study.tied, study.sliding)],
-                          ("frequency_hz", "tied_m", "sliding_m")))
+    stuck = study.stuck if study.stuck is not None else np.full(len(study.freqs_hz), np.nan)
+    write_text(path, _csv([[_g(float(f)), _g(float(a)), _g(float(b)), _g(float(c))]
+                           for f, a, b, c in zip(study.freqs_hz, study.tied, study.sliding, stuck)],
+                          ("frequency_hz", "tied_m", "sliding_m", "stuck_m")))
     return path.name
 
 

@@ -263,11 +263,12 @@ def variants_check(runs: list[dict]) -> list[Check]:
 
 
 def hb_headline(hb: dict, folder: Path | None, damping: dict | None) -> tuple[dict, list[Check]]:
-    """Peak (Hz, m), tied and sliding linear peaks (m), amplitude ratio and
-    equivalent damping ratio, with their checks."""
+    """Peak (Hz, m), tied, sliding and stuck linear peaks (m), amplitude ratios (to the tied
+    and to the stuck peak) and equivalent damping ratio, with their checks."""
     run = headline_run(hb)
     vals = dict(peak_hz=None, peak_amplitude_m=None, peak_source=None, tied_peak_hz=None,
                 tied_peak_amplitude_m=None, sliding_peak_hz=None, sliding_peak_amplitude_m=None,
+                stuck_peak_hz=None, stuck_peak_amplitude_m=None, amplitude_ratio_stuck=None,
                 amplitude_ratio=None, equivalent_damping_ratio=None, tied_damping_ratio=None,
                 peak_amplitude_nh_limit_m=None)
     if run is None or folder is None:
@@ -305,6 +306,11 @@ def hb_headline(hb: dict, folder: Path | None, damping: dict | None) -> tuple[di
             check.reason += (f"; tied peak {vals['tied_peak_amplitude_m']:.3g} m taken from the single-mode "
                              "response through the nearest grid point")
         checks.append(check)
+    sp = hb.get("stuck_peak") or {}
+    if sp.get("hz") is not None:    # the engine refined it: the μ → ∞ limit of this contact state
+        vals["stuck_peak_hz"], vals["stuck_peak_amplitude_m"] = float(sp["hz"]), float(sp["amplitude_m"])
+        if vals["peak_amplitude_m"]:
+            vals["amplitude_ratio_stuck"] = vals["peak_amplitude_m"] / vals["stuck_peak_amplitude_m"]
     if vals["peak_amplitude_m"] and vals["tied_peak_amplitude_m"]:
         vals["amplitude_ratio"] = vals["peak_amplitude_m"] / vals["tied_peak_amplitude_m"]
         vals["tied_damping_ratio"] = tied_damping_ratio(damping, hb.get("tied_frequency_hz") or vals["tied_peak_hz"])

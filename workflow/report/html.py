@@ -62,7 +62,9 @@ def cards(h: dict) -> list[dict]:
     else:
         peak_sub = (f"tip, 1st harmonic; tied linear peak {tied} at {e(fmt.hz(h.get('tied_peak_hz')))}, sliding "
                     f"(μ = 0) {e(fmt.si(h.get('sliding_peak_amplitude_m'), 'm'))} at "
-                    f"{e(fmt.hz(h.get('sliding_peak_hz')))}; from {e(str(h.get('peak_source') or '—'))}")
+                    f"{e(fmt.hz(h.get('sliding_peak_hz')))}, stuck (the pairs closed under the preload held: "
+                    f"μ → ∞) {e(fmt.si(h.get('stuck_peak_amplitude_m'), 'm'))} at {e(fmt.hz(h.get('stuck_peak_hz')))}"
+                    f"; from {e(str(h.get('peak_source') or '—'))}")
         if h.get("peak_amplitude_nh_limit_m") is not None:
             peak_sub += (f"; Nh → ∞ estimate {e(fmt.si(h['peak_amplitude_nh_limit_m'], 'm'))} "
                          "(Richardson in 1/Nh from the Nh check)")

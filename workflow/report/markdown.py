@@ -38,7 +38,8 @@ def headline_md(h: dict) -> list[str]:
     rows = [
         ("friction-damped peak", f"{fmt.hz(h.get('peak_hz'))}, {fmt.si(h.get('peak_amplitude_m'), 'm')}",
          "no FRF in this run (the scene's outputs have no “frf”)" if no_frf else
-         f"tied peak {fmt.si(h.get('tied_peak_amplitude_m'), 'm')}, sliding {fmt.si(h.get('sliding_peak_amplitude_m'), 'm')}"
+         f"tied peak {fmt.si(h.get('tied_peak_amplitude_m'), 'm')}, sliding {fmt.si(h.get('sliding_peak_amplitude_m'), 'm')}, "
+         f"stuck {fmt.si(h.get('stuck_peak_amplitude_m'), 'm')}"
          + _limit(h)),
         ("damping achieved", "amplitude ratio " + ("—" if h.get("amplitude_ratio") is None
                                                    else f"{h['amplitude_ratio']:.3g}"),

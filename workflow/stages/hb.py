@@ -154,6 +154,7 @@ def summarise(study, scene) -> dict:
         "eps_n_range": [float(law.eps_n.min()), float(law.eps_n.max())],
         "eps_t_range": [float(law.eps_t.min()), float(law.eps_t.max())],
         "eps_check": study.eps_check,
+        "stuck_peak": study.stuck_peak,
         "nh_check": study.nh_check,
         "branch_check": study.branch_check,
         "time_check": {k: v for k, v in study.time_check.items() if k != "log_line"},

@@ -35,7 +35,7 @@ from workflow.engine import penalty
 from workflow.engine.studies import epscheck
 from workflow.engine.studies.frf import (SweepResult, arclength_scale, frf_error, join_sweeps, seeds_from, sweep_variant,
                                  trace_variant)
-from workflow.engine.linear import band as band_of, first_excited_mode, linear_frfs
+from workflow.engine.linear import band as band_of, first_excited_mode, linear_frfs, stuck_peak
 from workflow.engine.studies.variants import Variant, cost, share
 from workflow.engine.errors import BundleError, SolverError
 
@@ -177,8 +177,9 @@ class FRFOptions:
 @dataclass
 class FRFStudy:
     """What :func:`frf` found (Hz, m, s). ``runs`` one :class:`SweepResult`
-    per variant, ``reference`` or None; ``tied``/``sliding`` the linear
-    limits on ``freqs_hz``; ``eps_check`` {"factor", "max_rel_change",
+    per variant, ``reference`` or None; ``tied``/``sliding``/``stuck`` the linear
+    limits on ``freqs_hz`` (:func:`workflow.engine.linear.linear_frfs`), ``stuck_peak`` the stuck
+    response's peak refined ({"hz", "amplitude_m", "grid_hz"}, or None outside the band); ``eps_check`` {"factor", "max_rel_change",
     "frequency_hz", "runs": [...]} (the penalty model's sensitivity);
     ``nh_check`` {"max_rel_change", "frequency_hz", "runs": [...]} (convergence
     in Nh, :func:`workflow.engine.studies.epscheck.nh_runs`; with a reference its row only,
@@ -210,6 +211,8 @@ class FRFStudy:
     peak: dict | None = None
     branch_check: dict = field(default_factory=dict)
     time_check: dict = field(default_factory=dict)
+    stuck: np.ndarray | None = None
+    stuck_peak: dict | None = None
 
     def unconverged(self) -> list[str]:
         """One line per sweep with points whose solver gave up: where, and why; and one per
@@ -368,7 +371,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
                     "not fit in engine.linear.KEEP_BYTES") + f"); {penalty.describe(law)}; "
                  "static state: "
                  f"{int(np.count_nonzero(static.state))}/{model.n_pairs} pairs in contact")
-    tied, sliding = linear_frfs(rc, first, static)
+    tied, sliding, stuck = linear_frfs(rc, first, static)
     with blas_threads(1):   # small dense systems: threads only add spinning CPU time
         _warm_up(cond[0], law, static)
         runs = _variants(rc, cond, freqs, law, static, variants, opt, comm, log)
@@ -387,7 +390,8 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
         study = FRFStudy(freqs_hz=freqs, band_hz=(f0, f1), tied_hz=f_mode,
                          tied_mode=None if mode_index is None else mode_index + 1, runs=runs,
                          reference=ref, tied=tied, sliding=sliding, static=static, law=law,
-                         condense_seconds=t_cond, condensation=condensation(rc))
+                         condense_seconds=t_cond, condensation=condensation(rc), stuck=stuck,
+                         stuck_peak=stuck_peak(rc, static, freqs, stuck, opt.peak_xtol))
         _check(study, rc, opt, log)
         _headline(study, model, rc, opt, refine=freqs_hz is None and len(freqs) > 1, log=log)
         if opt.stability:
