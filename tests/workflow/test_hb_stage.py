@@ -147,6 +147,9 @@ def test_checks_of_a_default_stage_run(study):
     i = int(np.argmax(np.where(ok, a, -np.inf)))
     assert pk["run"] == "HBM-9 nit=64" and pk["grid_hz"] == pytest.approx(f[i])
     assert f[i - 1] <= pk["hz"] <= f[i + 1] and pk["amplitude_m"] >= a[i]     # Brent between the neighbours
+    # the headline run's checks are made at the peak it reports, not at its grid peak
+    assert nc["runs"][0]["frequency_hz"] == pk["hz"] == conv["frequency_hz"]
+    assert [r["frequency_hz"] for r in eps["runs"] if r["label"] == pk["run"]] == [pk["hz"]]
     assert pk["evaluations"] > len(f) and pk["xtol_hz"] == pytest.approx(1e-6 * f[i])
     # the Nh-check's pair read as a limit (Richardson in 1/Nh, order 1): the reported value is
     # Nh2/(Nh2 − Nh) = 14/5 times the change from its limit A∞, and the refined peak carries it

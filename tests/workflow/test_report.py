@@ -75,13 +75,12 @@ def test_headline_peak_and_status_follow_convergence(tmp_path):
         conv[bad] = False
         hb, _, _ = _hb_folder(tmp_path, conv)
         assert hl.worst(hl.hb_headline(hb, tmp_path, damping)[1]) == status
-    # ε check over tolerance (the penalty's bias on the answer): amber with its change; so is the Nh
-    # check, with its reason.
+    # Nh check over tolerance: amber with its reason; the ε sensitivity alone does not make amber
+    # (at a finite Nh the rigid limit is not the answer): it is reported beside the peak.
     hb, _, _ = _hb_folder(tmp_path, ok)
     hb["eps_check"]["max_rel_change"] = 5e-3
-    c = [c for c in hl.hb_headline(hb, tmp_path, damping)[1] if c.name == "ε check"][0]
-    assert c.status == "amber" and "5.00e-03" in c.reason and "ε × 10" in c.reason
-    hb["eps_check"]["max_rel_change"] = 2e-4
+    v, checks = hl.hb_headline(hb, tmp_path, damping)
+    assert hl.worst(checks) == "green" and v["eps_sensitivity"]["rel_change"] == 5e-3
     hb["nh_check"]["max_rel_change"] = 5e-3
     c = [c for c in hl.hb_headline(hb, tmp_path, damping)[1] if c.name == "Nh check"][0]
     assert c.status == "amber" and "5.00e-03" in c.reason and "Nh = 5" in c.reason

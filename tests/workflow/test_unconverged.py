@@ -94,21 +94,3 @@ def test_wear_frequency_far_from_the_model_is_refused():
     _, _, omega2 = build_problem(model, load_scene("quick", [f"wear.frequency_hz={1.05 * f}"]))
     assert omega2 == pytest.approx(2 * np.pi * 1.05 * f)
 
-
-def test_an_eps_check_above_its_tolerance_is_a_warning():
-    """The ε-check is the contact penalty's bias on the peak: above its tolerance it is said (a
-    warning, exit 0), within it nothing; one that could not re-solve says so; none ran, nothing."""
-    import numpy as np
-
-    from workflow.engine.studies.study import FRFStudy
-
-    def study(eps_check):
-        return FRFStudy(freqs_hz=np.zeros(0), band_hz=(0.0, 1.0), tied_hz=None, tied_mode=None, runs=[],
-                        reference=None, tied=np.zeros(0), sliding=np.zeros(0), static=None, law=None,
-                        condense_seconds=0.0, eps_check=eps_check)
-
-    judged = lambda ch: {"factor": 10.0, "max_rel_change": ch, "within_tolerance": None if ch is None else ch <= 1e-3}  # noqa: E731
-    w = study(judged(5.34e-3)).warnings()
-    assert len(w) == 1 and w[0].startswith("ε-check: the peak moves by 5.34e-03 (> 0.001) with ε × 10")
-    assert study(judged(2.5e-4)).warnings() == [] and study({}).warnings() == []
-    assert "could not be re-solved" in study(judged(None)).warnings()[0]

@@ -68,6 +68,9 @@ def cards(h: dict) -> list[dict]:
         if h.get("peak_amplitude_nh_limit_m") is not None:
             peak_sub += (f"; Nh → ∞ estimate {e(fmt.si(h['peak_amplitude_nh_limit_m'], 'm'))} "
                          "(Richardson in 1/Nh from the Nh check)")
+        es = h.get("eps_sensitivity")
+        if es:
+            peak_sub += (f"; penalty sensitivity: the peak moves by {es['rel_change']:.1e} with ε × {es['factor']:g}")
         damping_sub = (f"equivalent damping ratio ζ<sub>eq</sub> = {z_span} (structural ζ = {e(fmt.percent(z_t))}; "
                        "ζ<sub>eq</sub> = ζ · tied peak / friction peak)")
     return [

@@ -83,34 +83,39 @@ def _rel(a, b) -> float | None:
     return None if a is None or b is None or b == 0 else abs(a - b) / abs(b)
 
 
-def _at_peaks(rc, static, runs: list, opt, trial) -> dict:
+def _at_peaks(rc, static, runs: list, opt, trial, at: dict | None = None) -> dict:
     """Each run's peak re-solved from its converged harmonics under ``trial(variant)`` →
-    (law, Nh, nit, ε-path, extra row fields); {"max_rel_change", "frequency_hz", "runs"}."""
+    (law, Nh, nit, ε-path, extra row fields); {"max_rel_change", "frequency_hz", "runs"}.
+    ``at``: {run label: (frequency [Hz], harmonics Ur, amplitude [m])} of a peak refined between
+    the grid points (the headline's), checked there instead of at the run's grid peak."""
     rows = []
     for r in runs:
-        i = _peak_index(r)
-        if i is None:
-            continue
         v = r.variant
+        if at and v.label in at:
+            f, Ur, amp = at[v.label]
+        else:
+            i = _peak_index(r)
+            if i is None:
+                continue
+            f, Ur, amp = float(r.freqs_hz[i]), r.Ur[i], float(r.amplitude[i])
         lw, nh, nit, path, extra = trial(v)
         why = None
         try:
-            a, ok = resolve(rc, float(r.freqs_hz[i]), r.Ur[i], lw, static, method=v.method, nh=nh, nit=nit,
-                            opt=opt, eps_path=path)
+            a, ok = resolve(rc, float(f), Ur, lw, static, method=v.method, nh=nh, nit=nit, opt=opt, eps_path=path)
         except BundleError as exc:  # a cyclic model reduced for no more harmonics than asked
             a, ok, why = None, False, f"{exc}; reduction.cyclic_harmonics"
-        rows.append({"label": v.label, **extra, "frequency_hz": float(r.freqs_hz[i]),
-                     "rel_change": _rel(a, float(r.amplitude[i])), "converged": ok,
-                     "amplitude_m": float(r.amplitude[i]), "checked_m": a, "base_nh": v.nh,
+        rows.append({"label": v.label, **extra, "frequency_hz": float(f),
+                     "rel_change": _rel(a, float(amp)), "converged": ok,
+                     "amplitude_m": float(amp), "checked_m": a, "base_nh": v.nh,
                      **({"reason": why} if why else {})})
     vals = [(row["rel_change"], row["frequency_hz"]) for row in rows if row["rel_change"] is not None]
     worst = max(vals) if vals else (None, None)
     return {"max_rel_change": worst[0], "frequency_hz": worst[1], "runs": rows}
 
 
-def frf_runs(rc, law, static, runs: list, opt) -> dict:
-    """ε-check of each run at its peak: ε × ``opt.eps_check_factor``, from the converged
-    state by half a decade then the full step.
+def frf_runs(rc, law, static, runs: list, opt, at: dict | None = None) -> dict:
+    """ε-check of each run at its peak (``at``: :func:`_at_peaks`): ε × ``opt.eps_check_factor``,
+    from the converged state by half a decade then the full step.
 
     Returns {"factor", "max_rel_change", "frequency_hz", "runs": [{"label",
     "frequency_hz", "rel_change", "converged"}]} (``max_rel_change`` None if no
@@ -118,12 +123,12 @@ def frf_runs(rc, law, static, runs: list, opt) -> dict:
     fac = float(opt.eps_check_factor)
     big = penalty.scaled(law, fac)
     return {"factor": fac, **_at_peaks(rc, static, runs, opt,
-                                       lambda v: (big, v.nh, v.nit, (1.0 / fac, fac ** -0.5), {}))}
+                                       lambda v: (big, v.nh, v.nit, (1.0 / fac, fac ** -0.5), {}), at)}
 
 
-def nh_runs(rc, law, static, runs: list, opt) -> dict:
-    """Nh-check of each run at its peak: the point re-solved at :func:`finer` (Nh, nit)
-    from the converged harmonics, with the same law.
+def nh_runs(rc, law, static, runs: list, opt, at: dict | None = None) -> dict:
+    """Nh-check of each run at its peak (``at``: :func:`_at_peaks`): the point re-solved at
+    :func:`finer` (Nh, nit) from the converged harmonics, with the same law.
 
     Returns {"max_rel_change", "frequency_hz", "runs": [{"label", "nh", "nit",
     "frequency_hz", "rel_change", "converged"}]} (``max_rel_change`` None if no
@@ -132,7 +137,7 @@ def nh_runs(rc, law, static, runs: list, opt) -> dict:
         nh2, nit2 = finer(v.nh, v.nit)
         return law, nh2, nit2, opt.eps_path or (), {"nh": nh2, "nit": nit2}
 
-    return with_nh_limit(_at_peaks(rc, static, runs, opt, trial))
+    return with_nh_limit(_at_peaks(rc, static, runs, opt, trial, at))
 
 
 #: The order assumed by the Nh-check's limit: HB of a stick–slip contact converges as 1/Nh
@@ -171,7 +176,7 @@ def limit_scale(check: dict | None, label: str) -> float | None:
     return None
 
 
-def reference(rc, law, static, ref, opt, checks=()) -> dict:
+def reference(rc, law, static, ref, opt, checks=(), at: dict | None = None) -> dict:
     """The reference's own convergence at its peak: relative change of the
     amplitude with nit × 2, Nh × 1.5 (nit scaled alike) and ε × the ε-check
     factor; ``max_rel_change`` is the largest of the nit and Nh trials (the reference's
@@ -179,11 +184,17 @@ def reference(rc, law, static, ref, opt, checks=()) -> dict:
 
     ``checks``: the study's Nh-check and ε-check (:func:`nh_runs`, :func:`frf_runs`), whose
     rows for the reference are the same re-solves as the Nh and ε trials here and are
-    taken from them (on paper-frf the two largest solves of the check: Nh = 38 and 25)."""
-    i = _peak_index(ref)
-    if i is None:
-        return {"max_rel_change": None}
-    v, f, a0 = ref.variant, float(ref.freqs_hz[i]), float(ref.amplitude[i])
+    taken from them (on paper-frf the two largest solves of the check: Nh = 38 and 25). ``at``:
+    the reference's peak refined between grid points, checked there (:func:`_at_peaks`)."""
+    v = ref.variant
+    if at and v.label in at:
+        f, Ur0, a0 = at[v.label]
+        f, a0 = float(f), float(a0)
+    else:
+        i = _peak_index(ref)
+        if i is None:
+            return {"max_rel_change": None}
+        f, Ur0, a0 = float(ref.freqs_hz[i]), ref.Ur[i], float(ref.amplitude[i])
     nh2, nit2 = finer(v.nh, v.nit)
     eps_key = "eps_x%g" % opt.eps_check_factor
     trials = {"nit_x2": (law, v.nh, 2 * v.nit),
@@ -206,7 +217,7 @@ def reference(rc, law, static, ref, opt, checks=()) -> dict:
         # not its root, so it climbs the sweep's ε-path (Newton straight at ε failed at Nh 5 → 8
         # on the MPI test's sector and fell to Powell: 1.55 s of the stage's 5.5 s)
         path = (1.0 / fac, fac ** -0.5) if key.startswith("eps") else opt.eps_path
-        a, _ = resolve(rc, f, ref.Ur[i], lw, static, method="hbm", nh=nh, nit=nit, opt=opt, eps_path=path)
+        a, _ = resolve(rc, f, Ur0, lw, static, method="hbm", nh=nh, nit=nit, opt=opt, eps_path=path)
         out[key] = _rel(a, a0)
     out = {"frequency_hz": f, "variant": v.label, **{k: out[k] for k in trials}}   # in the trials' order
     # the uncertainty is the discretisation's (nit, Nh); the ε trial is the penalty model's
