@@ -178,9 +178,10 @@ class FRFOptions:
 class FRFStudy:
     """What :func:`frf` found (Hz, m, s). ``runs`` one :class:`SweepResult`
     per variant, ``reference`` or None; ``tied``/``sliding``/``stuck`` the linear
-    limits on ``freqs_hz`` (:func:`workflow.engine.linear.linear_frfs`), ``stuck_peak`` the stuck
-    response's peak refined ({"hz", "amplitude_m", "grid_hz"}, or None outside the band); ``eps_check`` {"factor", "max_rel_change",
-    "frequency_hz", "runs": [...]} (the penalty model's sensitivity);
+    limits on ``freqs_hz`` (:func:`workflow.engine.linear.linear_frfs`), ``stuck_peak`` the
+    stuck response's peak refined ({"hz", "amplitude_m", "grid_hz"}, or None outside the band);
+    ``eps_check`` {"factor", "max_rel_change", "frequency_hz", "runs": [...]} (the penalty
+    model's sensitivity);
     ``nh_check`` {"max_rel_change", "frequency_hz", "runs": [...]} (convergence
     in Nh, :func:`workflow.engine.studies.epscheck.nh_runs`; with a reference its row only,
     and ``"variants"`` says how they are measured); ``reference_convergence`` or None;
@@ -235,7 +236,8 @@ class FRFStudy:
         Nh-check of the peaks and the reference's own check (2×nit, 1.5×Nh); and the
         checks that could not run. The ε-check is the penalty model's sensitivity,
         reported, not a convergence test: at a finite Nh the rigid limit ε → ∞ is not
-        the answer (:mod:`workflow.engine.studies.epscheck`, :data:`workflow.engine.penalty.LIMIT_FACTORS`)."""
+        the answer (:mod:`workflow.engine.studies.epscheck`,
+        :data:`workflow.engine.penalty.LIMIT_FACTORS`)."""
         out = []
         nc = self.nh_check or {}
         if nc and nc.get("max_rel_change") is None:
