@@ -217,7 +217,7 @@ def linear_frfs(rc, cond: list, static) -> tuple[np.ndarray, np.ndarray, np.ndar
 def stuck_peak(rc, static, freqs_hz, stuck, xtol: float = 1e-6) -> dict | None:
     """The stuck response's resonance peak (:func:`linear_frfs`): its largest grid value refined
     between the two grid neighbours (bounded scalar search to ``xtol`` relative in frequency,
-    one condensation at Nh = 1 a try) — {"hz", "amplitude_m", "grid_hz"} — or None where the
+    one condensation at Nh = 1 a try) — {"hz", "amplitude_m", "grid_hz", "evaluations"} — or None where the
     largest value is at an end of the band (no peak in it) or not finite."""
     from scipy.optimize import minimize_scalar
 
@@ -233,4 +233,4 @@ def stuck_peak(rc, static, freqs_hz, stuck, xtol: float = 1e-6) -> dict | None:
     res = minimize_scalar(lambda f: -amp(f), bounds=(lo, hi), method="bounded",
                           options={"xatol": xtol * float(freqs_hz[i])})
     hz, am = (float(res.x), float(-res.fun)) if -res.fun >= a[i] else (float(freqs_hz[i]), float(a[i]))
-    return {"hz": hz, "amplitude_m": am, "grid_hz": float(freqs_hz[i])}
+    return {"hz": hz, "amplitude_m": am, "grid_hz": float(freqs_hz[i]), "evaluations": int(res.nfev)}
