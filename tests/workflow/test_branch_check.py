@@ -179,7 +179,7 @@ def test_points_are_the_headline_peak_and_the_nh_checks_once_each():
                             peak={"hz": 11.2, "amplitude_m": 5.5})
     pts = st._branch_points(study, engine.FRFOptions())
     assert [(p["label"], p["frequency_hz"], p["swept_m"], p["role"]) for p in pts] == [
-        ("HBM-9 nit=64", 11.2, 5.5, "headline peak (refined)"), ("HBM-9 nit=64", 11.0, 5.0, "grid peak (Nh-check)"),
+        ("HBM-9 nit=64", 11.2, 5.5, "headline peak (refined)"), ("HBM-9 nit=64", 11.0, 5.0, "headline grid peak"),
         ("HBM-9 nit=64", 12.0, 2.0, "last point of the sweep")]
     study.reference = None
     study.peak = {"hz": 12.0, "amplitude_m": 4.0}           # the refined peak on a grid point: once

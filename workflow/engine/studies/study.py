@@ -497,7 +497,9 @@ def _branch_points(study: FRFStudy, opt) -> list[dict]:
     for r in ([head] if head is not None and pk is None else []) + checked:
         i = epscheck._peak_index(r)
         if i is not None:
-            role = "grid peak (Nh-check)" if any(r is c for c in checked) else "headline grid peak"
+            # the headline run's Nh-check is at its refined peak (:func:`_check`) when it has one
+            nh_here = any(r is c for c in checked) and not (pk is not None and r is head)
+            role = "grid peak (Nh-check)" if nh_here else "headline grid peak"
             add(role, r, r.freqs_hz[i], r.amplitude[i])
     ok = np.flatnonzero(head.converged) if head is not None else []
     if len(ok) > 1:
