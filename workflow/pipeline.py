@@ -763,15 +763,16 @@ def _summary(scene: Scene, p: Plan, cache_root, status, timings, summaries) -> d
          "cache": str(cache_root) if cache_root else None,
          "stages": dict(status), "timings": dict(timings),
          "keys": {n: p.keys[n] for n in status if n in p.keys},
-         "unconverged": unconverged(summaries), "warnings": unconverged(summaries, "warnings")}
+         "unconverged": stage_lines(summaries, "unconverged"), "warnings": stage_lines(summaries, "warnings")}
     for name, entry in summaries.items():
         s[name] = entry
     return s
 
 
-def unconverged(summaries: dict, key: str = "unconverged") -> dict[str, list[str]]:
-    """``{stage: [line, …]}`` of the stages whose summary lists unconverged results (``key``
-    "warnings": converged results whose checks exceed their tolerance or could not run)."""
+def stage_lines(summaries: dict, key: str) -> dict[str, list[str]]:
+    """``{stage: [line, …]}`` of the stages whose summary lists ``key``: "unconverged" (results
+    that did not converge) or "warnings" (converged results whose checks exceed their tolerance
+    or could not run)."""
     out = {}
     for name, entry in summaries.items():
         lines = entry.get(key) if isinstance(entry, dict) else None

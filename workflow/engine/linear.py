@@ -217,8 +217,8 @@ def linear_frfs(rc, cond: list, static) -> tuple[np.ndarray, np.ndarray, np.ndar
 def stuck_peak(rc, static, freqs_hz, stuck, xtol: float = 1e-6) -> dict | None:
     """The stuck response's resonance peak (:func:`linear_frfs`): its largest grid value refined
     between the two grid neighbours (bounded scalar search to ``xtol`` relative in frequency,
-    one condensation at Nh = 1 a try) — {"hz", "amplitude_m", "grid_hz", "evaluations"} — or None where the
-    largest value is at an end of the band (no peak in it) or not finite."""
+    one condensation at Nh = 1 a try) — {"hz", "amplitude_m", "grid_hz", "evaluations"} — or
+    None where the largest value is at an end of the band (no peak in it) or not finite."""
     from scipy.optimize import minimize_scalar
 
     a = np.asarray(stuck, float)
