@@ -7,7 +7,6 @@ M, K, C and contact map you have works the same way (or read a bundle with
 """
 import numpy as np
 
-from reduction.reduced import ReducedModel
 from workflow import engine
 from workflow.engine.lumped import pairs_on_block
 
@@ -19,8 +18,8 @@ B = np.eye(3 * p, n)                                    # u_r = [n, t1, t2] of e
 f_static, f_tip, O = np.zeros(n), np.zeros(n), np.zeros((1, n))
 f_static[0:3 * p:3] = -10.0                             # 10 N pressing each pad (λ_N < 0 in contact)
 f_tip[tip], O[0, tip] = 0.2, 1.0                        # 0.2 N at the tip, observed there
-model = ReducedModel(M=M, K=K, C=1e-5 * K, B=B, f_static=f_static, f_harmonic=f_tip, O=O, area=np.full(p, 1e-6),
-                     gap=np.zeros(p), flank=np.zeros(p, int), position=np.zeros((p, 3)))
+model = engine.ReducedModel(M=M, K=K, C=1e-5 * K, B=B, f_static=f_static, f_harmonic=f_tip, O=O, area=np.full(p, 1e-6),
+                            gap=np.zeros(p), flank=np.zeros(p, int), position=np.zeros((p, 3)))
 
 law = engine.contact_law(model, mu=0.3)                 # penalties: each pad's stiffness at the unresolved harmonics
 study = engine.frf(model, law, [engine.Variant("hbm", 3, 32)], band_hz=(94.0, 104.0), points=21)

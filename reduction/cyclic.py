@@ -105,11 +105,6 @@ def sector_operator(A: sp.spmatrix, T: sp.spmatrix) -> sp.csr_matrix:
     return (T.conj().T @ A @ T).tocsr()
 
 
-def nodal_diameter_of_harmonic(n: int, engine_order: int, n_sectors: int) -> int:
-    """ND ``(n·EO) mod N`` on which harmonic n of an EO travelling wave lives (module doc)."""
-    return (int(n) * int(engine_order)) % int(n_sectors)
-
-
 def constrain_map(T: sp.spmatrix, low_dofs: np.ndarray, high_dofs: np.ndarray, n_sectors: int,
                   nd: int = 0) -> sp.csr_matrix:
     """Compose an existing constraint map ``u = T w`` with the cyclic constraint of ND ``nd``.

@@ -23,7 +23,7 @@ nonlinear multiharmonic vibrations of bladed discs", J. Turbomach. 126;
 
 The result, :class:`CyclicReducedModel`, is one :class:`ReducedModel` per ND
 (complex M, K, C; real B; the pair data shared) and goes wherever a
-ReducedModel goes: :func:`reduction.condense.relative_coordinates` gives each
+ReducedModel goes: :func:`workflow.engine.condense.relative_coordinates` gives each
 harmonic its ND's condensed dynamic stiffness. Units: SI; ω in rad/s.
 """
 from __future__ import annotations
@@ -39,7 +39,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow.errors import BundleError, SolverError
 from workflow.io import write_npz
 
@@ -161,7 +161,7 @@ class CyclicReducedModel:
 
     def nodal_diameters(self, nh: int) -> list[int]:
         """ND of each harmonic 0…nh, ``(j·EO) mod N``."""
-        from reduction.cyclic import nodal_diameter_of_harmonic
+        from workflow.engine.condense import nodal_diameter_of_harmonic
 
         return [nodal_diameter_of_harmonic(j, self.engine_order, self.n_sectors) for j in range(nh + 1)]
 
@@ -228,7 +228,7 @@ def _kept(n: int, high_dofs: np.ndarray, fixed: np.ndarray) -> np.ndarray:
 
 def nodal_diameters_needed(engine_order: int, n_sectors: int, nh_max: int) -> list[int]:
     """Sorted NDs of harmonics 0…nh_max under engine order EO: ``{(j·EO) mod N}``."""
-    from reduction.cyclic import nodal_diameter_of_harmonic
+    from workflow.engine.condense import nodal_diameter_of_harmonic
 
     return sorted({nodal_diameter_of_harmonic(j, engine_order, n_sectors) for j in range(nh_max + 1)})
 
@@ -251,7 +251,7 @@ def reduce_cyclic(bundle, engine_order: int, nh_max: int, n_modes: int = 30) -> 
     splits it (sector operators, factor, constraint modes, eigen, load
     vectors, projection).
     """
-    from reduction.cyclic import nodal_diameter_of_harmonic
+    from workflow.engine.condense import nodal_diameter_of_harmonic
     from reduction.reduce import boundary_dofs
 
     cy = bundle.cyclic
@@ -340,7 +340,7 @@ def tied_frequencies(bundle, nd: int, count: int) -> np.ndarray:
 
 def reduced_tied_frequencies(model: ReducedModel, count: int) -> np.ndarray:
     """Lowest ``count`` frequencies [Hz] of a (complex) reduced model with u_r = 0."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
 
     rc = relative_coordinates(model)
     r = rc.n_rel

@@ -24,8 +24,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from reduction.condense import rayleigh
-from reduction.reduced import ReducedModel
+from workflow.engine.condense import rayleigh
+from workflow.engine.model import ReducedModel
 
 __all__ = ["with_interface_layer", "with_sampled_layer", "sample_points"]
 

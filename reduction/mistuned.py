@@ -20,7 +20,7 @@ into two bodies that share no stiffness, mass or damping term (:func:`split_bodi
   (``η_k = (a + i c)/√2``). Harmonic j of a mistuned response lives on every ND, which is why
   the disk needs all of them.
 
-The result (:func:`whole_disk`) is one real :class:`~reduction.reduced.ReducedModel` with
+The result (:func:`whole_disk`) is one real :class:`~workflow.engine.model.ReducedModel` with
 coordinates ``[blade 0, …, blade N−1, disk contact DOFs of sectors 0 … N−1, disk modes]``,
 which goes wherever a ReducedModel goes (the engine's HB, sweeps, wear). Its only truncation is
 each substructure's modes, the same kind as the tuned cyclic model's;
@@ -45,7 +45,7 @@ import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
 
 from reduction.cyclic import rotation_x
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow.errors import BundleError
 from workflow.io import write_npz
 
@@ -499,7 +499,7 @@ class _TiedSolve:
 
 class WholeDiskCoordinates:
     """The whole (mistuned) disk condensed onto its relative contact DOFs, substructure by
-    substructure: the :func:`reduction.condense.condense` / :func:`~reduction.condense.recover`
+    substructure: the :func:`workflow.engine.condense.condense` / :func:`~workflow.engine.condense.recover`
     of a :func:`whole_disk` model without forming it (the paper's eq. 3–4 on N × 3p DOFs).
 
     Per harmonic j (Ω = jω): each blade's dynamic stiffness condensed onto its contact DOFs,
@@ -666,10 +666,10 @@ class WholeDiskCoordinates:
         Fr = gb.ravel() - np.einsum("sab,sb->sa", Sb, y.reshape(N, n)).ravel()
         return Zr, Fr, (Ainv, Sb, gb + gd, aux)
 
-    # -- the condense / recover protocol of reduction.condense ------------------------------
+    # -- the condense / recover protocol of workflow.engine.condense ------------------------------
     def condense(self, omega: float, nh: int, derivative: bool = False):
-        """Z_r, F_r of harmonics 0…nh at ω [rad/s] (a :class:`reduction.condense.Condensed`)."""
-        from reduction.condense import Condensed
+        """Z_r, F_r of harmonics 0…nh at ω [rad/s] (a :class:`workflow.engine.condense.Condensed`)."""
+        from workflow.engine.condense import Condensed
 
         if derivative:
             raise NotImplementedError("the whole disk's condensation has no ω-derivative: use grid sweeps")

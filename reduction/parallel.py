@@ -44,7 +44,7 @@ import scipy.sparse as sp
 from reduction.bundle import matrix_rows, pair_labels, read_bundle
 from reduction.craig_bampton import MODE_TOL, SparseFactor, _load_vectors, fixed_interface_modes
 from reduction.reduce import MAX_LOAD_DOFS, boundary_dofs, contact_map
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from reduction.tie import boundary_map, tie_pairs
 from workflow.errors import BundleError, SolverError
 

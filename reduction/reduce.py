@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from reduction.bundle import Bundle, pair_labels
 from reduction.craig_bampton import craig_bampton
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from reduction.tie import boundary_map, tie_pairs
 from workflow.errors import BundleError
 

@@ -14,8 +14,8 @@ reduced mode of the same rank (reduced modes expanded to all DOFs with the
 basis), and for the FRF at the observed DOFs over a band around the first
 tied mode ``max_ω |H_red − H_full| / max_ω |H_full|`` (relative to the
 peak, so that anti-resonances do not dominate). Reduced FRFs go through
-:mod:`reduction.condense` (free: ``Z_r U_r = F_r``; tied: ``U_r = 0``) and
-:func:`~reduction.condense.recover`, i.e. the path the nonlinear solver uses.
+:mod:`workflow.engine.condense` (free: ``Z_r U_r = F_r``; tied: ``U_r = 0``) and
+:func:`~workflow.engine.condense.recover`, i.e. the path the nonlinear solver uses.
 
 Full FRFs: a complex sparse LU per frequency (scipy ``splu``) for small
 models; above ``DIRECT_LIMIT`` DOFs a complex LU per frequency is far too
@@ -40,10 +40,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from reduction.bundle import Bundle
-from reduction.condense import condense, recover, relative_coordinates
+from workflow.engine.condense import condense, recover, relative_coordinates
 from reduction.constraints import constrain, constraint_map
 from reduction.reduce import Basis, reduce_with_basis
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow.errors import SolverError
 
 RIGID_FRACTION = 1e-3  # a mode below this fraction of the highest computed frequency is a rigid-body mode

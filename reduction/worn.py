@@ -108,7 +108,7 @@ def new_and_worn(bundle, worn, n_freq: int, n_modes: int, new_model=None, cyclic
     Returns ``{"new", "worn", "freq_new_hz", "freq_worn_hz", "nodal_diameter"}``
     (``nodal_diameter`` None for a fixed-boundary sector).
     """
-    from reduction.cyclic import nodal_diameter_of_harmonic
+    from workflow.engine.condense import nodal_diameter_of_harmonic
     from reduction.cyclic_reduce import reduce_cyclic, tied_frequencies
     from reduction.modes import frequencies
     from reduction.reduce import reduce_bundle

@@ -350,7 +350,7 @@ def _penalty_line(scene, reduced) -> str:
 
     if reduced is None or not Path(reduced).is_file():
         return f"# DLFT penalties: automatic, {rule}; values once the reduced model exists"
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.engine import contact_law
 
     try:

@@ -6,14 +6,10 @@ CLI prints ``error: <message>`` and exits with status 2. Anything else is a
 bug and keeps its traceback. The engine's errors are defined with the engine
 (:mod:`workflow.engine.errors`), which imports nothing of the application.
 """
-from workflow.engine.errors import BladewearError, BundleError, SceneError, SolverError
+from workflow.engine.errors import BladewearError, BundleError, OutputError, SceneError, SolverError
 
 __all__ = ["BladewearError", "BundleError", "GeometryError", "OutputError", "SceneError", "SolverError"]
 
 
 class GeometryError(BladewearError):
     """Geometry parameters that cannot make a valid sector, or a gmsh failure."""
-
-
-class OutputError(BladewearError):
-    """An output folder that cannot be written (permissions, disk full)."""

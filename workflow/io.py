@@ -1,10 +1,11 @@
 """Atomic writes: a reader sees the previous file or the new one, never half of one.
 
 Everything the project writes (bundles, caches, CSV, figures, summary.json)
-goes through these helpers: write to a temporary name in the same folder,
-fsync, then ``os.replace``. Errors from the operating system (permissions,
-disk full) become :class:`~workflow.errors.OutputError` naming the path, and
-the temporary file is removed.
+goes through these helpers, built on the engine's one primitive
+(:func:`workflow.engine.files.atomic_path`: a temporary name in the same
+folder, fsync, then ``os.replace``). Errors from the operating system
+(permissions, disk full) become :class:`~workflow.errors.OutputError` naming
+the path, and the temporary file is removed.
 """
 from __future__ import annotations
 
@@ -16,43 +17,8 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
+from workflow.engine.files import atomic_path, current_umask, write_npz  # noqa: F401  (write_npz: re-exported for the application)
 from workflow.errors import OutputError
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
-
-    ``suffix`` keeps the extension on the temporary name, for writers that
-    choose their format from it (numpy, matplotlib, gmsh).
-    """
-    path = Path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix if suffix is not None else path.suffix + ".tmp",
-                                   dir=path.parent)
-        os.close(fd)
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from exc
-    tmp = Path(tmp)
-    try:
-        yield tmp
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        # mkstemp creates 0600; give the file the permissions open() would have.
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from exc
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:
@@ -95,15 +61,6 @@ def json_default(obj):
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
-def write_npz(path: str | os.PathLike, **arrays) -> Path:
-    """``numpy.savez`` to ``path`` atomically."""
-    import numpy as np
-
-    with atomic_path(path, suffix=".npz") as tmp:
-        np.savez(tmp, **arrays)
-    return Path(path)
-
-
 @contextlib.contextmanager
 def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     """Yield an empty temporary folder; on success it replaces ``path`` whole.
@@ -115,7 +72,7 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
-        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp creates 0700
+        os.chmod(tmp, 0o777 & ~current_umask())  # mkdtemp creates 0700
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from exc
     try:

@@ -78,6 +78,7 @@ from typing import Iterator
 from workflow import mpi, progress
 from workflow import stages as registry
 from workflow.errors import OutputError, SceneError
+from workflow.engine.files import current_umask
 from workflow.io import atomic_dir, manifest, record_problem, seal_record, verify_manifest, write_json
 from workflow.runlog import RunLog, heartbeat, library_logging
 from workflow.scene import Scene
@@ -590,7 +591,7 @@ def _run_uncached(scene, p: Plan, name, out, products, status, timings, summarie
     tmp = None
     try:
         tmp = Path(tempfile.mkdtemp(prefix=f".{name}.", suffix=".tmp", dir=out))
-        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp creates 0700
+        os.chmod(tmp, 0o777 & ~current_umask())  # mkdtemp creates 0700
         if getattr(module, "NEEDS_ALL", False):
             # What the report shows: the run so far (this stage's own entry excluded).
             write_json(pre, _summary(scene, p, None, status, timings, summaries))
@@ -606,12 +607,6 @@ def _run_uncached(scene, p: Plan, name, out, products, status, timings, summarie
         with contextlib.suppress(OSError):
             pre.unlink()
     return summary, str(tmp)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def _switch(out: Path, folders: dict[str, Path], p: Plan, uncached: dict[str, str], files: dict) -> None:

@@ -97,7 +97,7 @@ def zero_wear(upstream, tmp_path_factory):
 @pytest.mark.slow  # cyclic-frf to its wear stage + 2 remaps (4 ND reductions each): ~45 s
 def test_zero_wear_cyclic_reassembly_has_no_shift_and_the_same_frf(upstream, zero_wear):
     from reduction.cyclic_reduce import CyclicReducedModel
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.stages import remap as stage
     from workflow.stages.reduction import load_model
 

@@ -97,7 +97,7 @@ def test_remap_stage_outputs(upstream, worn_run):
     for f in s["figures"]:
         assert any(f"remap/{f}" in line for line in lines)
     # The worn reduced model is saved for a wear study on the worn geometry.
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
 
     red = ReducedModel.load(tmp_path / s["reduced"])
     np.testing.assert_allclose(np.sort(red.gap), np.sort(0.9 * W), rtol=1e-8)
@@ -161,8 +161,8 @@ def test_zero_wear_reassembly_has_no_frequency_shift(upstream, tmp_path):
 def test_worn_reduced_model_keeps_the_full_worn_tied_frequencies(upstream, worn_run):
     """The worn reduced model's tied frequencies are those of the re-assembled
     full worn model (the freq shift computation) to reduction accuracy."""
-    from reduction.condense import relative_coordinates
-    from reduction.reduced import ReducedModel
+    from workflow.engine.condense import relative_coordinates
+    from workflow.engine.model import ReducedModel
     from workflow.engine.linear import tied_modes
 
     root, scene, _ = upstream
@@ -189,8 +189,8 @@ def test_worn_static_state_is_the_new_one_with_wear_as_gap(upstream, worn_run):
     its static contact state equals the new model's with the wear applied in
     the contact law (gap + W), up to the O(W/h) stiffness change — not with
     the wear counted twice."""
-    from reduction.condense import condense, relative_coordinates
-    from reduction.reduced import ReducedModel
+    from workflow.engine.condense import condense, relative_coordinates
+    from workflow.engine.model import ReducedModel
     from workflow.engine.contact import ContactLaw
     from workflow.engine import contact_law, static_state
     from workflow.engine.linear import first_excited_mode

@@ -17,7 +17,7 @@ import lattice
 from reduction.bundle import Bundle, Contact, Loads, check_definite, read_bundle, tied_map, write_bundle
 from reduction.craig_bampton import SparseFactor, fixed_interface_modes
 from reduction.reduce import reduce_bundle
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow.errors import BundleError, SolverError
 
 

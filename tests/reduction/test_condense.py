@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from reduction.condense import condense, recover, relative_coordinates
-from reduction.reduced import ReducedModel
+from workflow.engine.condense import condense, recover, relative_coordinates
+from workflow.engine.model import ReducedModel
 
 
 def _random_model(m=12, p=2, seed=0, floating=False):
@@ -81,8 +81,8 @@ def test_floating_body_static_condensation_is_finite():
 def test_every_coordinate_a_contact_dof_needs_no_condensation():
     """Den Hartog's oscillator as a bundle: u_r is the whole model, so Zr = D_j and
     Fr = f_j exactly (LAPACK used to refuse the empty interior factorisation)."""
-    from reduction.condense import condense, recover, relative_coordinates
-    from reduction.reduced import ReducedModel
+    from workflow.engine.condense import condense, recover, relative_coordinates
+    from workflow.engine.model import ReducedModel
 
     M, K, C = np.eye(3), np.diag([2.0, 1.0, 1.0]), 0.1 * np.eye(3)
     m = ReducedModel(M=M, K=K, C=C, B=np.eye(3), f_static=np.array([-0.5, 0, 0.0]), f_harmonic=np.array([0, 1.0, 0]),
@@ -99,7 +99,7 @@ def test_every_coordinate_a_contact_dof_needs_no_condensation():
 
 def _both_paths(monkeypatch, rc, omega, nh, Ur=None):
     """(modal, LU) condensations of ``rc`` at ω, with derivatives, and their recoveries of Ur."""
-    import reduction.condense as cd
+    import workflow.engine.condense as cd
 
     out = []
     for modal in (True, False):
@@ -121,7 +121,7 @@ def test_the_tied_basis_condenses_a_reduced_sector_as_the_lu_does(rotating_bundl
     it, so the condensation goes through the tied modes; Z_r, F_r, their ω-derivatives and the
     recovered response equal the LU path's statically, at the first tied frequency (the worst
     conditioned: 4e-13 measured on the 512-pair sector) and at three times it."""
-    import reduction.condense as cd
+    import workflow.engine.condense as cd
     from reduction.reduce import reduce_bundle
 
     bundle, summary, _ = rotating_bundle
@@ -146,7 +146,7 @@ def test_the_tied_basis_condenses_a_reduced_sector_as_the_lu_does(rotating_bundl
 def test_a_damping_that_is_not_rayleigh_keeps_the_lu():
     """A C that is not αM + βK cannot be diagonalised with K and M: no tied modes, and the
     condensation is eq. 3 as before (the random model's regular-D check)."""
-    import reduction.condense as cd
+    import workflow.engine.condense as cd
 
     model = _random_model(seed=4)
     rng = np.random.default_rng(1)
@@ -165,7 +165,7 @@ def test_a_damping_that_is_not_rayleigh_keeps_the_lu():
 def test_the_tied_frequencies_come_from_the_condensations_basis(rotating_bundle, monkeypatch):
     """`workflow.engine.linear.tied_modes` reads the tied basis instead of solving the same
     eigenproblem again: the same frequencies and modal responses as its own eigh(K_yy, M_yy)."""
-    import reduction.condense as cd
+    import workflow.engine.condense as cd
     from reduction.reduce import reduce_bundle
     from workflow.engine.linear import tied_modes
 
@@ -181,13 +181,13 @@ def test_the_tied_frequencies_come_from_the_condensations_basis(rotating_bundle,
 @pytest.mark.parametrize("split", [10.0, pytest.param(3.0, marks=pytest.mark.slow)])  # the lower split in make test-slow
 def test_the_high_modes_series_condenses_as_the_rank_update_and_the_lu_do(rotating_bundle, monkeypatch, split):
     """Tied modes far above the excitation enter Z_r through their power series in
-    (b/a)·μ (reduction.condense.HighModeSeries): Z_r, F_r and their ω-derivatives equal the
+    (b/a)·μ (workflow.engine.condense.HighModeSeries): Z_r, F_r and their ω-derivatives equal the
     rank update over every mode to round-off, and the LU path as closely as that does. This
     small sector's tied modes span only 58× its first tied frequency (the 512-pair sector's
     1.7e4×), so the split is lowered to 10× and 3× and the series lengthened to 40 terms: at
     10× it serves every harmonic up to 6× the first tied frequency; those beyond its remainder
     bound (9× at a split of 10×, 3× at 3×) take the full rank update."""
-    import reduction.condense as cd
+    import workflow.engine.condense as cd
     from reduction.reduce import reduce_bundle
 
     bundle, summary, _ = rotating_bundle
@@ -226,10 +226,10 @@ def test_the_high_modes_series_condenses_as_the_rank_update_and_the_lu_do(rotati
 
 def test_all_harmonics_at_once_equal_the_condensation_harmonic_by_harmonic(rotating_bundle, monkeypatch):
     """Where every harmonic takes the high-mode series, `condense` forms Z_r of all of them in one
-    product with the series' stack (reduction.condense._condense_all): the same Z_r and F_r as
+    product with the series' stack (workflow.engine.condense._condense_all): the same Z_r and F_r as
     harmonic by harmonic (the derivative path, which keeps that loop) and as the LU. Where a
     harmonic is beyond the series (3 w1 here: harmonic 3 at 9 w1), the loop serves them all."""
-    import reduction.condense as cd
+    import workflow.engine.condense as cd
     from reduction.reduce import reduce_bundle
 
     bundle, summary, _ = rotating_bundle
@@ -257,7 +257,7 @@ def test_the_diagonals_equal_those_of_the_condensed_stiffness(rotating_bundle):
     """`diagonal` (the automatic penalty's sampling of 33 harmonics) sums the tied modes per
     contact DOF instead of forming Z_r; a model without a tied basis (damping not Rayleigh)
     takes the diagonals of `condense`."""
-    import reduction.condense as cd
+    import workflow.engine.condense as cd
     from reduction.reduce import reduce_bundle
 
     bundle, summary, _ = rotating_bundle
@@ -280,8 +280,8 @@ def test_the_recovery_map_is_the_recovery_column_by_column(rotating_bundle, monk
     at the first tied frequency and above, harmonics 0–2. Both are the same sums in another
     order: round-off (1e-10 of the largest entry, as the tied basis against the LU above). Where
     recover takes the LU path, there is no map to form."""
-    import reduction.condense as cd
-    from reduction.condense import recover_map
+    import workflow.engine.condense as cd
+    from workflow.engine.condense import recover_map
     from reduction.reduce import reduce_bundle
 
     bundle, summary, _ = rotating_bundle
@@ -312,7 +312,7 @@ def test_the_blockwise_coordinates_condense_as_the_dense_qr_does(rotating_bundle
     basis against the LU above)."""
     import scipy.sparse as sp
 
-    import reduction.condense as cd
+    import workflow.engine.condense as cd
     from reduction.reduce import reduce_bundle
 
     bundle, summary, _ = rotating_bundle

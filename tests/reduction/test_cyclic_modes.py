@@ -21,7 +21,7 @@ class _Log:
 
 
 def test_fold_nd_and_the_nd_of_an_engine_order():
-    from reduction.cyclic import nodal_diameter_of_harmonic
+    from workflow.engine.condense import nodal_diameter_of_harmonic
     from reduction.cyclic_modes import fold_nd, nodal_diameters
 
     N = 47

@@ -4,9 +4,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from reduction.condense import condense, recover, relative_coordinates
+from workflow.engine.condense import condense, recover, relative_coordinates
 from reduction.layer import layer_stiffness, with_interface_layer
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow.engine.contact import ContactLaw
 from workflow.engine.hb import HBProblem
 

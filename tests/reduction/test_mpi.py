@@ -94,7 +94,7 @@ def runs(tmp_path_factory):
 
 
 def _reduced(folder):
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
 
     return ReducedModel.load(Path(folder) / "reduction" / "reduced.npz")
 
@@ -171,7 +171,7 @@ def test_sweeps_spread_over_two_ranks_equal_serial(runs):
 @pytest.mark.slow  # the two-rank pipeline runs (~20 s for the module's runs): make test-slow, with the MPI quick scene
 def test_serial_bundle_reduced_on_two_ranks(runs, tmp_path):
     """Same bundle, 1 vs 2 ranks: the reduced model agrees block by block (modal block up to signs)."""
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
 
     serial, _ = runs
     out = tmp_path / "r2.npz"
@@ -241,7 +241,7 @@ def test_tied_midside_dofs_reduced_on_two_ranks(tmp_path):
     """A linear contact surface (three midside DOFs tied to every vertex DOF): the two-rank reduction
     solves the kept DOFs' constraint modes with the tied ones following, as the serial one does —
     the same model block by block, its boundary DOFs the kept ones."""
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
 
     scene = tmp_path / "scene.toml"
     scene.write_text(SCENE.replace('outputs = ["reduced", "modes", "frf"]', 'outputs = ["reduced"]')

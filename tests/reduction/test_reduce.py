@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 import lattice
-from reduction.condense import condense, recover, relative_coordinates
+from workflow.engine.condense import condense, recover, relative_coordinates
 from reduction.reduce import reduce_bundle, reduce_with_basis
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 
 
 @pytest.fixture(scope="module", params=[0, 2], ids=["paired", "grounded"])

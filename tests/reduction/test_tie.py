@@ -74,7 +74,7 @@ def _constrained_by_hand(b):
 @pytest.mark.slow  # 4–6 s: make test-slow, to keep make test within 3 minutes on 2 cores
 def test_eliminating_ties_after_craig_bampton_is_the_reduction_of_the_constrained_model(linear_bundle):
     """Same fixed-interface modes, constraint modes Ψ_a + ½ΣΨ_dep: equal reduced models to round-off."""
-    from reduction.condense import condense, relative_coordinates
+    from workflow.engine.condense import condense, relative_coordinates
 
     a = reduce_bundle(linear_bundle, 12)
     b = reduce_bundle(_constrained_by_hand(linear_bundle), 12)

@@ -30,7 +30,7 @@ import scipy.sparse as sp
 
 from reduction.bundle import Bundle, Contact, Cyclic, Loads
 from reduction.cyclic import rotation_x
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 
 NODES = 8
 #: (node a, node b or −1 for ground, stiffness scale)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 def quick_reduced(tmp: Path):
     """``bladewear run quick`` up to the reduction (≈ 10 s) in ``tmp``; the ReducedModel."""
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
 
     out = Path(tmp) / "quick"
     r = subprocess.run([str(Path(sys.executable).parent / "bladewear"), "run", "quick", "--out", str(out),

@@ -181,7 +181,7 @@ def test_disk_full_inside_stage_write(tmp_path, capsys, fakes, monkeypatch):
 
 
 def test_truncated_reduced_model_is_bundle_error(tmp_path):
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.engine.studies import extreme as X
     from workflow.errors import BundleError
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reduction.condense import condense, relative_coordinates
+from workflow.engine.condense import condense, relative_coordinates
 from test_hb_stage import blade_chain
 from workflow import engine
 from workflow.engine import cascade, penalty

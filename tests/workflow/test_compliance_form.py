@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from cyclicmodels import sector_bundle
-from reduction.condense import condense, relative_coordinates
+from workflow.engine.condense import condense, relative_coordinates
 from reduction.mistuned import WholeDiskCoordinates, cyclic_model, substructures
 from workflow import engine
 from workflow.engine import fourier

@@ -51,7 +51,7 @@ def test_cyclic_sector_gets_the_layer_on_every_nodal_diameter():
     import numpy as np
 
     from cyclicmodels import sector_bundle
-    from reduction.condense import condense, relative_coordinates
+    from workflow.engine.condense import condense, relative_coordinates
     from reduction.cyclic_reduce import reduce_cyclic
     from reduction.layer import layer_stiffness, with_interface_layer
 

@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from cyclicmodels import full_disk, sector_bundle
-from reduction.condense import recover, relative_coordinates
+from workflow.engine.condense import recover, relative_coordinates
 from reduction.cyclic import rotation_x
 from reduction.cyclic_reduce import reduce_cyclic
 from workflow import engine
@@ -122,7 +122,7 @@ def test_aliased_harmonics_use_their_own_nodal_diameter():
     rc = relative_coordinates(cyc)
     assert sorted(cyc.models) == [0, 1, 3]
     assert rc.harmonic(2) is rc.by_nd[1] and rc.harmonic(1) is rc.by_nd[3]
-    from reduction.condense import condense
+    from workflow.engine.condense import condense
     c = condense(rc, 3.0, 2)
     assert not np.allclose(c.Zr[2], c.Zr[2].T)        # Hermitian-based, not complex symmetric
     with pytest.raises(Exception, match="no nodal diameter 4"):

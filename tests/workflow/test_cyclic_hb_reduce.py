@@ -8,7 +8,7 @@ import pytest
 import scipy.linalg as sla
 
 from cyclicmodels import sector_bundle
-from reduction.condense import condense, recover, relative_coordinates
+from workflow.engine.condense import condense, recover, relative_coordinates
 from reduction.cyclic_reduce import (CyclicReducedModel, reduce_cyclic, reduced_tied_frequencies, sector_matrices,
                                      tied_frequencies)
 from reduction.reduce import contact_map

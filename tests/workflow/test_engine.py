@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow import engine
 from workflow.engine import penalty, studies
 from workflow.errors import BundleError, SceneError
@@ -124,7 +124,7 @@ def test_automatic_penalty_is_the_stiffness_of_the_unresolved_harmonics():
     law = engine.contact_law(model, mu=spec.mu)
     kd = spec.pads.k
     assert np.allclose(law.eps_t, kd, rtol=0.12), (law.eps_t, kd)
-    from reduction.condense import condense, relative_coordinates
+    from workflow.engine.condense import condense, relative_coordinates
 
     static = penalty.reference_stiffness(np.real(condense(relative_coordinates(model), 0.0, 0).Zr[0]))
     # the static stiffness (k_d in series with the cantilever) is further from k_d on every pad
@@ -164,7 +164,7 @@ def test_frf_reports_its_convergence_in_nh():
 def test_reference_check_takes_the_nh_and_eps_trials_from_the_checks():
     """The reference's own Nh and ε trials are the Nh-check's and ε-check's re-solves of the
     reference: taken from them, they equal a fresh re-solve (and the nit trial is made)."""
-    from reduction.condense import condense, relative_coordinates
+    from workflow.engine.condense import condense, relative_coordinates
     from workflow.engine.studies import epscheck
 
     model = oscillator(c=0.2)
@@ -233,7 +233,7 @@ def test_a_band_too_big_to_keep_is_condensed_point_by_point_with_the_same_sweeps
     condensations are held, and their time is reported apart from the sweeps'."""
     from workflow.engine.studies import extreme as X
     from workflow.engine import linear
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
 
     model = X.synthetic_model(3)
     law = engine.contact_law(model, mu=0.3)

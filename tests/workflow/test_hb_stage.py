@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow.errors import SceneError, SolverError
 from workflow.engine import variants
 from workflow.params import HB, Contact, Excitation, PseudoTime, Sweep

@@ -131,7 +131,7 @@ def test_structured_equals_dense_on_the_quick_sector(tmp_path, monkeypatch):
     structured Newton equal the dense ones within the solver tolerance."""
     import numpy as np
 
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.engine import FRFOptions, Variant, cascade, contact_law, frf
     from workflow.scene import load_scene
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from cyclicmodels import full_disk, sector_bundle
-from reduction.condense import condense, recover, relative_coordinates
+from workflow.engine.condense import condense, recover, relative_coordinates
 from reduction.mistuned import Substructures, WholeDiskCoordinates, cyclic_model, substructures, whole_disk
 from workflow import engine
 from workflow.engine.studies import bladepeak

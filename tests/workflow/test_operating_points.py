@@ -31,7 +31,7 @@ def pad_model():
     """ReducedModel, q = [x, (n, t1, t2) of pad B, of pad C]: the mass (observed) and two
     massless contact nodes, each with k_t to the mass (t1), k_t grounded (t2, unloaded) and a
     grounded normal spring k_n under the static load −N₀."""
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
 
     kt = 0.1 * K
     size = 1 + 3 * len(LOADS)

@@ -9,7 +9,7 @@ def test_refined_peak_of_a_damped_oscillator_is_the_closed_form_one():
     """μ = 0 leaves m ẍ + c ẋ + k x = F cos ωt: |X| = F / √((k − mω²)² + (cω)²) peaks at
     ω_n √(1 − 2ζ²) with F / (2ζ k √(1 − ζ²)). A 7-point grid of 0.4 Hz steps misses it by 0.2 Hz;
     the bounded search between the grid neighbours finds it."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow import engine
     from workflow.engine.studies.peak import refine_peak
     from workflow.verification import models
@@ -63,7 +63,7 @@ OSC = (1.0, 10.0, 0.02, 1.0)
 def _search(monkeypatch, patch: dict):
     """The peak search on the damped oscillator's 7-point grid (μ = 0), after ``patch``
     ({(object, attribute): value}, through ``monkeypatch``): (Peak, points of the grid)."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow import engine
     from workflow.engine.studies.peak import refine_peak
     from workflow.verification import models

@@ -67,7 +67,7 @@ def _jenkins(cN=0.0, mu=0.5, N0=0.3):
 
 
 def _engine_point(model, law, omega, nh=15, nit=128):
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
 
     rc = relative_coordinates(model)
     c = condensed(rc, omega, nh)
@@ -316,7 +316,7 @@ def test_quick_sector_is_stable_around_resonance(tmp_path):
     2026-11-28: the integration of the smoothly varying tangent; bound 1e-3) — on a Ritz basis of
     the stuck and sliding modes below 6ω."""
     from quickmodel import quick_reduced
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
 
     model = quick_reduced(tmp_path)
     law = engine.contact_law(model, mu=0.5)

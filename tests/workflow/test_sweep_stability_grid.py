@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from reduction.condense import relative_coordinates
+from workflow.engine.condense import relative_coordinates
 from workflow import engine
 from workflow.engine.linear import CondensedGrid
 from workflow.engine.studies.sweepstability import sweep_stability

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow import engine
 from workflow.engine.timecheck import TimeCheckOptions, integrator_error, time_check
 

@@ -374,7 +374,7 @@ def test_a_point_lost_upwards_is_found_downwards_from_its_upper_neighbour(monkey
     monkeypatch.setattr(solvers, "STALL_LM_STEPS", 10 ** 9)
     # the scenario as measured, with the LU condensation: through the tied modes Zr differs in
     # round-off (the oscillator's one interior DOF) and Powell finds the point on the way up
-    import reduction.condense as cd
+    import workflow.engine.condense as cd
 
     monkeypatch.setattr(cd, "TIED_BASIS", False)
     run = sweep()

@@ -356,7 +356,7 @@ def test_implicit_reference_agrees_with_explicit():
 
 
 def _reduced_block_model():
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from wearmodels import block_model
 
     m = block_model()

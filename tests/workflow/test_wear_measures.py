@@ -104,7 +104,7 @@ def test_detuning_wears_at_the_friction_damped_peak():
     from workflow.engine import WearOptions, solve_point, worn_steady_state
     from workflow.engine.hb import HBProblem
     from workflow.engine.linear import condensed
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine.studies.frf import observed
 
     m, law = _block()

@@ -60,7 +60,7 @@ def run_flags(study) -> tuple[bool, list[str]]:
 
 def sweep_rows(ratio: float, zeta: float, nh: int, nit: int, betas, refs: dict, floor: dict, log=print) -> tuple:
     """Rows of one sweep and its summary {"seconds", "branch_seconds", checks}."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow import engine
     from workflow.engine import penalty
     from workflow.engine.linear import condensed

@@ -3,11 +3,11 @@ update, and the tied basis with its high modes summed as a series.
 
 ``python -m workflow.bench.condense REDUCED.npz [REDUCED.npz ...] [--nh 7] [--out DIR]``
 
-For each reduced model and path (``lu``: :data:`reduction.condense.TIED_BASIS` off;
+For each reduced model and path (``lu``: :data:`workflow.engine.condense.TIED_BASIS` off;
 ``tied_basis``: on, the rank update over every mode; ``series``: on, with
-:class:`reduction.condense.HighModeSeries`): seconds to make its basis (and series) once,
+:class:`workflow.engine.condense.HighModeSeries`): seconds to make its basis (and series) once,
 seconds per frequency of condensing harmonics 0…Nh (best of 200, 212 and 224 Hz) without
-and with the ω-derivatives, and of one :func:`reduction.condense.recover`; and the largest
+and with the ω-derivatives, and of one :func:`workflow.engine.condense.recover`; and the largest
 relative difference of Z_r and dZ_r/dω of each tied path from the LU's (per harmonic, over its
 largest entry). Wall times of this process with the BLAS threads it is given. Writes
 ``condense.jsonl`` (one line a model).
@@ -23,8 +23,8 @@ import numpy as np
 
 
 def compare(path: Path, nh: int = 7, freqs_hz=(200.0, 212.0, 224.0)) -> dict:
-    import reduction.condense as cd
-    from reduction.reduced import ReducedModel
+    import workflow.engine.condense as cd
+    from workflow.engine.model import ReducedModel
 
     model = ReducedModel.load(path)
     row, Z = {"pairs": int(model.n_pairs), "nh": nh}, {}

@@ -66,7 +66,7 @@ def crown_gap(model, delta: float) -> np.ndarray:
 
 def model_of(scene, grid: tuple[int, int], keep: Path | None):
     """The reduced model of ``grid``, built by the stage's :func:`build_model` (or read from ``keep``)."""
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.stages.contact_convergence import build_model
 
     g = scene["geometry"].flank_grading
@@ -107,7 +107,7 @@ def saved_worn(path: Path, model) -> np.ndarray:
 def static_contact(model, scene, W=None) -> list[dict]:
     """Per flank: :func:`workflow.engine.studies.meshstudy.flank_bearing` under the scene's law
     (penalty per unit area), with the worn depth W (p,) [m] in the gap when given."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine.studies.meshstudy import flank_bearing
     from workflow.engine.studies.wearstudy import build_problem
     from workflow.stages.contact_convergence import _law

@@ -25,7 +25,7 @@ from pathlib import Path
 def main(argv=None) -> int:
     import numpy as np
 
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from reduction.cyclic_reduce import nodal_diameters_needed
     from reduction.mistuned import WholeDiskCoordinates, cyclic_model
     from workflow import engine

@@ -41,7 +41,7 @@ def direct_peak(model, law, nh: int, nit: int, band_hz, points: int = 21) -> dic
 def bench(path: Path, *, mu: float, nh: int, nit: int, forces, amplitudes, max_steps: int) -> dict:
     from dataclasses import replace
 
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow import engine
     from workflow.engine.studies import nlmodes
 

@@ -34,7 +34,7 @@ import numpy as np
 
 
 def jenkins_rows() -> list:
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow import engine
     from workflow.engine import stability
     from workflow.engine.hb import HBProblem
@@ -74,8 +74,8 @@ def jenkins_rows() -> list:
 
 
 def sector_rows(path: Path, points: int, label: str, full: bool = True, nit: int | None = None) -> list:
-    from reduction.condense import relative_coordinates
-    from reduction.reduced import ReducedModel
+    from workflow.engine.condense import relative_coordinates
+    from workflow.engine.model import ReducedModel
     from workflow import engine
     from workflow.engine import penalty, stability
     from workflow.engine.hb import HBProblem
@@ -119,8 +119,8 @@ def sector_rows(path: Path, points: int, label: str, full: bool = True, nit: int
 
 def frf_rows(path: Path, points: int, compare: bool = False) -> list:
     """The sweep and its stability on the model at ``path``, timed in one run (module docstring, 4)."""
-    from reduction.condense import relative_coordinates
-    from reduction.reduced import ReducedModel
+    from workflow.engine.condense import relative_coordinates
+    from workflow.engine.model import ReducedModel
     from workflow import engine
     from workflow.engine.hb import HBProblem
     from workflow.engine.linear import CondensedGrid, condensed

@@ -51,7 +51,7 @@ import numpy as np
 
 def peak_state(model, law, study, variant):
     """The study's refined peak again, with its harmonics (:class:`~workflow.engine.studies.peak.Peak`)."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine import FRFOptions, penalty
     from workflow.engine.linear import condensed
     from workflow.engine.studies.peak import refine_peak
@@ -66,7 +66,7 @@ def peak_state(model, law, study, variant):
 
 
 def bench(path: Path, *, mu: float, nh: int, nit: int, points: int, steps: list) -> list:
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow import engine
     from workflow.engine.blas import blas_threads
     from workflow.engine.timecheck import TimeCheckOptions, time_check

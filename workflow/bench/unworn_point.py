@@ -48,7 +48,7 @@ def measure(hb, repeat: int, threads: int, eps_path=()) -> dict:
 
 
 def main(argv=None) -> int:
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.bench import run_to
     from workflow.io import write_json
     from workflow.engine import penalty

@@ -72,7 +72,7 @@ def worker(reduced: Path, method: str, nh: int, nit: int, solver: str, points: i
     ``linear``: "auto" (the cascade's switch), or "dense"/"structured" forced."""
     import numpy as np
 
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.engine import FRFOptions, Variant, cascade, contact_law, frf
     from workflow.engine.blas import blas_threads
 

@@ -18,12 +18,15 @@ on a user's bundle; ``docs/architecture.md`` shows where everything lives):
 * :func:`hill_stability` (model, hb, x, ω) → :class:`~workflow.engine.stability.Stability`:
   the Floquet multipliers of a periodic HB solution.
 
-Everything takes a :class:`reduction.reduced.ReducedModel` (the seam with the
-finite-element half) and returns arrays and result objects; nothing here
-reads a scene or writes a file.
+Everything takes a :class:`ReducedModel` (:mod:`workflow.engine.model`, the
+seam with the finite-element half; :mod:`workflow.engine.condense` condenses it
+onto the relative contact coordinates) and returns arrays and result objects;
+nothing here reads a scene, and the only file it writes is a model's own
+(:meth:`ReducedModel.save`). The engine imports nothing of the application.
 """
 from workflow.engine import penalty
 from workflow.engine.cascade import PointResult, solve_point
+from workflow.engine.model import ReducedModel
 from workflow.engine.studies.frf import SweepResult
 from workflow.engine.studies.study import FRFOptions, FRFStudy, contact_law, frf, static_state
 from workflow.engine.studies.variants import Variant, variants
@@ -31,6 +34,6 @@ from workflow.engine.studies.wearstudy import WearOptions, WearStudy, worn_stead
 from workflow.engine.studies.nlmodes import backbone, synthesize
 from workflow.engine.stability import hill_stability
 
-__all__ = ["FRFOptions", "FRFStudy", "PointResult", "SweepResult", "Variant", "contact_law", "frf",
+__all__ = ["FRFOptions", "FRFStudy", "PointResult", "ReducedModel", "SweepResult", "Variant", "contact_law", "frf",
            "WearOptions", "WearStudy", "backbone", "hill_stability", "penalty", "solve_point", "static_state",
            "synthesize", "variants", "worn_steady_state"]

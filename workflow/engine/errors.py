@@ -2,7 +2,7 @@
 
 Every error a user can cause (a bad option or bundle, a solver that cannot
 converge) is a :class:`BladewearError`; the application adds its own
-(geometry, output) in :mod:`workflow.errors`. Anything else is a bug and
+(geometry) in :mod:`workflow.errors`. Anything else is a bug and
 keeps its traceback.
 """
 
@@ -21,3 +21,7 @@ class BundleError(BladewearError):
 
 class SolverError(BladewearError):
     """A solver that diverged or stalled; the message carries the diagnosis."""
+
+
+class OutputError(BladewearError):
+    """An output file or folder that cannot be written (permissions, disk full)."""

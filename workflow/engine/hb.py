@@ -58,7 +58,7 @@ METHODS = ("hbm", "tcm", "hdhb")
 
 def condensed_form(c) -> dict:
     """The :class:`HBProblem` keywords of a condensation's form (``compliance``, ``stiffness``:
-    :class:`reduction.condense.Condensed`): none for the stiffness form."""
+    :class:`workflow.engine.condense.Condensed`): none for the stiffness form."""
     if getattr(c, "compliance", False):
         return {"compliance": True, "stiffness": c.stiffness}
     return {}

@@ -17,12 +17,12 @@ from workflow.engine.errors import BundleError, SceneError
 
 
 def condensed(rc, omega: float, nh: int, **kw):
-    """:func:`reduction.condense.condense` of ``rc`` at ``omega`` (rad/s), harmonics 0…``nh``,
+    """:func:`workflow.engine.condense.condense` of ``rc`` at ``omega`` (rad/s), harmonics 0…``nh``,
     on every core for a large interface (:func:`workflow.engine.blas.large_blas`): the engine
     runs its sweeps on one BLAS thread (small dense systems), and the condensation inside
     them — the ε-, Nh- and reference checks, the peak search, the frequency steps — took it
     along. 512 pairs, Nh = 7: 3.0 → 1.8–2.0 s a frequency, with dZr/dω 16.2 → 8.7 s."""
-    from reduction.condense import condense
+    from workflow.engine.condense import condense
     from workflow.engine.blas import large_blas
 
     with large_blas(int(rc.n_rel)):
@@ -100,7 +100,7 @@ def tied_modes(rc) -> tuple[np.ndarray, np.ndarray]:
     each mode's modal response at the observed DOFs to the harmonic load,
     ``‖O φ‖ |φᴴ f| / ω²`` (m), normalised so the largest is 1. K, M may be
     complex Hermitian (a cyclic ND's sector model: harmonic 1's ND)."""
-    from reduction.condense import RelativeCoordinates, tied_basis
+    from workflow.engine.condense import RelativeCoordinates, tied_basis
 
     r = rc.n_rel
     tb = tied_basis(rc) if isinstance(rc, RelativeCoordinates) else None
@@ -180,7 +180,7 @@ def _held(static) -> tuple[np.ndarray, np.ndarray]:
 def _held_response(rc, c, held: np.ndarray) -> float:
     """First-harmonic observed amplitude (m) at ``c.omega`` with the relative DOFs ``held`` at 0
     and the others force-free; inf where that system is singular."""
-    from reduction.condense import recover
+    from workflow.engine.condense import recover
 
     free = ~held
     z = np.zeros((2, held.size), complex)
@@ -199,7 +199,7 @@ def linear_frfs(rc, cond: list, static) -> tuple[np.ndarray, np.ndarray, np.ndar
     separated pairs too. ``inf`` where the linear system is singular (an undamped resonance on
     a grid point).
     """
-    from reduction.condense import recover
+    from workflow.engine.condense import recover
 
     normal, closed = _held(static)
     tied, slide, stuck = [], [], []

@@ -109,7 +109,7 @@ def unresolved_stiffness(rc, omega: float, harmonics: int = HARMONICS) -> np.nda
     of a study (on the dovetail the stiffness is flat in h). A cyclic model is
     sampled on the excitation's nodal diameter. The median ignores the few h that
     sit on a resonance of the structure with the interface free."""
-    from reduction.condense import diagonal
+    from workflow.engine.condense import diagonal
     from workflow.engine.blas import large_blas
 
     base = rc.harmonic(1) if hasattr(rc, "by_nd") else rc

@@ -4,7 +4,7 @@ The question: is the HB state at one frequency a periodic orbit of the time-doma
 claims to solve? A spurious HB root (an alias of the truncation, a wrong branch) is not, and
 the time-domain motion started from it goes elsewhere; a right one is, to the HB's truncation
 error. The engine's HB and DLFT code is not used (no ``HBProblem``, no ``dlft_pass``); only the
-reduced model, the law's μ, gap and wear, and :func:`reduction.condense.recover` to expand the
+reduced model, the law's μ, gap and wear, and :func:`workflow.engine.condense.recover` to expand the
 HB's relative harmonics to every coordinate.
 
 What is integrated
@@ -253,9 +253,9 @@ def prewarp(rho_inf: float, h: float, omega: float) -> tuple[float, float, float
 
 def q_harmonics(model, omega: float, Ur: np.ndarray, rc=None) -> np.ndarray:
     """Complex harmonics (Nh+1, m) of the reduced coordinates q from the relative ones ``Ur``
-    (Nh+1, 3p) at ω [rad/s]: :func:`reduction.condense.recover` with every coordinate observed
+    (Nh+1, 3p) at ω [rad/s]: :func:`workflow.engine.condense.recover` with every coordinate observed
     (``O = T``: the tied remainder solved per harmonic, docs/contracts.md §5)."""
-    from reduction.condense import coordinate_basis, recover, relative_coordinates
+    from workflow.engine.condense import coordinate_basis, recover, relative_coordinates
 
     rc = relative_coordinates(model) if rc is None else rc
     T = coordinate_basis(model)
@@ -286,7 +286,7 @@ def slow_decay(model, omega: float, rc=None) -> float:
     the modal projection of C): friction and separation only add damping. 0.0125 at the quick
     sector's peak (ζ = 0.2 % at 212.6 Hz). Where nothing moves once tied (a contact on a bare
     mass: Den Hartog's oscillator), the model's own modes of non-zero frequency instead."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
 
     rc = relative_coordinates(model) if rc is None else rc
     r = rc.n_rel
@@ -555,7 +555,7 @@ def time_check(model, law, omega: float, Ur, *, nh_change: float | None = None,
     """Integrate ``model`` under ``law``'s contact in time from the HB state ``Ur`` at ω [rad/s]
     and judge whether that state is a periodic orbit (module docstring).
 
-    ``model``: the :class:`~reduction.reduced.ReducedModel` the HB solved; ``law``: its
+    ``model``: the :class:`~workflow.engine.model.ReducedModel` the HB solved; ``law``: its
     :class:`~workflow.engine.contact.ContactLaw` (μ, gap and wear are read; ε only by a
     compliant ``stiffening``); ``Ur``: complex relative harmonics (Nh+1, 3p) of the HB solution
     (``Peak.Ur``, ``SweepResult.Ur[i]``); ``nh_change``: the Nh-check's relative change at this
@@ -586,7 +586,7 @@ def time_check(model, law, omega: float, Ur, *, nh_change: float | None = None,
         return done(f"HB harmonics of shape {Ur.shape} (expected (Nh+1 ≥ 2, {3 * p}), finite)")
     if opt.steps_per_period < 16 or opt.max_periods < 1:
         return done("options: at least 16 steps a period and 1 period")
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
 
     rc = relative_coordinates(model) if rc is None else rc
     try:
@@ -673,7 +673,7 @@ class _Start:
         self.x_scale = float(np.max(np.sqrt(_mass_norm(M, omega * qt) ** 2 + _mass_norm(M, vt) ** 2))) or 1.0
         # the contact model: rigid, or a compliant penalty for comparison
         if np.isfinite(opt.stiffening) and opt.stiffening > 0:
-            from reduction.condense import condense
+            from workflow.engine.condense import condense
 
             k = penalty.reference_stiffness(np.real(condense(rc, 0.0, 0).Zr[0]))
             en = np.maximum(law.eps_n, opt.stiffening * k[:, 0])

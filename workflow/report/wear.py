@@ -123,7 +123,7 @@ def plot_wear(out: Path, histories: dict, *, tip_before=None, tip_after=None, tr
 def tip_cycles(study) -> tuple:
     """Tip displacement over one cycle (m) before wear and, per method, at the
     worn steady state — from a :class:`~workflow.engine.WearStudy` (Fig. 10)."""
-    from reduction.condense import recover
+    from workflow.engine.condense import recover
     from workflow.engine.wear import tip_cycle
 
     rc, hb, w = study.rc, study.hb, study.omega

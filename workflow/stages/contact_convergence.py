@@ -60,7 +60,7 @@ def _law(model, contact, cc, rc):
 def _friction_peak(model, contact, hb, cc) -> dict:
     """:func:`workflow.engine.studies.meshstudy.friction_peak` with HBM at Nh = ``cc.harmonics``,
     nit = ``cc.time_samples`` and the scene's solver."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine import Variant
     from workflow.engine.studies.meshstudy import friction_peak
 
@@ -73,7 +73,7 @@ def _friction_peak(model, contact, hb, cc) -> dict:
 
 def _static_gaps(model, contact, vertex: np.ndarray) -> dict:
     """:func:`workflow.engine.studies.meshstudy.static_gaps` under the scene's contact law (engine penalty)."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine.studies.meshstudy import static_gaps
 
     rc = relative_coordinates(model)
@@ -91,7 +91,7 @@ def wear_setup(model, scene, cc):
     contact, wear and pseudotime sections, pseudo-time only, HBM with the stage's wear Nh
     (``cc.wear_harmonics``, else ``cc.harmonics``) and nit, at the tip force
     ``cc.wear_amplitude`` when it is set."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.stages.wear import options
 
     sc = {"wear": scene["wear"], "contact": scene["contact"], "pseudotime": scene["pseudotime"],

@@ -1,6 +1,6 @@
 """Extreme stage: the stiff/extreme-case matrix of :mod:`workflow.engine.studies.extreme` on the reduced model.
 
-Reads ``<reduced>/reduced.npz`` (a :class:`reduction.reduced.ReducedModel`),
+Reads ``<reduced>/reduced.npz`` (a :class:`workflow.engine.model.ReducedModel`),
 runs every selected case × method × solver and writes ``extreme.csv``,
 ``extreme.md``; the summary entry ``cases`` has one row per solve
 (name, method, solver, converged, iterations, seconds, error, tolerance, diagnosis);
@@ -34,7 +34,7 @@ def settings_from_scene(scene):
 
 
 def run(scene, inputs: dict, out: Path, log) -> dict:
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.engine.studies import extreme as X
     from workflow.errors import BundleError
     from workflow.io import write_text

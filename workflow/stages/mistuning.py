@@ -37,7 +37,7 @@ def _frf_options(hb):
 
 def _tied_amplitude(rc, f: float) -> float:
     """The tuned sector's tied (u_r = 0) first-harmonic tip amplitude [m] at f [Hz]."""
-    from reduction.condense import recover
+    from workflow.engine.condense import recover
 
     return float(np.linalg.norm(recover(rc, 2 * np.pi * f, np.zeros((2, rc.n_rel), complex))[1]))
 
@@ -248,7 +248,7 @@ def _tuned_sector(scene, sub, v, log):
     """The tuned disk on one sector, from the same substructures: (the sector's law, its
     relative coordinates, (friction-damped peak Hz, m; tied peak Hz, m), the whole disk's grid
     [Hz] around the friction-damped peak, the sector's sweep on that grid)."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from reduction.cyclic_reduce import nodal_diameters_needed
     from reduction.mistuned import cyclic_model
     from workflow import engine

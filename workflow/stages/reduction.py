@@ -89,10 +89,10 @@ def _run_cyclic(scene, bundle, out: Path, log) -> dict:
 def load_model(folder: Path, contact=None):
     """The model the reduction stage wrote in ``folder``: a
     :class:`~reduction.cyclic_reduce.CyclicReducedModel` (cyclic sector) or a
-    :class:`~reduction.reduced.ReducedModel`; :class:`BundleError` if neither. With the scene's
+    :class:`~workflow.engine.model.ReducedModel`; :class:`BundleError` if neither. With the scene's
     ``contact`` section, the model the contact sees (:func:`contact_model`)."""
     from reduction.cyclic_reduce import CyclicReducedModel
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.errors import BundleError
 
     folder = Path(folder)

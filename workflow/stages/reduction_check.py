@@ -26,7 +26,7 @@ def run(scene, inputs: dict, out: Path, log) -> dict:
 
     from reduction import validate as va
     from reduction.bundle import read_bundle
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
     from workflow.errors import BundleError
     from workflow.io import write_text
     from workflow.stages.assembly import bundle_folder

@@ -52,7 +52,7 @@ def options(scene):
 
 
 def run_wear(model, scene, out: Path, log) -> dict:
-    """The stage's work on a :class:`reduction.reduced.ReducedModel` (also used by tests)."""
+    """The stage's work on a :class:`workflow.engine.model.ReducedModel` (also used by tests)."""
     from workflow.engine import worn_steady_state
     from workflow.io import write_npz, write_rows
     from workflow.report.wear import tip_cycles, plot_wear, write_wear_csv

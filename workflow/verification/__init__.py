@@ -10,6 +10,6 @@ single call into it.
   steady state (1-DOF with stops and viscous damping; structures with
   grounded Jenkins pads and motion-dependent normal load);
 * :mod:`.galerkin` — Galerkin HB with the exact sign law (HB's own truncation floor);
-* :mod:`.models` — the cases as :class:`reduction.reduced.ReducedModel`;
+* :mod:`.models` — the cases as :class:`workflow.engine.model.ReducedModel`;
 * :mod:`.runner` — the project's HB on those models, compared with the references.
 """

@@ -58,7 +58,7 @@ rad/s); frequencies ω in rad/s unless a name ends in ``_hz``.
    even EO, in antiphase for odd EO — real, so the engine's real cos(ωt) load
    carries it). :func:`two_blade_time` is the event-driven reference
    (:func:`workflow.verification.timeint.jenkins_steady_state`), :func:`two_blade_model`
-   the same system as a :class:`reduction.reduced.ReducedModel`
+   the same system as a :class:`workflow.engine.model.ReducedModel`
    (:func:`workflow.verification.models.jenkins`), :func:`two_blade_hb` the project's
    HB on it through :func:`workflow.verification.runner.hb_first_harmonic` (the
    engine's front door) and :func:`two_blade_errors` the comparison.
@@ -381,7 +381,7 @@ def two_blade_time(p: TwoBlade, omegas) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 def two_blade_model(p: TwoBlade = TwoBlade(), blade: int = 0):
-    """The same system as the engine sees it: a :class:`reduction.reduced.ReducedModel` with two
+    """The same system as the engine sees it: a :class:`workflow.engine.model.ReducedModel` with two
     contact pairs (the pads: massless nodes, DOFs n, t1, t2; B picks them), observing ``blade``."""
     from workflow.verification.models import jenkins
 

@@ -3,7 +3,7 @@
 One contact pair per friction element, relative DOFs ``u_r = [n, t1, t2]``,
 the ground as the disk side, preload through ``f_static`` (−N on the normal
 DOF, so that λ_N = −N < 0 in contact). Every model has at least one DOF that
-is not a contact DOF: :func:`reduction.condense.condense` needs a non-empty
+is not a contact DOF: :func:`workflow.engine.condense.condense` needs a non-empty
 interior block (a model made only of contact DOFs fails in LAPACK) — for the
 1-DOF oscillator it is an unloaded, uncoupled unit oscillator ("witness"),
 which changes nothing (massless, so it has no resonance).
@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow.verification.timeint import Pads
 
 #: normal stiffness of a pad's normal DOF relative to the largest structural

@@ -51,7 +51,7 @@ def floquet_error(omega: float = 1.3, nh: int = 15, nit: int = 128) -> dict:
     the switching instants known to a sample, before they were located between the samples);
     7e-5 of it is ε of the tangent (:data:`workflow.engine.stability.EPS_FACTOR`); Nh = 7, 31:
     1.3e-4, 7.7e-5."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow import engine
     from workflow.engine.hb import HBProblem
     from workflow.engine.linear import condensed

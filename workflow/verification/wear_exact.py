@@ -109,7 +109,7 @@ spring force is at the limit, from one turning point to the next, by
     closed-form final decay ``N ∝ e^{−r₀ n}``, r₀ = k_n k_w s(0)/A,
     s(0) = 4|X_free|, X_free = F / |k − mω² + icω| (the oscillator without the pad).
 
-Each case also writes itself as a lumped :class:`~reduction.reduced.ReducedModel`
+Each case also writes itself as a lumped :class:`~workflow.engine.model.ReducedModel`
 (``*.model()``) for the engine. The imposed displacement ``X cos ωt`` at a
 Jenkins spring's far end is written as a force ``k_t X cos ωt`` on the massless
 contact node with the spring k_t grounded: the node feels ``k_t (X cos ωt − u)``
@@ -139,7 +139,7 @@ def archard_rate(N, A, k_w, slip):
 
 
 def _model(M, K, B, fs, fh, O, area, gap, C=None):
-    from reduction.reduced import ReducedModel
+    from workflow.engine.model import ReducedModel
 
     p = len(area)
     return ReducedModel(M=M, K=K, C=np.zeros_like(K) if C is None else C, B=B, f_static=fs, f_harmonic=fh, O=O,

@@ -180,11 +180,11 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
                    rc=None, substeps: int = SUBSTEPS, refine=SWITCH_REFINE, levels: int = RICHARDSON,
                    cache: dict | None = None) -> Stability:
     """Floquet stability of the HB solution ``x`` of ``hb`` (:class:`~workflow.engine.hb.HBProblem`)
-    at ω (rad/s) on ``model`` (:class:`~reduction.reduced.ReducedModel`).
+    at ω (rad/s) on ``model`` (:class:`~workflow.engine.model.ReducedModel`).
 
     The periodic orbit enters only through the contact law's samples along the period
     (:func:`contact_tangent` of the DLFT at x, ``nit`` samples); the structure's own M, C, K are
-    those of ``model`` in relative coordinates (``rc``: :func:`reduction.condense.relative_coordinates`,
+    those of ``model`` in relative coordinates (``rc``: :func:`workflow.engine.condense.relative_coordinates`,
     computed if not given), where B = [I, 0]. The q-harmonics the condensation eliminated,
     ``q_h = (K − (hω)²M + ihωC)⁻¹(F_h − Bᵀλ_h)``, are not needed: the linear problem is the
     full one, not the condensed Zr (which is not polynomial in s).
@@ -205,7 +205,7 @@ def hill_stability(model, hb, x, omega: float, *, method: str = "monodromy", nh_
     cache     a dict kept across calls on one model (a sweep's points): the Ritz basis's
               eigenproblems (:func:`_ritz`)
     """
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine import penalty
     from workflow.engine.errors import SceneError
 

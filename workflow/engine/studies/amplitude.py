@@ -38,11 +38,11 @@ CONTINUATION_HALVINGS = 4
 def tip_map(rc, omega: float) -> tuple[np.ndarray, np.ndarray]:
     """(C (n_obs, 3p), d (n_obs,)) complex: the observed DOFs' first harmonic is
     ``o₁ = C U₁ + s d`` [m] for relative first harmonics U₁ (3p,) [m] and the load scale s
-    (:func:`reduction.condense.recover` at ω [rad/s], which is affine in both: the tied
+    (:func:`workflow.engine.condense.recover` at ω [rad/s], which is affine in both: the tied
     remainder's response to U₁ and to the load). Formed by the coordinates' own ``tip_map`` where
     they have one (the whole disk's: :meth:`reduction.mistuned.WholeDiskCoordinates.tip_map`), else
-    through their tied basis (:func:`reduction.condense.recover_map`), else from 3p + 1 recoveries."""
-    from reduction.condense import recover, recover_map
+    through their tied basis (:func:`workflow.engine.condense.recover_map`), else from 3p + 1 recoveries."""
+    from workflow.engine.condense import recover, recover_map
 
     if hasattr(rc, "tip_map"):
         return rc.tip_map(omega)

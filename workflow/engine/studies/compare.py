@@ -24,7 +24,7 @@ def frf_new_vs_worn(new, worn, law, variant, f_range_hz, points: int, options, g
     Returns ``{"freqs_hz", "new": SweepResult, "worn": ..., "tied_hz":
     {"new", "worn"}, "variant"}``; each SweepResult carries its ``static`` state.
     """
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine.contact import ContactLaw
     from workflow.engine.linear import band, first_excited_mode
     from workflow.engine.studies.study import frf

@@ -59,7 +59,7 @@ class SweepResult:
 
 def observed(rc, omega, Ur) -> tuple[float, float]:
     """(first-harmonic amplitude, max over the period) at the observed DOFs (m)."""
-    from reduction.condense import recover
+    from workflow.engine.condense import recover
     from workflow.engine import fourier
 
     obs = recover(rc, omega, Ur)

@@ -40,7 +40,7 @@ def mesh_law(model, *, mu, eps_n: float, eps_t: float, gap: float, factor: float
     from workflow.engine import penalty
     from workflow.engine.studies.study import contact_law
 
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine.linear import condensed
 
     rc = relative_coordinates(model) if rc is None else rc
@@ -66,7 +66,7 @@ def friction_peak(model, law, eps_path, variant, *, band: float, points: int, xt
     engine's static state at every frequency. ``solver_kw``: ``solver``,
     ``tol``, ``maxiter``, ``max_passes`` of :func:`workflow.engine.studies.frf.sweep_variant`.
     """
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine.studies.peak import refine_peak
     from workflow.engine.studies.frf import sweep_variant
     from workflow.engine.linear import CondensedGrid, first_excited_mode
@@ -128,7 +128,7 @@ def static_gaps(model, law, vertex: np.ndarray, max_passes: int, rc=None) -> dic
     ``"linear"`` layout) has no midside pairs: its midside gaps are the mean
     of the gaps at the edge's two ends (the two flank surfaces are linear
     between the vertices; exact on the planar dovetail flanks)."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine.linear import condensed
     from workflow.engine.studies.study import static_state
 

@@ -169,7 +169,7 @@ def forced_response(rc, law, variant, freqs_hz, *, seeds=None, solver: str = "ne
     with the scene's law (two threads, 2026-11-29) a point took 23.1 s against 20.7 s in the
     stiffness form (docs/mistuning.md).
     """
-    from reduction.condense import condense
+    from workflow.engine.condense import condense
     from workflow.engine.studies.study import static_state
 
     rc = rc.in_form(form) if form is not None else rc

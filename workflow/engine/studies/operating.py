@@ -84,7 +84,7 @@ def _peak_with_static(model, law, static, v, *, tol: float, max_iterations: int,
     with a given static state: the FRF's grid sweep and peak refinement
     (:func:`workflow.engine.studies.frf.sweep_variant`, :func:`workflow.engine.studies.peak.refine_peak`)
     on the same band, points and tolerances, every point keeping ``static``'s stick anchor."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine import penalty
     from workflow.engine.linear import band, condensed, first_excited_mode
     from workflow.engine.studies.frf import sweep_variant

@@ -1,6 +1,6 @@
 """The engine's front door for frequency responses: :func:`frf`.
 
-A reduced model (:class:`reduction.reduced.ReducedModel`), a contact law
+A reduced model (:class:`workflow.engine.model.ReducedModel`), a contact law
 (:func:`contact_law`) and options in; an :class:`FRFStudy` out, with every
 result's convergence status: points converged, the ε-check (how much the
 peak moves when ε grows, :mod:`workflow.engine.studies.epscheck`), the reference's
@@ -53,7 +53,7 @@ def contact_law(model, *, mu, eps_n: float = 0.0, eps_t: float = 0.0, gap: float
     otherwise the automatic rule, sampled at ``omega_hz`` — default the first
     excited tied mode), ``gap`` (m) added to the model's own gaps.
     ``rc``: the model's relative coordinates if already computed."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine.linear import condensed
     from workflow.engine.contact import ContactLaw
 
@@ -204,7 +204,7 @@ class FRFStudy:
     static: object
     law: object
     condense_seconds: float
-    condensation: str = ""                      # reduction.condense.condensation: the path it took
+    condensation: str = ""                      # workflow.engine.condense.condensation: the path it took
     eps_check: dict = field(default_factory=dict)
     nh_check: dict = field(default_factory=dict)
     reference_convergence: dict | None = None
@@ -327,7 +327,7 @@ def frf(model, law, variants: list, *, band_hz=(0.0, 0.0), points: int = 50, fre
     themselves (swept in the order given). Returns the :class:`FRFStudy`
     (None on MPI ranks other than 0).
     """
-    from reduction.condense import condensation, relative_coordinates
+    from workflow.engine.condense import condensation, relative_coordinates
     from workflow.engine.blas import blas_threads
 
     opt = options or FRFOptions()

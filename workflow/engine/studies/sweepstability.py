@@ -56,7 +56,7 @@ def sweep_stability(model, rc, law, static, sweep, *, nit: int | None = None, gr
 
 def _on_grid(grid, omega: float, nh: int):
     """The condensation of ``grid`` (kept whole) at ω [rad/s], harmonics 0…nh, or None."""
-    from reduction.condense import Condensed
+    from workflow.engine.condense import Condensed
 
     if grid is None or not grid.keep_all or grid.nh < nh:
         return None

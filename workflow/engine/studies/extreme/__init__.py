@@ -1,6 +1,6 @@
 """Stiff and extreme cases: does every solve converge to the right answer or say why not?
 
-A matrix run (issue 8) on any :class:`reduction.reduced.ReducedModel`: for
+A matrix run (issue 8) on any :class:`workflow.engine.model.ReducedModel`: for
 each *case* (a change of the penalty, friction, excitation, preload, gap,
 resolution, frequency, wear or conditioning) and each formulation
 (hbm / tcm / hdhb) and solver (newton / powell / pseudo-time), one

@@ -6,8 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from reduction.condense import condense
-from reduction.reduced import ReducedModel
+from workflow.engine.condense import condense
+from workflow.engine.model import ReducedModel
 from workflow.engine.studies.extreme.settings import Setup
 from workflow.engine.studies.extreme.synthetic import synthetic_model
 

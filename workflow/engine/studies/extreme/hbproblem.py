@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from reduction.condense import condense, relative_coordinates
-from reduction.reduced import ReducedModel
+from workflow.engine.condense import condense, relative_coordinates
+from workflow.engine.model import ReducedModel
 from workflow.engine import penalty
 from workflow.engine.contact import ContactLaw
 from workflow.engine.hb import HBProblem

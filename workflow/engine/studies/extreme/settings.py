@@ -6,8 +6,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from reduction.condense import condense, relative_coordinates
-from reduction.reduced import ReducedModel
+from workflow.engine.condense import condense, relative_coordinates
+from workflow.engine.model import ReducedModel
 from workflow.engine import penalty
 from workflow.engine.linear import tied_modes
 

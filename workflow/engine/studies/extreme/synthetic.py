@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from reduction.reduced import ReducedModel
+from workflow.engine.model import ReducedModel
 from workflow.engine.lumped import pairs_on_block
 
 

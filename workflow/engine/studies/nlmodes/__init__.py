@@ -19,7 +19,7 @@ Formulation (why, measured on the quick sector, m = 110, 16 pairs, Nh = 7):
   A residual on U_r alone (as :class:`~workflow.engine.hb.HBProblem`) has no amplitude there.
 * **Not the full q either**: (2Nh+1)·m = 1650 unknowns, a dense LU of ~0.3 s per Newton step.
 * **U_r plus one tied modal coordinate η.** With ``z = [u_r; y]`` the relative coordinates of
-  :mod:`reduction.condense` and ``y = Φ η`` the tied structure's modes (``M_yy``-normalised,
+  :mod:`workflow.engine.condense` and ``y = Φ η`` the tied structure's modes (``M_yy``-normalised,
   the one of ``mode`` first), the unknowns are, per harmonic, the 3p relative DOFs and η of
   the chosen tied mode; every other tied mode is condensed out exactly (Schur complement,
   one LU of a (m − 3p − 1) block per harmonic, recomputed for each (ω, ξ) with its

@@ -10,7 +10,7 @@ from workflow.engine.studies.nlmodes.structure import _Structure
 
 def _static(st: _Structure, law: ContactLaw, max_passes: int):
     """The static contact state (relative DOFs) and the static η of the kept mode."""
-    from reduction.condense import condense
+    from workflow.engine.condense import condense
     from workflow.engine.studies.study import static_state
 
     c = condense(st.rc, 0.0, 0)

@@ -30,7 +30,7 @@ class Backbone:
     observed            (n, Nh+1, n_obs) complex harmonics of the observed DOFs O q (m)
     Ur                  (n, Nh+1, 3p) complex harmonics of the relative contact DOFs (m)
     z1                  (n, m) complex first harmonic in the relative coordinates of
-                        :func:`reduction.condense.relative_coordinates` (z = [u_r; y], q = T z)
+                        :func:`workflow.engine.condense.relative_coordinates` (z = [u_r; y], q = T z)
     stuck_pairs, separating_pairs, slipping_pairs (n,) pairs stuck all period, open at some
                         instant, slipping at some instant (and never open)
     converged, residual (scaled, dimensionless), iterations (Newton steps), nh, nit

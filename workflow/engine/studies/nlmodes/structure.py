@@ -16,7 +16,7 @@ class _Structure:
     other tied modes. Kt, Mt, Ct, f0t, Ot: the matrices in w; na = 3p + 1 kept unknowns."""
 
     def __init__(self, model, mode: int):
-        from reduction.condense import RelativeCoordinates, relative_coordinates
+        from workflow.engine.condense import RelativeCoordinates, relative_coordinates
 
         rc = relative_coordinates(model)
         if not isinstance(rc, RelativeCoordinates):

@@ -78,7 +78,7 @@ def synthesize(bb: Backbone, model, force_scale: float = 1.0, freqs_hz=None, *, 
     ``2iD_f ω²``), as the Jenkins element's is: ``L = ω² − Ω² + i(2ΩωD_c + 2ω²D_f)``. The two
     differ by O(D²) in the peak frequency: 1e-5 on the quick sector (D < 0.6 %), 3 % at the
     Jenkins oscillator's D = 0.17."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from scipy.interpolate import PchipInterpolator
     from scipy.optimize import brentq
 

@@ -23,7 +23,7 @@ def first_tied_frequency(rc) -> float:
 def build_problem(model, law, opt: WearOptions, rc=None):
     """(HBProblem, RelativeCoordinates, ω) at the wear frequency, with the
     static state solved once (:func:`workflow.engine.static_state`)."""
-    from reduction.condense import relative_coordinates
+    from workflow.engine.condense import relative_coordinates
     from workflow.engine.linear import condensed
     from workflow.engine.studies.study import static_state
     from workflow.engine.hb import HBProblem

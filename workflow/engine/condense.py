@@ -34,7 +34,8 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.linalg.blas import zsyrk
 
-from reduction.reduced import ReducedModel
+from workflow.engine.errors import BundleError
+from workflow.engine.model import ReducedModel
 
 #: Condense through the tied structure's modes (:func:`tied_basis`) wherever the damping is
 #: Rayleigh; False: one LU of ``D'_yy`` per harmonic everywhere (the reference path of the tests).
@@ -67,12 +68,17 @@ class RelativeCoordinates:
         return self
 
 
+def nodal_diameter_of_harmonic(n: int, engine_order: int, n_sectors: int) -> int:
+    """ND ``(n·EO) mod N`` on which harmonic n of an EO travelling wave lives (Petrov 2004)."""
+    return (int(n) * int(engine_order)) % int(n_sectors)
+
+
 @dataclass
 class CyclicRelativeCoordinates:
     """One :class:`RelativeCoordinates` per nodal diameter of a tuned disk.
 
     ``by_nd``: {ND k: coordinates of the ND-k sector model}; harmonic j uses
-    ND ``(j·EO) mod N`` (:func:`reduction.cyclic.nodal_diameter_of_harmonic`).
+    ND ``(j·EO) mod N`` (:func:`nodal_diameter_of_harmonic`).
     The attributes the engine's *linear* parts read (``K``, ``M``, ``C``,
     ``O``, ``f_harmonic``, ``n_rel``: tied modes, band, the wear frequency)
     are those of harmonic 1's ND (the EO excitation's); ``f_static`` ND 0's.
@@ -83,15 +89,11 @@ class CyclicRelativeCoordinates:
     n_sectors: int
 
     def nodal_diameter(self, j: int) -> int:
-        from reduction.cyclic import nodal_diameter_of_harmonic
-
         return nodal_diameter_of_harmonic(j, self.engine_order, self.n_sectors)
 
     def harmonic(self, j: int) -> RelativeCoordinates:
         k = self.nodal_diameter(j)
         if k not in self.by_nd:
-            from workflow.errors import BundleError
-
             raise BundleError(f"cyclic reduced model has no nodal diameter {k} (harmonic {j} with engine order "
                               f"{self.engine_order} of {self.n_sectors} sectors): it was reduced for NDs "
                               f"{sorted(self.by_nd)} — rerun the reduction for more harmonics")

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import zipfile
 
-from workflow.errors import BundleError
-from workflow.io import write_npz
+from workflow.engine.errors import BundleError
+from workflow.engine.files import write_npz
 
 _ARRAYS = ("M", "K", "C", "B", "f_static", "f_harmonic", "O", "area", "gap", "flank", "position")
 
