@@ -472,7 +472,7 @@ def _atomic_xdmf(path: str | Path, write) -> Path:
     import shutil
     import tempfile
 
-    from workflow.errors import OutputError
+    from workflow.io import write_error
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -483,7 +483,7 @@ def _atomic_xdmf(path: str | Path, write) -> Path:
         (tmp / h5.name).replace(h5)  # data first, then the file that points at it
         (tmp / path.name).replace(path)
     except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from exc
+        raise write_error(path, exc) from exc
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return path

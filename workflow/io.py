@@ -17,8 +17,7 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
-from workflow.engine.files import atomic_path, current_umask, write_npz  # noqa: F401  (write_npz: re-exported for the application)
-from workflow.errors import OutputError
+from workflow.engine.files import atomic_path, current_umask, write_error, write_npz  # noqa: F401  (write_npz: re-exported for the application)
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:
@@ -74,7 +73,7 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
         tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
         os.chmod(tmp, 0o777 & ~current_umask())  # mkdtemp creates 0700
     except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from exc
+        raise write_error(path, exc) from exc
     try:
         yield tmp
         old = None
@@ -87,7 +86,7 @@ def atomic_dir(path: str | os.PathLike) -> Iterator[Path]:
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
     except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from exc
+        raise write_error(path, exc) from exc
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)

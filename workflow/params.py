@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 
 from workflow.errors import SceneError
-from workflow.schema import param
+from workflow.schema import param, shown
 
 PRODUCTS = ("mesh", "bundle", "modes", "reduced", "reduction_check", "frf", "wear", "wear_map", "extreme", "report",
             "scaling", "verification", "contact_convergence", "interface_scaling", "cyclic_modes",
@@ -515,7 +515,7 @@ class Cyclic:
         for key, kind in (("nodal_diameters", int), ("engine_order_lines", int), ("campbell_speeds_rpm", float)):
             for v in getattr(self, key):
                 if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and not isinstance(v, int)):
-                    raise SceneError(f"cyclic.{key} contains {v!r}; its items must be "
+                    raise SceneError(f"cyclic.{key} contains {shown(v)}; its items must be "
                                      f"{'integers' if kind is int else 'numbers'}")
         if len(self.campbell_speeds_rpm) == 1:
             raise SceneError("cyclic.campbell_speeds_rpm needs at least 2 speeds for a Campbell diagram (or [])")
@@ -552,7 +552,7 @@ class Mistuning:
         for key in ("stiffness", "mass"):
             for v in getattr(self, key):
                 if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise SceneError(f"mistuning.{key} contains {v!r}; its items must be numbers")
+                    raise SceneError(f"mistuning.{key} contains {shown(v)}; its items must be numbers")
 
 
 SECTIONS = {

@@ -78,7 +78,7 @@ from typing import Iterator
 from workflow import mpi, progress
 from workflow import stages as registry
 from workflow.errors import OutputError, SceneError
-from workflow.engine.files import current_umask
+from workflow.engine.files import current_umask, write_error
 from workflow.io import atomic_dir, manifest, record_problem, seal_record, verify_manifest, write_json
 from workflow.runlog import RunLog, heartbeat, library_logging
 from workflow.scene import Scene
@@ -251,7 +251,7 @@ def cache_lock(root: Path) -> Iterator[None]:
         root.mkdir(parents=True, exist_ok=True)
         fh = open(root / ".lock", "a+")
     except OSError as exc:
-        raise OutputError(f"cannot write cache folder {root}: {exc.strerror or exc}") from exc
+        raise write_error(root / ".lock", exc, "the cache's lock file") from exc
     try:
         try:
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -308,6 +308,8 @@ def check_entry(entry: Path) -> tuple[dict | None, str | None]:
     except FileNotFoundError:
         return None, ("its record .stage.json is missing" if entry.is_dir() else None)
     except OSError as exc:
+        if entry.parent.exists() and not entry.parent.is_dir():
+            return None, None   # no entry: writing it names the file in the way
         return None, f"its record .stage.json cannot be read ({exc.strerror or exc})"
     try:
         got = json.loads(text)
@@ -392,7 +394,7 @@ def _prepare_out(out: Path) -> int:
         foreign = any(not ours(c) for c in out.iterdir()) and \
             not any((out / f).exists() for f in ("run.log", "summary.json"))
     except OSError as exc:
-        raise OutputError(f"cannot write output folder {out}: {exc.strerror or exc}") from exc
+        raise write_error(out, exc, "output folder") from exc
     if foreign:
         # The run replaces <out>/<stage> entries: never do that in someone else's folder.
         raise OutputError(f"output folder {out} is not empty and is not a bladewear run folder "
@@ -412,7 +414,7 @@ def lock_out(out: Path) -> int:
     try:
         fd = os.open(out, os.O_RDONLY)
     except OSError as exc:
-        raise OutputError(f"cannot open output folder {out}: {exc.strerror or exc}") from exc
+        raise write_error(out, exc, "output folder") from exc
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -601,7 +603,7 @@ def _run_uncached(scene, p: Plan, name, out, products, status, timings, summarie
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
         if isinstance(exc, OSError):
-            raise OutputError(f"cannot write {out / name}: {exc.strerror or exc}") from exc
+            raise write_error(out / name, exc) from exc
         raise
     finally:
         with contextlib.suppress(OSError):
@@ -648,7 +650,7 @@ def _switch(out: Path, folders: dict[str, Path], p: Plan, uncached: dict[str, st
             for name, data in files.items():
                 staged.append((out / name, _staged_json(out / name, data)))
         except OSError as exc:
-            raise OutputError(f"cannot write output folder {out}: {exc.strerror or exc}") from exc
+            raise write_error(out, exc, "output folder") from exc
         _rename_all(out, staged)
     finally:
         for _, new in staged:
@@ -710,7 +712,7 @@ def _rename_all(out: Path, staged: list[tuple[Path, Path | None]]) -> None:
                     os.replace(back, new)  # this run's entry back to its temporary name (removed by _switch)
                 if old is not None:
                     os.replace(old, back)
-        raise OutputError(f"cannot write {entry}: {exc.strerror or exc}") from exc
+        raise write_error(entry, exc) from exc
     for _, old, _ in done:
         if old is not None:
             _remove(old)

@@ -18,7 +18,7 @@ import warnings
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from workflow.errors import OutputError
+from workflow.io import write_error
 
 __all__ = ["HEARTBEAT", "RunLog", "heartbeat", "library_logging"]
 
@@ -41,7 +41,7 @@ class RunLog:
             try:
                 self._fh = open(file, "w", encoding="utf-8", buffering=1)
             except OSError as exc:
-                raise OutputError(f"cannot write {file}: {exc.strerror or exc}") from exc
+                raise write_error(file, exc) from exc
 
     def child(self, prefix: str) -> "RunLog":
         """The same log with ``[prefix]`` on every line (one per stage)."""

@@ -31,6 +31,19 @@ def param(default, unit: str = "", doc: str = "", *, min=None, max=None, min_exc
     return dataclasses.field(default=default, metadata=meta)
 
 
+def shown(value) -> str:
+    """A value as a user wrote it in TOML, for an error message.
+
+    An unquoted date or time (``2026-01-01``, ``12:30:00``) is a TOML date,
+    not text or a number: said so, as written.
+    """
+    import datetime
+
+    if isinstance(value, (datetime.date, datetime.time)):
+        return f"the TOML date/time {value.isoformat()}"
+    return repr(value)
+
+
 def _type_name(v) -> str:
     return {bool: "a boolean", int: "an integer", float: "a number", str: "a string", list: "a list"}.get(type(v), type(v).__name__)
 
@@ -42,36 +55,37 @@ def coerce(section: str, key: str, f: dataclasses.Field, value: Any) -> Any:
     meta = f.metadata
     if isinstance(default, bool):
         if not isinstance(value, bool):
-            raise SceneError(f"{name} must be true or false, got {value!r}")
+            raise SceneError(f"{name} must be true or false, got {shown(value)}")
     elif isinstance(default, float):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise SceneError(f"{name} must be a number, got {value!r}")
+            raise SceneError(f"{name} must be a number, got {shown(value)}")
         value = float(value)
     elif isinstance(default, int):
         if isinstance(value, bool) or not (isinstance(value, int) or (isinstance(value, float) and value.is_integer())):
-            raise SceneError(f"{name} must be an integer, got {value!r}")
+            raise SceneError(f"{name} must be an integer, got {shown(value)}")
         value = int(value)
     elif isinstance(default, str):
         if not isinstance(value, str):
-            raise SceneError(f"{name} must be a string, got {value!r}")
+            quote = f' (quote it: "{value.isoformat()}")' if hasattr(value, "isoformat") else ""
+            raise SceneError(f"{name} must be a string, got {shown(value)}{quote}")
     elif isinstance(default, list):
         if not isinstance(value, list):
-            raise SceneError(f"{name} must be a list, e.g. {name}=[{_example(default, value)}]; got {value!r}")
+            raise SceneError(f"{name} must be a list, e.g. {name}=[{_example(default, value)}]; got {shown(value)}")
         if len(value) < meta.get("min_items", 1):
             raise SceneError(f"{name} must list at least {meta.get('min_items', 1)} value(s), got []")
         items = meta.get("item_choices")
         for item in value:
             _check_item(name, default, item)
             if isinstance(item, float) and not math.isfinite(item):
-                raise SceneError(f"{name} contains {item!r}; values must be finite")
+                raise SceneError(f"{name} contains {shown(item)}; values must be finite")
             if items is not None and item not in items:
-                raise SceneError(f"{name} contains {item!r}; allowed: {', '.join(map(str, items))}")
+                raise SceneError(f"{name} contains {shown(item)}; allowed: {', '.join(map(str, items))}")
         _check_range(name, meta, value)
         return list(value)
     if isinstance(value, float) and meta.get("finite", True) and not math.isfinite(value):
-        raise SceneError(f"{name} must be finite, got {value!r}")
+        raise SceneError(f"{name} must be finite, got {shown(value)}")
     if meta.get("choices") is not None and value not in meta["choices"]:
-        raise SceneError(f"{name} = {value!r} is not one of: {', '.join(map(str, meta['choices']))}")
+        raise SceneError(f"{name} = {shown(value)} is not one of: {', '.join(map(str, meta['choices']))}")
     _check_range(name, meta, [value])
     return value
 
@@ -99,7 +113,7 @@ def _check_item(name: str, default: list, item) -> None:
         ok = isinstance(item, kind)
     if not ok:
         what = {int: "integers", float: "numbers", str: "strings", bool: "true/false"}.get(kind, kind.__name__)
-        raise SceneError(f"{name} contains {item!r}; its items must be {what}")
+        raise SceneError(f"{name} contains {shown(item)}; its items must be {what}")
 
 
 def _check_range(name, meta, values):

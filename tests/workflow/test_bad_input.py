@@ -61,6 +61,10 @@ def one_line_error(rc, err, *needles):
     ("[geometry]\nplatform_width = 0.2\n", ["platform_width", "wider than the sector"]),
     ("[geometry]\nclearance = 0.005\n", ["clearance", "must be < neck_width/2"]),
     ("[geometry]\nflank_length = 0.05\n", ["flank_length", "longer than the inclined face"]),
+    # an unquoted date is TOML's date, not text: said as written, never as datetime.date(…)
+    ("[model]\nbundle = 2026-01-01\n", ["model.bundle must be a string, got the TOML date/time 2026-01-01",
+                                        'quote it: "2026-01-01"']),
+    ("[sweep]\npoints = 12:30:00\n", ["sweep.points must be an integer, got the TOML date/time 12:30:00"]),
 ])
 def test_bad_values_one_line_previous_run_intact(tmp_path, capsys, fakes, text, needles):
     before = previous_run(tmp_path, capsys)

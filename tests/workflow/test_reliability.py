@@ -122,6 +122,25 @@ def test_failed_write_leaves_run_folder_wholly_old(tmp_path, fakes, monkeypatch,
     assert failed > 5                 # several writes were made to fail
 
 
+@pytest.mark.parametrize("in_the_way", ["stage-file", "lock-folder"])
+def test_a_file_or_folder_in_the_caches_way_is_named(tmp_path, fakes, in_the_way):
+    """The operating system says "File exists" or "Is a directory"; the error names what to remove."""
+    from workflow.pipeline import run_scene
+
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    blocker = cache / "hb" if in_the_way == "stage-file" else cache / ".lock"
+    if in_the_way == "stage-file":
+        blocker.write_text("not a folder")
+    else:
+        blocker.mkdir()
+    with pytest.raises(OutputError) as err:
+        run_scene(_scene(tmp_path, ["frf"]), tmp_path / "out", cache=cache, quiet=True)
+    kind = "a file where a folder belongs" if in_the_way == "stage-file" else "a folder where a file belongs"
+    assert f"{blocker} is {kind}; remove it" in str(err.value)
+    assert "\n" not in str(err.value)
+
+
 # ---------------------------------------------------------------- 1, 4, 5. the bundle check
 
 @pytest.fixture(scope="module")

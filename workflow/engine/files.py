@@ -19,6 +19,28 @@ from typing import Iterator
 from workflow.engine.errors import OutputError
 
 
+def write_error(path: str | os.PathLike, exc: OSError, what: str = "") -> OutputError:
+    """One line saying what could not be written and why, naming the file in the way.
+
+    ``what`` names the kind of target ("cache folder"). The operating
+    system's own words ("File exists", "Is a directory") do not say which
+    path is wrong; where a file stands in place of a folder on the way to
+    ``path``, or a folder where the file goes, the message names it.
+    """
+    path = Path(path)
+    culprit = Path(exc.filename) if isinstance(getattr(exc, "filename", None), (str, os.PathLike)) else path
+    why = exc.strerror or str(exc)
+    if isinstance(exc, IsADirectoryError):
+        why = f"{culprit} is a folder where a file belongs; remove it"
+    elif isinstance(exc, (NotADirectoryError, FileExistsError)):
+        blocker = next((a for a in (culprit, *culprit.parents) if a.exists() and not a.is_dir()), None)
+        if blocker is not None:
+            why = f"{blocker} is a file where a folder belongs; remove it"
+    elif culprit != path:
+        why = f"{why} ({culprit})"
+    return OutputError(f"cannot write {what + ' ' if what else ''}{path}: {why}")
+
+
 def current_umask() -> int:
     """The process's umask (read by setting it and back: there is no getter)."""
     mask = os.umask(0)
@@ -40,7 +62,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
                                    dir=path.parent)
         os.close(fd)
     except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from exc
+        raise write_error(path, exc) from exc
     tmp = Path(tmp)
     try:
         yield tmp
@@ -50,7 +72,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         os.chmod(tmp, 0o666 & ~current_umask())
         os.replace(tmp, path)
     except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from exc
+        raise write_error(path, exc) from exc
     finally:
         if tmp.exists():
             tmp.unlink()
