@@ -410,7 +410,7 @@ def write_worn_xdmf(path: str | Path, mesh, remap: Remap, cell_tags=None, facet_
     moved to the worn coordinates only while writing."""
     from reduction import dolfinx_compat as dc
 
-    with moved(mesh, remap.x):
+    with dc.moved(mesh, remap.x):
         w, _ = wear_functions(mesh, remap)
         return _atomic_xdmf(path, lambda p: dc.write_functions_xdmf(p, mesh, [w], cell_tags, facet_tags))
 
@@ -446,24 +446,6 @@ def write_worn_msh(msh_in: str | Path, msh_out: str | Path, node_tags: np.ndarra
     finally:
         gmsh.finalize()
     return Path(msh_out)
-
-
-class moved:
-    """Context manager: the mesh's geometry at ``x`` inside, restored after."""
-
-    def __init__(self, mesh, x):
-        self.mesh, self.x = mesh, np.asarray(x)
-
-    def __enter__(self):
-        from reduction import dolfinx_compat as dc
-
-        self.saved = np.array(self.mesh.geometry.x, copy=True)
-        dc.set_geometry(self.mesh, self.x)
-        return self.mesh
-
-    def __exit__(self, *exc):
-        self.mesh.geometry.x[:] = self.saved
-        return False
 
 
 def _atomic_xdmf(path: str | Path, write) -> Path:

@@ -404,6 +404,22 @@ def set_geometry(mesh, x: np.ndarray) -> None:
     mesh.geometry.x[:, : x.shape[1]] = x
 
 
+class moved:
+    """Context manager: the mesh's geometry at ``x`` (N, 3) [m] inside, restored after."""
+
+    def __init__(self, mesh, x):
+        self.mesh, self.x = mesh, np.asarray(x)
+
+    def __enter__(self):
+        self.saved = np.array(self.mesh.geometry.x, copy=True)
+        set_geometry(self.mesh, self.x)
+        return self.mesh
+
+    def __exit__(self, *exc):
+        self.mesh.geometry.x[:] = self.saved
+        return False
+
+
 def vtk_mesh(mesh_or_space):
     """``(cells, cell_types, points)`` for a pyvista ``UnstructuredGrid`` (points =
     geometry nodes for a mesh, DOF coordinates for a space)."""

@@ -35,7 +35,6 @@ def worn_bundle(bundle, mesh, ct, ft, x_worn: np.ndarray, W: np.ndarray, section
     written to ``mesh_dir/mesh.xdmf`` (+ .h5) for the bundle's extra files;
     ``mesh`` is back at its new coordinates on return.
     """
-    from geometry.remap import moved
     from reduction import dolfinx_compat as dc
     from reduction.assemble import DEGREE, build_bundle
     from reduction.pairs import contact_pairs, layout_of
@@ -43,7 +42,7 @@ def worn_bundle(bundle, mesh, ct, ft, x_worn: np.ndarray, W: np.ndarray, section
     meta = bundle.meta or {}
     geometry_info = meta.get("geometry") or {}
     unworn = contact_pairs(dc.vector_space(mesh, DEGREE), ft, nodes=layout_of(geometry_info))
-    with moved(mesh, x_worn):
+    with dc.moved(mesh, x_worn):
         worn, _ = build_bundle(mesh, ct, ft, geometry_info, sections["material"], sections["rotation"],
                                sections["damping"], sections["excitation"], pairs=unworn)
         Path(mesh_dir).mkdir(parents=True, exist_ok=True)
