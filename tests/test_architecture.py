@@ -108,6 +108,14 @@ def test_the_engine_imports_nothing_of_the_application():
     assert _upward(_graph()) == {}
 
 
+def test_the_fe_half_runs_one_way():
+    """geometry/ may use reduction's dolfinx calls (the worn mesh's motion is a dolfinx solve);
+    reduction/ never imports geometry/, so the two packages do not lean on each other."""
+    graph = _graph()
+    assert {m: sorted(d for d in deps if d.startswith("geometry"))
+            for m, deps in graph.items() if m.startswith("reduction") and any(d.startswith("geometry") for d in deps)} == {}
+
+
 def test_no_import_cycles():
     assert _cycles(_graph()) == []
 
