@@ -65,6 +65,8 @@ def one_line_error(rc, err, *needles):
     ("[model]\nbundle = 2026-01-01\n", ["model.bundle must be a string, got the TOML date/time 2026-01-01",
                                         'quote it: "2026-01-01"']),
     ("[sweep]\npoints = 12:30:00\n", ["sweep.points must be an integer, got the TOML date/time 12:30:00"]),
+    ("[rotation]\nspeed_rpm = 3000.0\nstress_stiffening = false\n",
+     ["rotation.spin_softening = true with rotation.stress_stiffening = false", "set both"]),
 ])
 def test_bad_values_one_line_previous_run_intact(tmp_path, capsys, fakes, text, needles):
     before = previous_run(tmp_path, capsys)
