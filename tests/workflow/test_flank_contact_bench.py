@@ -62,3 +62,42 @@ def test_a_worn_state_of_other_pairs_is_refused(tmp_path):
         saved_worn(tmp_path / "worn-2x2.npz", model)
     with pytest.raises(SystemExit, match="no worn state"):
         saved_worn(tmp_path / "worn-3x3.npz", model)
+
+
+def _synthetic_mesh(folder, grid, pairs, q, W, x):
+    """One grid's flank_contact.csv (two flank rows) and worn-AxC.npz with chosen values."""
+    from workflow.io import write_npz, write_rows
+
+    rows = [{"grid": grid, "pairs": pairs, "flank": f, "worn_volume_m3": q, "max_wear_m": float(W.max()),
+             "flank_worn_volume_m3": q / 2, "profile_l2_m": 3.0 * q, "filtered_max_m": 2.0 * q * (1 + f)}
+            for f in (0, 1)]
+    write_rows(folder / "flank_contact.csv", rows)
+    write_npz(folder / f"worn-{grid}.npz", W=W, position=np.column_stack([x, 0 * x, 0 * x]))
+
+
+def test_the_convergence_summary_recovers_a_known_order_and_leaves_out_the_axial_ends(tmp_path):
+    """q(h) = q* + C h^p on h ∝ pairs^(-1/2): the observed order is p and the GCI Roache's closed
+    form F_s|q₂ − q₃|/(|q₃|(r^p − 1)); the inner max leaves out the pairs within the end band."""
+    from workflow.bench import flank_convergence as fc
+
+    p, qs, C = 1.5, 2.0e-10, 3.0e-10
+    folders = []
+    for k, (grid, pairs) in enumerate((("a", 100), ("b", 200), ("c", 400), ("d", 800))):
+        folder = tmp_path / grid
+        folder.mkdir()
+        x = np.linspace(0.0, 0.04, 9)
+        W = np.full(9, 1e-6)
+        W[0], W[4] = 5e-6 - k * 1e-7, 2e-6           # the deepest pair at an axial end, another inside
+        _synthetic_mesh(folder, grid, pairs, qs + C * pairs ** (-p / 2), W, x)
+        folders.append(folder)
+    rows = fc.mesh_rows(folders[::-1], end_band=0.002)       # any order in, sorted by pairs out
+    assert [m["pairs"] for m in rows] == [100, 200, 400, 800]
+    assert all(m["inner_max_wear_m"] == pytest.approx(2e-6) for m in rows)
+    assert rows[0]["max_wear_m"] == pytest.approx(5e-6)
+    assert rows[0]["profile_l2_m"] == pytest.approx(np.hypot(3.0 * rows[0]["worn_volume_m3"],
+                                                             3.0 * rows[0]["worn_volume_m3"]))
+    s = fc.summary(rows)["measures"]["worn_volume_m3"]
+    assert s["observed_order"] == pytest.approx(p, rel=1e-6)
+    q2, q3, r = s["values"][-2], s["values"][-1], 2.0 ** 0.5
+    assert s["gci"] == pytest.approx(1.25 * abs(q2 - q3) / (q3 * (r ** p - 1)), rel=1e-6)
+    assert s["change_last"] == pytest.approx(abs(q2 - q3) / q3)

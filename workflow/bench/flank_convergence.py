@@ -1,0 +1,125 @@
+"""How the held-amplitude worn state converges along a refinement of the contact grid (issue 48).
+
+``python -m workflow.bench.flank_convergence DIR [DIR ...] [--out OUT]``
+
+Each ``DIR`` holds a ``flank_contact.csv`` of :mod:`workflow.bench.flank_contact` (one grid a
+folder or several; ``--shift`` runs add the worn − new resonance). The meshes are ordered by
+their pairs and the mesh size is h ∝ pairs^(-1/2) (the flanks' area is the same on every grid),
+so the folders should hold one cell shape refined — grids of different shapes at one pair count
+measure the cells' shape, not their size. Per measure:
+
+* the value on every mesh, the relative change between the two finest
+  (:func:`workflow.engine.studies.meshstudy.rel_change`);
+* the observed order of the three finest and Roache's grid-convergence index of the finest
+  (:func:`~workflow.engine.studies.meshstudy.observed_order`,
+  :func:`~workflow.engine.studies.meshstudy.grid_convergence_index`; none where the changes
+  are not monotone).
+
+The measures: the worn volume (both flanks, and each), the node-wise max depth, the max depth
+at least ``--end-band`` [m] from the flanks' axial ends (the slot's end faces cut the contact
+there: a corner of the contact, whose depth is a point value), the ℓ-filtered profile's RMS and
+maximum on each flank and over both (``profile_l2_m``: the root sum of the flanks' squares), and,
+with ``--shift`` rows, the worn − new resonance (relative).
+
+Writes ``flank_convergence.csv`` (one row a mesh) and ``flank_convergence.json`` (per measure:
+values, ``change_last``, ``observed_order``, ``gci``) to ``--out``.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+#: Measures of one mesh: (name, flank or None for both, column of flank_contact.csv)
+PER_FLANK = (("profile_l2_m", "profile_l2_m"), ("filtered_max_m", "filtered_max_m"),
+             ("worn_volume_m3", "flank_worn_volume_m3"))
+
+
+def _float(v):
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if np.isfinite(x) else None
+
+
+def mesh_rows(folders, end_band: float) -> list[dict]:
+    """One dict a mesh (sorted by pairs) from the folders' flank_contact.csv and worn-AxC.npz."""
+    meshes = {}
+    for folder in map(Path, folders):
+        path = folder / "flank_contact.csv"
+        if not path.is_file():
+            raise SystemExit(f"flank_convergence: no flank_contact.csv in {folder}")
+        with open(path, newline="") as fh:
+            for r in csv.DictReader(fh):
+                m = meshes.setdefault(r["grid"], {"grid": r["grid"], "pairs": int(r["pairs"]),
+                                                  "worn_volume_m3": _float(r["worn_volume_m3"]),
+                                                  "max_wear_m": _float(r["max_wear_m"]), "folder": str(folder)})
+                f = int(r["flank"])
+                for name, col in PER_FLANK:
+                    m[f"{name}_flank{f}"] = _float(r.get(col))
+                if r.get("resonance_shift_rel") not in (None, ""):
+                    m["resonance_shift_rel"] = _float(r["resonance_shift_rel"])
+        for m in meshes.values():
+            worn = Path(m["folder"]) / f"worn-{m['grid']}.npz"
+            if worn.is_file() and "inner_max_wear_m" not in m:
+                with np.load(worn) as z:
+                    W, x = z["W"], z["position"][:, 0]
+                inner = (x >= x.min() + end_band - 1e-12) & (x <= x.max() - end_band + 1e-12)
+                m["inner_max_wear_m"] = float(W[inner].max()) if inner.any() else None
+    for m in meshes.values():
+        l2 = [m.get(f"profile_l2_m_flank{f}") for f in (0, 1)]
+        fmax = [m.get(f"filtered_max_m_flank{f}") for f in (0, 1)]
+        # the profile's L2 over both flanks (each flank's RMS is over its own area, which every grid shares)
+        m["profile_l2_m"] = float(np.hypot(*l2)) if None not in l2 else None
+        m["filtered_max_m"] = max(fmax) if None not in fmax else None
+    return sorted(meshes.values(), key=lambda m: m["pairs"])
+
+
+def summary(rows: list[dict]) -> dict:
+    """Per measure: values, the change between the two finest, observed order and GCI."""
+    from workflow.engine.studies.meshstudy import grid_convergence_index, observed_order, rel_change
+
+    h = [m["pairs"] ** -0.5 for m in rows]
+    keys = [k for k in rows[-1] if k not in ("grid", "pairs", "folder")]
+    out = {}
+    for k in keys:
+        q = [m.get(k) for m in rows]
+        out[k] = {"values": q, "change_last": rel_change(q[-2], q[-1]) if len(q) > 1 else None,
+                  "observed_order": observed_order(h, q) if None not in q[-3:] else None,
+                  "gci": grid_convergence_index(h, q) if None not in q[-3:] else None}
+    return {"pairs": [m["pairs"] for m in rows], "grids": [m["grid"] for m in rows], "measures": out}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("folders", nargs="+", help="folders holding flank_contact.csv (and worn-AxC.npz)")
+    ap.add_argument("--end-band", type=float, default=0.002,
+                    help="[m] the inner max depth leaves out pairs this close to the flanks' axial ends")
+    ap.add_argument("--out", default="results/bench")
+    a = ap.parse_args(argv)
+    from workflow.io import write_json, write_rows
+
+    rows = mesh_rows(a.folders, a.end_band)
+    if len(rows) < 2:
+        ap.error("needs at least two meshes")
+    out = Path(a.out)
+    keys = sorted({k for m in rows for k in m if k != "folder"}, key=lambda k: (k not in ("grid", "pairs"), k))
+    write_rows(out / "flank_convergence.csv", [{k: m.get(k, "") for k in keys} for m in rows])
+    s = summary(rows)
+    write_json(out / "flank_convergence.json", s)
+    for k, v in s["measures"].items():
+        order = "—" if v["observed_order"] is None else f"{v['observed_order']:.2f}"
+        gci = "—" if v["gci"] is None else f"{v['gci']:.2%}"
+        change = "—" if v["change_last"] is None else f"{v['change_last']:.2%}"
+        print(f"{k:28s} " + " ".join("—" if x is None else f"{x:.4g}" for x in v["values"])
+              + f" | last change {change}, order {order}, GCI {gci}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
