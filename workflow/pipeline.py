@@ -249,6 +249,9 @@ def cache_lock(root: Path) -> Iterator[None]:
     """
     try:
         root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise write_error(root, exc, "cache folder") from exc
+    try:
         fh = open(root / ".lock", "a+")
     except OSError as exc:
         raise write_error(root / ".lock", exc, "the cache's lock file") from exc
