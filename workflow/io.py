@@ -1,4 +1,4 @@
-"""Atomic writes: a reader sees the previous file or the new one, never half of one.
+"""The application's writers (text, CSV, JSON, npz, folders): a reader sees the previous file or the new one.
 
 Everything the project writes (bundles, caches, CSV, figures, summary.json)
 goes through these helpers, built on the engine's one primitive
