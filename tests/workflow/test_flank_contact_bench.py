@@ -100,4 +100,4 @@ def test_the_convergence_summary_recovers_a_known_order_and_leaves_out_the_axial
     assert s["observed_order"] == pytest.approx(p, rel=1e-6)
     q2, q3, r = s["values"][-2], s["values"][-1], 2.0 ** 0.5
     assert s["gci"] == pytest.approx(1.25 * abs(q2 - q3) / (q3 * (r ** p - 1)), rel=1e-6)
-    assert s["change_last"] == pytest.approx(abs(q2 - q3) / q3)
+    assert s["change_last"] == pytest.approx(abs(q2 - q3) / q3) and s["difference_last"] == pytest.approx(q3 - q2)

@@ -9,7 +9,8 @@ so the folders should hold one cell shape refined — grids of different shapes 
 measure the cells' shape, not their size. Per measure:
 
 * the value on every mesh, the relative change between the two finest
-  (:func:`workflow.engine.studies.meshstudy.rel_change`);
+  (:func:`workflow.engine.studies.meshstudy.rel_change`) and their difference (for the
+  resonance shift, itself relative to the frequency, the difference is the measure);
 * the observed order of the three finest and Roache's grid-convergence index of the finest
   (:func:`~workflow.engine.studies.meshstudy.observed_order`,
   :func:`~workflow.engine.studies.meshstudy.grid_convergence_index`; none where the changes
@@ -90,6 +91,8 @@ def summary(rows: list[dict]) -> dict:
     for k in keys:
         q = [m.get(k) for m in rows]
         out[k] = {"values": q, "change_last": rel_change(q[-2], q[-1]) if len(q) > 1 else None,
+                  # the resonance shift is itself relative (Δf/f): the issue's bound is on its difference
+                  "difference_last": q[-1] - q[-2] if len(q) > 1 and None not in q[-2:] else None,
                   "observed_order": observed_order(h, q) if None not in q[-3:] else None,
                   "gci": grid_convergence_index(h, q) if None not in q[-3:] else None}
     return {"pairs": [m["pairs"] for m in rows], "grids": [m["grid"] for m in rows], "measures": out}
@@ -115,7 +118,7 @@ def main(argv=None) -> int:
     for k, v in s["measures"].items():
         order = "—" if v["observed_order"] is None else f"{v['observed_order']:.2f}"
         gci = "—" if v["gci"] is None else f"{v['gci']:.2%}"
-        change = "—" if v["change_last"] is None else f"{v['change_last']:.2%}"
+        change = "—" if v["change_last"] is None else f"{v['change_last']:.2%} ({v['difference_last']:+.3g})"
         print(f"{k:28s} " + " ".join("—" if x is None else f"{x:.4g}" for x in v["values"])
               + f" | last change {change}, order {order}, GCI {gci}")
     return 0
