@@ -65,14 +65,13 @@ def mesh_rows(folders, end_band: float) -> list[dict]:
                     m[f"{name}_flank{f}"] = _float(r.get(col))
                 if r.get("resonance_shift_rel") not in (None, ""):
                     m["resonance_shift_rel"] = _float(r["resonance_shift_rel"])
-        for m in meshes.values():
-            worn = Path(m["folder"]) / f"worn-{m['grid']}.npz"
-            if worn.is_file() and "inner_max_wear_m" not in m:
-                with np.load(worn) as z:
-                    W, x = z["W"], z["position"][:, 0]
-                inner = (x >= x.min() + end_band - 1e-12) & (x <= x.max() - end_band + 1e-12)
-                m["inner_max_wear_m"] = float(W[inner].max()) if inner.any() else None
     for m in meshes.values():
+        worn = Path(m["folder"]) / f"worn-{m['grid']}.npz"
+        if worn.is_file():
+            with np.load(worn) as z:
+                W, x = z["W"], z["position"][:, 0]
+            inner = (x >= x.min() + end_band - 1e-12) & (x <= x.max() - end_band + 1e-12)
+            m["inner_max_wear_m"] = float(W[inner].max()) if inner.any() else None
         l2 = [m.get(f"profile_l2_m_flank{f}") for f in (0, 1)]
         fmax = [m.get(f"filtered_max_m_flank{f}") for f in (0, 1)]
         # the profile's L2 over both flanks (each flank's RMS is over its own area, which every grid shares)
