@@ -36,7 +36,7 @@ def write_error(path: str | os.PathLike, exc: OSError, what: str = "") -> Output
         blocker = next((a for a in (culprit, *culprit.parents) if a.exists() and not a.is_dir()), None)
         if blocker is not None:
             why = f"{blocker} is a file where a folder belongs; remove it"
-    elif culprit != path:
+    elif culprit != path and not culprit.name.startswith(f".{path.name}."):   # not our own temporary
         why = f"{why} ({culprit})"
     return OutputError(f"cannot write {what + ' ' if what else ''}{path}: {why}")
 
