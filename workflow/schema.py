@@ -31,16 +31,18 @@ def param(default, unit: str = "", doc: str = "", *, min=None, max=None, min_exc
     return dataclasses.field(default=default, metadata=meta)
 
 
-def shown(value) -> str:
+def shown(value, wants_text: bool = False) -> str:
     """A value as a user wrote it in TOML, for an error message.
 
     An unquoted date or time (``2026-01-01``, ``12:30:00``) is a TOML date,
-    not text or a number: said so, as written.
+    not text or a number: said so, as written, and where the key
+    ``wants_text``, with the quotes that make it a string.
     """
     import datetime
 
     if isinstance(value, (datetime.date, datetime.time)):
-        return f"the TOML date/time {value.isoformat()}"
+        quote = f' (quote it: "{value.isoformat()}")' if wants_text else ""
+        return f"the TOML date/time {value.isoformat()}{quote}"
     return repr(value)
 
 
@@ -66,8 +68,7 @@ def coerce(section: str, key: str, f: dataclasses.Field, value: Any) -> Any:
         value = int(value)
     elif isinstance(default, str):
         if not isinstance(value, str):
-            quote = f' (quote it: "{value.isoformat()}")' if hasattr(value, "isoformat") else ""
-            raise SceneError(f"{name} must be a string, got {shown(value)}{quote}")
+            raise SceneError(f"{name} must be a string, got {shown(value, wants_text=True)}")
     elif isinstance(default, list):
         if not isinstance(value, list):
             raise SceneError(f"{name} must be a list, e.g. {name}=[{_example(default, value)}]; got {shown(value)}")

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-#: Measures of one mesh: (name, flank or None for both, column of flank_contact.csv)
+#: Per-flank measures of one mesh: (name, column of flank_contact.csv); ``name_flank0``, ``name_flank1``
 PER_FLANK = (("profile_l2_m", "profile_l2_m"), ("filtered_max_m", "filtered_max_m"),
              ("worn_volume_m3", "flank_worn_volume_m3"))
 
