@@ -3,6 +3,7 @@ flanks bear under the preload and the held-amplitude worn state, kept per grid."
 from __future__ import annotations
 
 import csv
+import json
 
 import numpy as np
 import pytest
@@ -49,6 +50,22 @@ def test_the_bench_keeps_each_worn_state_with_the_rows_it_reports(tmp_path):
         scar = w["area"][on][w["W"][on] >= 0.05 * w["W"].max()].sum()
         assert float(r["scar_area_m2"]) == pytest.approx(scar, rel=1e-12)
         assert 0 <= float(r["worn_open_share"]) <= 1
+
+    # the wear response curve under the scene's force: each point's worn state kept with its row;
+    # at the grid's own friction-damped resonance the blade wears deeper than 0.5 % below it
+    curve = tmp_path / "curve"
+    flank_contact.main(["--grids", "4x2", "--grading", "0.5", "--models", str(models), "--response", "1,0.995",
+                        "--set", 'wear.control="force"', "--out", str(curve)])
+    pts = list(csv.DictReader(open(curve / "wear_response.csv")))
+    z = np.load(curve / "response-4x2.npz")
+    assert [float(r["detuning"]) for r in pts] == [0.995, 1.0] and list(z["detunings"]) == [0.995, 1.0]
+    for r, W in zip(pts, z["W"]):
+        assert r["control"] == "force" and r["steady"] == "True"
+        # the csv keeps 9 significant digits
+        assert float(r["frequency_hz"]) == pytest.approx(float(r["detuning"]) * float(r["resonance_hz"]), rel=1e-8)
+        assert float(r["max_wear_m"]) == pytest.approx(W.max(), rel=1e-8)
+        assert float(r["worn_volume_m3"]) == pytest.approx(W @ z["area"], rel=1e-8)
+    assert float(pts[1]["worn_volume_m3"]) > float(pts[0]["worn_volume_m3"]) > 0
 
 
 def test_a_worn_state_of_other_pairs_is_refused(tmp_path):
@@ -101,3 +118,34 @@ def test_the_convergence_summary_recovers_a_known_order_and_leaves_out_the_axial
     q2, q3, r = s["values"][-2], s["values"][-1], 2.0 ** 0.5
     assert s["gci"] == pytest.approx(1.25 * abs(q2 - q3) / (q3 * (r ** p - 1)), rel=1e-6)
     assert s["change_last"] == pytest.approx(abs(q2 - q3) / q3) and s["difference_last"] == pytest.approx(q3 - q2)
+
+
+def test_the_convergence_summary_reads_wear_response_curves(tmp_path):
+    """A wear response curve's peak is its largest worn volume among the points that reached a
+    worn steady state (a point stopped on persistent slip is not a worn state, however deep);
+    its measures at each f / f_r line up over the meshes, and a point only one mesh has has no
+    change."""
+    from workflow.bench import flank_convergence as fc
+    from workflow.io import write_rows
+
+    rows = []
+    for grid, pairs, top in (("a", 100, 2.0e-9), ("b", 400, 2.1e-9)):
+        rows += [{"grid": grid, "pairs": pairs, "detuning": r, "steady": st, "worn_volume_m3": v,
+                  "max_wear_m": 1e3 * v, "profile_l2_m": 1e2 * v}
+                 for r, st, v in ((0.995, True, 0.5e-9), (0.998, True, top), (1.0, True, 1.0e-9),
+                                  (1.005, False, 9.0e-9))]
+    rows.append({"grid": "b", "pairs": 400, "detuning": 1.01, "steady": True, "worn_volume_m3": 1e-11,
+                 "max_wear_m": 1e-8, "profile_l2_m": 1e-9})
+    write_rows(tmp_path / "wear_response.csv", rows)
+    meshes = fc.mesh_rows([tmp_path], end_band=0.002)
+    assert [m["pairs"] for m in meshes] == [100, 400]
+    assert [m["response_peak_volume_m3"] for m in meshes] == [2.0e-9, 2.1e-9]
+    assert all(m["response_peak_detuning"] == 0.998 for m in meshes)
+    s = fc.summary(meshes)["measures"]
+    assert s["response_peak_volume_m3"]["change_last"] == pytest.approx(0.1 / 2.1)
+    assert s["response_max_wear_m@1"]["values"] == [pytest.approx(1e-6), pytest.approx(1e-6)]
+    assert s["response_worn_volume_m3@1.01"]["values"] == [None, 1e-11]
+    assert s["response_worn_volume_m3@1.01"]["change_last"] is None
+    fc.main([str(tmp_path), "--out", str(tmp_path / "out")])
+    assert (tmp_path / "out" / "wear_response_meshes.png").stat().st_size > 0
+    assert json.loads((tmp_path / "out" / "flank_convergence.json").read_text())["pairs"] == [100, 400]

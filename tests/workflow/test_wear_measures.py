@@ -152,11 +152,12 @@ def test_wear_response_curve_of_a_jenkins_oscillator():
     o = oscillator()
     model = o.model()
     resp = wear_response(model, engine.contact_law(model, mu=o.mu), _options(("pseudo-time",), o.k_w, 0.0, nh=3),
-                         [1.1, 0.9, 1.0, 0.95, 1.05])
+                         [1.1, 0.9, 1.0, 0.95, 1.05], keep_states=True)
     rows = resp["rows"]
     assert [r["detuning"] for r in rows] == [0.9, 0.95, 1.0, 1.05, 1.1]
     for r in rows:
         assert r["steady"] and r["frequency_hz"] == pytest.approx(r["detuning"] * resp["resonance_hz"], rel=1e-14)
+        assert r["W"].max() == r["max_wear_m"]
         if r["detuning"] in (1.0, 1.05):
             assert r["max_wear_m"] == pytest.approx(o.delta0, rel=1e-4) and r["energy_new_J"] > 0
         else:

@@ -2,7 +2,7 @@
 
 ``python -m workflow.bench.flank_contact --grids 4x2,7x3,7x5,8x9 [--tip 2.5e-3] [--crown 0]
 [--grading 1] [--set SECTION.KEY=VALUE ...] [--models DIR] [--static-only] [--worn DIR] [--shift]
-[--sample S] [--out results/bench]``
+[--response R1,R2,...] [--sample S] [--out results/bench]``
 
 For each flank grid (``along x across`` vertices) of the ``contact-convergence`` scene's sector
 (meshed, assembled and reduced as the stage does it; ``--models`` keeps the reduced models
@@ -20,6 +20,13 @@ there, ``model-AxC.npz``, and reads them back):
   :func:`workflow.stages.contact_convergence.wear_setup`), and how each flank bears under the
   preload once worn (the worn depth in the gap) beside its wear scar (pairs at ≥ 5 % of the
   deepest; :func:`workflow.engine.wear.measures.scar`).
+
+With ``--response`` r₁,r₂,… the bench gives instead, per grid, the wear response curve
+(:func:`workflow.engine.studies.wearresponse.wear_response` on the stage's march setup): the worn
+steady state at each r × the grid's own friction-damped resonance, under the scene's 0.5 N tip
+force (``--set 'wear.control="force"'``) or with the tip held at ``--tip``; ``wear_response.csv``
+(one row per grid and point, with the ℓ-filtered profile's L2 over both flanks) and each point's
+worn depth in ``response-AxC.npz`` (``W`` (r, p) [m], ``detunings``).
 
 ``--set`` overrides scene keys; ``contact.stiffness_n``/``stiffness_t`` give every grid's model the
 interface layer of :mod:`reduction.layer` before both the static state and the march; with
@@ -165,6 +172,29 @@ def worn_state(model, W, tip: float, sets=()) -> dict:
     return {"shift": shift, "flanks": flanks}
 
 
+def response(model, tip: float, sets, detunings, ell: float) -> list[dict]:
+    """The wear response curve of one grid's model (``--response``): one row per point, the
+    engine's row (:func:`~workflow.engine.studies.wearresponse.wear_response`, its worn depth
+    ``W`` kept) with the grid's friction-damped resonance and the ℓ-filtered profile's L2 over
+    both flanks [m] (the root sum of the flanks' RMS, as :mod:`workflow.bench.flank_convergence`
+    takes it) and its largest depth."""
+    from workflow.engine.studies.wearresponse import wear_response
+    from workflow.engine.wear.measures import wear_measures
+    from workflow.stages.contact_convergence import wear_setup
+
+    scene = _scene(tip, sets)
+    m, law, _, opt = wear_setup(model, scene, scene["contact_convergence"])
+    res = wear_response(m, law, opt, detunings, keep_states=True,
+                        report=lambda msg: print(msg, file=sys.stderr, flush=True))
+    rows = []
+    for r in res["rows"]:
+        fl = wear_measures(r["W"], model.position, model.area, model.flank, ell)["flanks"].values()
+        rows.append({"resonance_hz": res["resonance_hz"], "control": opt.control, **r,
+                     "profile_l2_m": float(np.sqrt(sum(f["profile_l2_m"] ** 2 for f in fl))),
+                     "filtered_max_m": max(f["filtered_max_m"] for f in fl)})
+    return rows
+
+
 def grid_model(scene, grid: tuple[int, int], keep: Path | None, crown: float, sample: int):
     """The model the bench studies on ``grid``: the scene's interface layer at the node pairs, or at
     ``sample``² points a surface triangle when ``sample`` > 0, and a crown of ``crown`` [m]."""
@@ -203,7 +233,7 @@ def _shift_columns(state: dict, flank: int) -> dict:
 
 def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, out: Path,
         grading: float = 1.0, sets=(), worn_from: Path | None = None, shift: bool = False,
-        sample: int = 0) -> list[dict]:
+        sample: int = 0, detunings=()) -> list[dict]:
     from workflow.io import write_npz, write_rows
     from workflow.scene import load_scene
 
@@ -212,6 +242,15 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
     out.mkdir(parents=True, exist_ok=True)
     for g in grids:
         model = grid_model(scene, g, keep, crown, sample)
+        if detunings:
+            curve = response(model, tip, sets, detunings, scene["wear"].measure_length_m)
+            write_npz(out / f"response-{g[0]}x{g[1]}.npz", W=np.stack([r.pop("W") for r in curve]),
+                      detunings=np.array([r["detuning"] for r in curve]), position=model.position,
+                      flank=model.flank, area=model.area)
+            rows += [{"grid": f"{g[0]}x{g[1]}", "pairs": int(model.area.size), **r} for r in curve]
+            write_rows(out / "wear_response.csv", rows)
+            print(rows[-1], flush=True)
+            continue
         name = f"worn-{g[0]}x{g[1]}.npz"
         if worn_from is not None:
             W = saved_worn(worn_from / name, model)
@@ -231,7 +270,8 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
                          "flank_grading": grading, **r, "tip_amplitude_m": None if static_only else tip, **w,
                          **per_flank.get(r["flank"], {}), **_shift_columns(state, r["flank"])})
         print(rows[-1], flush=True)
-    write_rows(out / "flank_contact.csv", rows)
+    if not detunings:
+        write_rows(out / "flank_contact.csv", rows)
     return rows
 
 
@@ -251,6 +291,9 @@ def main(argv=None) -> int:
                     help="read each grid's worn state (worn-AxC.npz) from this folder instead of marching")
     ap.add_argument("--shift", action="store_true",
                     help="per worn state: the worn − new friction-damped resonance and the worn flanks' bearing")
+    ap.add_argument("--response", default="", metavar="R1,R2,...",
+                    help="per grid, the wear response curve at these f / f_r (f_r the grid's friction-damped "
+                         "resonance) instead of one held-amplitude march")
     ap.add_argument("--sample", type=int, default=0, metavar="S",
                     help="integrate the interface layer at S² points a contact-surface triangle instead of at "
                          "the node pairs (needs contact.stiffness_n, stiffness_t > 0)")
@@ -266,7 +309,16 @@ def main(argv=None) -> int:
         ap.error("--static-only has no worn state for --worn or --shift")
     if a.sample < 0:
         ap.error("--sample must be ≥ 0")
-    run(grids, a.tip, a.crown, a.models, a.static_only, a.out, a.grading, a.set, a.worn, a.shift, a.sample)
+    try:
+        detunings = [float(r) for r in a.response.split(",") if r.strip()]
+    except ValueError:
+        ap.error(f"--response {a.response!r}: expected f / f_r values, e.g. 0.995,1,1.005")
+    if any(not 0.5 <= r <= 2.0 for r in detunings):
+        ap.error("--response: each f / f_r must lie within 0.5–2")
+    if detunings and (a.static_only or a.worn or a.shift):
+        ap.error("--response marches its own worn states: not with --static-only, --worn or --shift")
+    run(grids, a.tip, a.crown, a.models, a.static_only, a.out, a.grading, a.set, a.worn, a.shift, a.sample,
+        detunings)
     return 0
 
 

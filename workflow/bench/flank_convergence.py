@@ -3,7 +3,8 @@
 ``python -m workflow.bench.flank_convergence DIR [DIR ...] [--out OUT]``
 
 Each ``DIR`` holds a ``flank_contact.csv`` of :mod:`workflow.bench.flank_contact` (one grid a
-folder or several; ``--shift`` runs add the worn − new resonance). The meshes are ordered by
+folder or several; ``--shift`` runs add the worn − new resonance), or a ``wear_response.csv`` of
+its ``--response`` runs, or both. The meshes are ordered by
 their pairs and the mesh size is h ∝ pairs^(-1/2) (the flanks' area is the same on every grid),
 so the folders should hold one cell shape refined — grids of different shapes at one pair count
 measure the cells' shape, not their size. Per measure:
@@ -20,10 +21,14 @@ The measures: the worn volume (both flanks, and each), the node-wise max depth, 
 at least ``--end-band`` [m] from the flanks' axial ends (the slot's end faces cut the contact
 there: a corner of the contact, whose depth is a point value), the ℓ-filtered profile's RMS and
 maximum on each flank and over both (``profile_l2_m``: the root sum of the flanks' squares), and,
-with ``--shift`` rows, the worn − new resonance (relative).
+with ``--shift`` rows, the worn − new resonance (relative). From a wear response curve: the worn
+volume, node-wise max depth and ℓ-filtered profile's L2 at each f / f_r every mesh has
+(``response_worn_volume_m3@1`` …), and the curve's peak — the largest worn volume of a worn steady
+state over its points (``response_peak_volume_m3``) and where it lies (``response_peak_detuning``).
 
 Writes ``flank_convergence.csv`` (one row a mesh) and ``flank_convergence.json`` (per measure:
-values, ``change_last``, ``observed_order``, ``gci``) to ``--out``.
+values, ``change_last``, ``observed_order``, ``gci``) to ``--out``, and with response curves
+``wear_response_meshes.png`` (every mesh's curve).
 """
 from __future__ import annotations
 
@@ -48,24 +53,72 @@ def _float(v):
     return x if np.isfinite(x) else None
 
 
-def mesh_rows(folders, end_band: float) -> list[dict]:
-    """One dict a mesh (sorted by pairs) from the folders' flank_contact.csv and worn-AxC.npz."""
-    meshes = {}
+#: Measures of a wear response curve's point: (name, column of wear_response.csv)
+RESPONSE = (("response_worn_volume_m3", "worn_volume_m3"), ("response_max_wear_m", "max_wear_m"),
+            ("response_profile_l2_m", "profile_l2_m"))
+
+
+def response_curves(folders) -> dict:
+    """{"<pairs> pairs": rows} of every wear_response.csv in the folders, each row's detuning,
+    steady, worn volume and max depth read as numbers — for the figure."""
+    curves = {}
     for folder in map(Path, folders):
-        path = folder / "flank_contact.csv"
+        path = folder / "wear_response.csv"
         if not path.is_file():
-            raise SystemExit(f"flank_convergence: no flank_contact.csv in {folder}")
+            continue
         with open(path, newline="") as fh:
             for r in csv.DictReader(fh):
-                m = meshes.setdefault(r["grid"], {"grid": r["grid"], "pairs": int(r["pairs"]),
-                                                  "worn_volume_m3": _float(r["worn_volume_m3"]),
-                                                  "max_wear_m": _float(r["max_wear_m"]), "folder": str(folder)})
+                curves.setdefault(int(r["pairs"]), []).append(
+                    {"detuning": float(r["detuning"]), "steady": r.get("steady") == "True",
+                     "worn_volume_m3": _float(r.get("worn_volume_m3")), "max_wear_m": _float(r.get("max_wear_m"))})
+    return {f"{p} pairs": curves[p] for p in sorted(curves)}
+
+
+def response_measures(rows: list[dict]) -> dict:
+    """One mesh's wear response curve (its wear_response.csv rows) as measures: each point's
+    (``name@r``) and the curve's peak — the largest worn volume of a worn steady state and its
+    f / f_r (none when no point reached one)."""
+    out = {}
+    for r in rows:
+        for name, col in RESPONSE:
+            out[f"{name}@{float(r['detuning']):g}"] = _float(r.get(col))
+    steady = [r for r in rows if r.get("steady") == "True" and _float(r.get("worn_volume_m3")) is not None]
+    top = max(steady, key=lambda r: _float(r["worn_volume_m3"]), default=None)
+    out["response_peak_volume_m3"] = None if top is None else _float(top["worn_volume_m3"])
+    out["response_peak_detuning"] = None if top is None else _float(top["detuning"])
+    return out
+
+
+def mesh_rows(folders, end_band: float) -> list[dict]:
+    """One dict a mesh (sorted by pairs) from the folders' flank_contact.csv and worn-AxC.npz,
+    and their wear_response.csv."""
+    meshes, curves = {}, {}
+    for folder in map(Path, folders):
+        path, curve = folder / "flank_contact.csv", folder / "wear_response.csv"
+        if not (path.is_file() or curve.is_file()):
+            raise SystemExit(f"flank_convergence: no flank_contact.csv or wear_response.csv in {folder}")
+        if curve.is_file():
+            # one grid's points may come from several folders (a finer sampling run apart)
+            with open(curve, newline="") as fh:
+                for r in csv.DictReader(fh):
+                    curves.setdefault((r["grid"], int(r["pairs"])), []).append(r)
+        if not path.is_file():
+            continue
+        with open(path, newline="") as fh:
+            for r in csv.DictReader(fh):
+                m = meshes.setdefault(r["grid"], {"grid": r["grid"], "pairs": int(r["pairs"])})
+                m.update({"worn_volume_m3": _float(r["worn_volume_m3"]), "max_wear_m": _float(r["max_wear_m"]),
+                          "folder": str(folder)})
                 f = int(r["flank"])
                 for name, col in PER_FLANK:
                     m[f"{name}_flank{f}"] = _float(r.get(col))
                 if r.get("resonance_shift_rel") not in (None, ""):
                     m["resonance_shift_rel"] = _float(r["resonance_shift_rel"])
+    for (grid, pairs), rows in curves.items():
+        meshes.setdefault(grid, {"grid": grid, "pairs": pairs}).update(response_measures(rows))
     for m in meshes.values():
+        if "folder" not in m:           # a response curve only: no held-amplitude worn state
+            continue
         worn = Path(m["folder"]) / f"worn-{m['grid']}.npz"
         if worn.is_file():
             with np.load(worn) as z:
@@ -85,7 +138,7 @@ def summary(rows: list[dict]) -> dict:
     from workflow.engine.studies.meshstudy import grid_convergence_index, observed_order, rel_change
 
     h = [m["pairs"] ** -0.5 for m in rows]
-    keys = [k for k in rows[-1] if k not in ("grid", "pairs", "folder")]
+    keys = sorted({k for m in rows for k in m} - {"grid", "pairs", "folder"})
     out = {}
     for k in keys:
         q = [m.get(k) for m in rows]
@@ -114,6 +167,11 @@ def main(argv=None) -> int:
     write_rows(out / "flank_convergence.csv", [{k: m.get(k, "") for k in keys} for m in rows])
     s = summary(rows)
     write_json(out / "flank_convergence.json", s)
+    curves = response_curves(a.folders)
+    if curves:
+        from workflow.report.wear import plot_wear_response_meshes
+
+        plot_wear_response_meshes(out / "wear_response_meshes.png", curves)
     for k, v in s["measures"].items():
         order = "—" if v["observed_order"] is None else f"{v['observed_order']:.2f}"
         gci = "—" if v["gci"] is None else f"{v['gci']:.2%}"

@@ -163,3 +163,28 @@ def plot_wear_response(path: Path, response: dict) -> Path:
             ax.plot(r[~ok], y[~ok], "o", mfc="none", color="C3", label="not steady (where the march stopped)")
         finish_axes(ax, f"f / f_r (f_r = {response['resonance_hz']:.4g} Hz)", label)
     return write_figure(fig, path)
+
+
+def plot_wear_response_meshes(path: Path, curves: dict) -> Path:
+    """Wear response curves of several contact meshes on one figure: ``curves`` {label: rows},
+    each row with ``detuning``, ``steady``, ``worn_volume_m3`` and ``max_wear_m`` (None or
+    missing where the march stopped without a worn steady state: not drawn)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from workflow.report.png import finish_axes, write_figure
+
+    fig, axs = plt.subplots(1, 2, figsize=(10, 4))
+    for k, (label, rows) in enumerate(curves.items()):
+        rows = sorted(rows, key=lambda x: x["detuning"])
+        r = np.array([x["detuning"] for x in rows])
+        for ax, key, scale in ((axs[0], "worn_volume_m3", 1e9), (axs[1], "max_wear_m", 1e6)):
+            y = np.array([scale * x[key] if x["steady"] and x.get(key) is not None else np.nan for x in rows])
+            ax.plot(r, y, "o-", color=f"C{k % 10}", lw=1, ms=3, label=label)
+    for ax in axs:
+        ax.xaxis.set_major_locator(plt.MaxNLocator(5))
+    finish_axes(axs[0], "f / f_r (f_r: each mesh's friction-damped resonance)", "worn volume (mm³)")
+    finish_axes(axs[1], "f / f_r (f_r: each mesh's friction-damped resonance)", "max wear depth (µm, node-wise)")
+    return write_figure(fig, path)

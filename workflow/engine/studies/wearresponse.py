@@ -3,13 +3,16 @@ model's friction-damped resonance (:mod:`workflow.engine.studies.operating`), ea
 pseudo-time march (:func:`workflow.engine.studies.wearstudy.worn_steady_state`)."""
 from __future__ import annotations
 
+import time
+from dataclasses import replace
+
 import numpy as np
 
 from workflow.engine.studies.operating import friction_damped_resonance
 from workflow.engine.studies.wearstudy import worn_steady_state
 
 
-def wear_response(model, law, opt, detunings) -> dict:
+def wear_response(model, law, opt, detunings, keep_states: bool = False, report=None) -> dict:
     """The wear response curve: the worn steady state at each ``detunings`` r × the model's
     friction-damped resonance f_r (found once) — what a designer reads instead of one number at
     one frequency. ``opt``: the :class:`~workflow.engine.studies.wearstudy.WearOptions` of each
@@ -17,11 +20,8 @@ def wear_response(model, law, opt, detunings) -> dict:
     {"resonance_hz", "rows": [{"detuning", "frequency_hz", "steady", "max_wear_m",
     "worn_volume_m3", "energy_new_J", "persistent_slip", "reason", "seconds"}], "seconds"}; a point
     without a worn steady state (persistent slip: the wear feeds the vibration) says so, its depth
-    where the march stopped."""
-    import time
-    from dataclasses import replace
-
-
+    where the march stopped. ``keep_states``: each row also holds its worn depth ``"W"`` (p,) [m]
+    (for measures of the profile; not JSON); ``report(message)``: one line a point done."""
     t0 = time.perf_counter()
     res = friction_damped_resonance(model, law, method=opt.method, nh=opt.nh, nit=opt.nit, tol=opt.tol,
                                     max_iterations=opt.max_iterations, max_passes=opt.max_passes)
@@ -36,4 +36,9 @@ def wear_response(model, law, opt, detunings) -> dict:
                      "max_wear_m": float(np.max(h.W)), "worn_volume_m3": st.measures.get("worn_volume_m3"),
                      "energy_new_J": st.energy_per_cycle_J.get("new"), "persistent_slip": bool(h.persistent_slip),
                      "reason": h.reason, "seconds": time.perf_counter() - t})
+        if keep_states:
+            rows[-1]["W"] = np.asarray(h.W, float).copy()
+        if report is not None:
+            report(f"wear response: f/f_r = {r:g}: max W {rows[-1]['max_wear_m']:.4g} m, "
+                   f"steady {rows[-1]['steady']}, {rows[-1]['seconds']:.0f} s")
     return {"resonance_hz": res["hz"], "rows": rows, "seconds": time.perf_counter() - t0}
