@@ -55,7 +55,7 @@ def test_the_bench_keeps_each_worn_state_with_the_rows_it_reports(tmp_path):
     # at the grid's own friction-damped resonance the blade wears deeper than 0.5 % below it
     curve = tmp_path / "curve"
     flank_contact.main(["--grids", "4x2", "--grading", "0.5", "--models", str(models), "--response", "1,0.995",
-                        "--set", 'wear.control="force"', "--out", str(curve)])
+                        "--shift", "--set", 'wear.control="force"', "--out", str(curve)])
     pts = list(csv.DictReader(open(curve / "wear_response.csv")))
     z = np.load(curve / "response-4x2.npz")
     assert [float(r["detuning"]) for r in pts] == [0.995, 1.0] and list(z["detunings"]) == [0.995, 1.0]
@@ -66,6 +66,10 @@ def test_the_bench_keeps_each_worn_state_with_the_rows_it_reports(tmp_path):
         assert float(r["max_wear_m"]) == pytest.approx(W.max(), rel=1e-8)
         assert float(r["worn_volume_m3"]) == pytest.approx(W @ z["area"], rel=1e-8)
     assert float(pts[1]["worn_volume_m3"]) > float(pts[0]["worn_volume_m3"]) > 0
+    # wear lowers the resonance, so the worn blade sees a higher detuning than the new one; worn at
+    # its new peak it wears until that peak has passed below the excitation
+    assert all(float(r["worn_detuning"]) > float(r["detuning"]) for r in pts)
+    assert float(pts[1]["worn_detuning"]) > 1.0
 
 
 def test_a_worn_state_of_other_pairs_is_refused(tmp_path):

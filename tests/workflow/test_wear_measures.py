@@ -163,3 +163,26 @@ def test_wear_response_curve_of_a_jenkins_oscillator():
         else:
             assert r["max_wear_m"] == 0.0 and r["energy_new_J"] == 0.0
     assert max(rows, key=lambda r: r["energy_new_J"])["detuning"] == 1.0
+
+
+def test_each_point_of_the_wear_response_curve_says_where_its_worn_resonance_is():
+    """With ``resonance_shift`` each point gives its worn blade's friction-damped resonance: where
+    the pad sticks nothing wears and the worn resonance is the new one (the detuning the worn
+    blade sees is the point's own); where it wears to lift-off the blade is the linear oscillator
+    without its pad, whose peak (10 Hz · √(1 − 2ζ²)) lies 29 % below the tied resonance, outside
+    the search's ±10 % band: not found, said as None."""
+    from dataclasses import replace
+
+    from workflow import engine
+    from workflow.engine.studies.wearresponse import wear_response
+    from workflow.verification.wear_runner import _options, oscillator
+
+    o = oscillator()
+    model = o.model()
+    opt = replace(_options(("pseudo-time",), o.k_w, 0.0, nh=3), resonance_shift=True)
+    resp = wear_response(model, engine.contact_law(model, mu=o.mu), opt, [0.95, 1.0])
+    stuck, worn = resp["rows"]
+    assert stuck["max_wear_m"] == 0.0 and stuck["worn_resonance_hz"] == pytest.approx(resp["resonance_hz"], rel=1e-12)
+    assert stuck["worn_detuning"] == pytest.approx(0.95, rel=1e-12)
+    assert worn["max_wear_m"] == pytest.approx(o.delta0, rel=1e-4)
+    assert worn["worn_resonance_hz"] is None and worn["worn_detuning"] is None

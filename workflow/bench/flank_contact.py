@@ -26,7 +26,8 @@ With ``--response`` r₁,r₂,… the bench gives instead, per grid, the wear re
 steady state at each r × the grid's own friction-damped resonance, under the scene's 0.5 N tip
 force (``--set 'wear.control="force"'``) or with the tip held at ``--tip``; ``wear_response.csv``
 (one row per grid and point, with the ℓ-filtered profile's L2 over both flanks) and each point's
-worn depth in ``response-AxC.npz`` (``W`` (r, p) [m], ``detunings``).
+worn depth in ``response-AxC.npz`` (``W`` (r, p) [m], ``detunings``); with ``--shift`` each
+point's worn friction-damped resonance and the detuning the worn blade sees (``worn_detuning``).
 
 ``--set`` overrides scene keys; ``contact.stiffness_n``/``stiffness_t`` give every grid's model the
 interface layer of :mod:`reduction.layer` before both the static state and the march; with
@@ -172,19 +173,19 @@ def worn_state(model, W, tip: float, sets=()) -> dict:
     return {"shift": shift, "flanks": flanks}
 
 
-def response(model, tip: float, sets, detunings, ell: float) -> list[dict]:
+def response(model, tip: float, sets, detunings, ell: float, shift: bool = False) -> list[dict]:
     """The wear response curve of one grid's model (``--response``): one row per point, the
     engine's row (:func:`~workflow.engine.studies.wearresponse.wear_response`, its worn depth
-    ``W`` kept) with the grid's friction-damped resonance and the ℓ-filtered profile's L2 over
-    both flanks [m] (the root sum of the flanks' RMS, as :mod:`workflow.bench.flank_convergence`
-    takes it) and its largest depth."""
+    ``W`` kept; with ``shift`` each worn state's friction-damped resonance) with the grid's
+    friction-damped resonance and the ℓ-filtered profile's L2 over both flanks [m] (the root sum
+    of the flanks' RMS, as :mod:`workflow.bench.flank_convergence` takes it) and its largest depth."""
     from workflow.engine.studies.wearresponse import wear_response
     from workflow.engine.wear.measures import wear_measures
     from workflow.stages.contact_convergence import wear_setup
 
     scene = _scene(tip, sets)
     m, law, _, opt = wear_setup(model, scene, scene["contact_convergence"])
-    res = wear_response(m, law, opt, detunings, keep_states=True,
+    res = wear_response(m, law, replace(opt, resonance_shift=shift), detunings, keep_states=True,
                         report=lambda msg: print(msg, file=sys.stderr, flush=True))
     rows = []
     for r in res["rows"]:
@@ -243,7 +244,7 @@ def run(grids, tip: float, crown: float, keep: Path | None, static_only: bool, o
     for g in grids:
         model = grid_model(scene, g, keep, crown, sample)
         if detunings:
-            curve = response(model, tip, sets, detunings, scene["wear"].measure_length_m)
+            curve = response(model, tip, sets, detunings, scene["wear"].measure_length_m, shift)
             write_npz(out / f"response-{g[0]}x{g[1]}.npz", W=np.stack([r.pop("W") for r in curve]),
                       detunings=np.array([r["detuning"] for r in curve]), position=model.position,
                       flank=model.flank, area=model.area)
@@ -290,7 +291,8 @@ def main(argv=None) -> int:
     ap.add_argument("--worn", type=Path, default=None,
                     help="read each grid's worn state (worn-AxC.npz) from this folder instead of marching")
     ap.add_argument("--shift", action="store_true",
-                    help="per worn state: the worn − new friction-damped resonance and the worn flanks' bearing")
+                    help="per worn state: the worn − new friction-damped resonance and the worn flanks' bearing "
+                         "(with --response: each point's worn resonance)")
     ap.add_argument("--response", default="", metavar="R1,R2,...",
                     help="per grid, the wear response curve at these f / f_r (f_r the grid's friction-damped "
                          "resonance) instead of one held-amplitude march")
@@ -315,8 +317,8 @@ def main(argv=None) -> int:
         ap.error(f"--response {a.response!r}: expected f / f_r values, e.g. 0.995,1,1.005")
     if any(not 0.5 <= r <= 2.0 for r in detunings):
         ap.error("--response: each f / f_r must lie within 0.5–2")
-    if detunings and (a.static_only or a.worn or a.shift):
-        ap.error("--response marches its own worn states: not with --static-only, --worn or --shift")
+    if detunings and (a.static_only or a.worn):
+        ap.error("--response marches its own worn states: not with --static-only or --worn")
     run(grids, a.tip, a.crown, a.models, a.static_only, a.out, a.grading, a.set, a.worn, a.shift, a.sample,
         detunings)
     return 0

@@ -142,7 +142,8 @@ def tip_cycles(study) -> tuple:
 
 def plot_wear_response(path: Path, response: dict) -> Path:
     """The wear response curve: worn volume and max depth at the worn steady state against
-    f / f_r (f_r the friction-damped resonance); marches that did not reach a steady state hollow."""
+    f / f_r (f_r the friction-damped resonance), and where the rows carry it the detuning the
+    worn blade sees (f over its own resonance); marches that did not reach a steady state hollow."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -153,10 +154,13 @@ def plot_wear_response(path: Path, response: dict) -> Path:
     rows = response["rows"]
     r = np.array([x["detuning"] for x in rows])
     ok = np.array([x["steady"] for x in rows])
-    fig, axs = plt.subplots(1, 2, figsize=(10, 4))
-    for ax, key, scale, label in ((axs[0], "worn_volume_m3", 1e9, "worn volume (mm³)"),
-                                  (axs[1], "max_wear_m", 1e6, "max wear depth (µm, node-wise)")):
-        y = np.array([np.nan if x[key] is None else scale * x[key] for x in rows])
+    panels = [("worn_volume_m3", 1e9, "worn volume (mm³)"), ("max_wear_m", 1e6, "max wear depth (µm, node-wise)")]
+    if any(x.get("worn_detuning") is not None for x in rows):
+        # where the worn blade's own resonance ends up: wear lowers it until the excitation sits above it
+        panels.append(("worn_detuning", 1.0, "f / f_r,worn (the worn blade's resonance)"))
+    fig, axs = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4))
+    for ax, (key, scale, label) in zip(axs, panels):
+        y = np.array([np.nan if x.get(key) is None else scale * x[key] for x in rows])
         ax.plot(r, y, "-", color="C0", lw=1)
         ax.plot(r[ok], y[ok], "o", color="C0", label="worn steady state")
         if (~ok).any():

@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from workflow.engine.studies.operating import friction_damped_resonance
+from workflow.engine.studies.operating import friction_damped_resonance, resonance_shift
 from workflow.engine.studies.wearstudy import worn_steady_state
 
 
@@ -20,7 +20,10 @@ def wear_response(model, law, opt, detunings, keep_states: bool = False, report=
     {"resonance_hz", "rows": [{"detuning", "frequency_hz", "steady", "max_wear_m",
     "worn_volume_m3", "energy_new_J", "persistent_slip", "reason", "seconds"}], "seconds"}; a point
     without a worn steady state (persistent slip: the wear feeds the vibration) says so, its depth
-    where the march stopped. ``keep_states``: each row also holds its worn depth ``"W"`` (p,) [m]
+    where the march stopped. With ``opt.resonance_shift`` each row also gives the worn blade's
+    friction-damped resonance ``worn_resonance_hz`` and the detuning it sees, ``worn_detuning``
+    = f / f_r,worn (None where it is not found): wear lowers the resonance, and a worn steady
+    state next to it ends where the excitation sits above the worn peak. ``keep_states``: each row also holds its worn depth ``"W"`` (p,) [m]
     (for measures of the profile; not JSON); ``report(message)``: one line a point done."""
     t0 = time.perf_counter()
     res = friction_damped_resonance(model, law, method=opt.method, nh=opt.nh, nit=opt.nit, tol=opt.tol,
@@ -36,6 +39,11 @@ def wear_response(model, law, opt, detunings, keep_states: bool = False, report=
                      "max_wear_m": float(np.max(h.W)), "worn_volume_m3": st.measures.get("worn_volume_m3"),
                      "energy_new_J": st.energy_per_cycle_J.get("new"), "persistent_slip": bool(h.persistent_slip),
                      "reason": h.reason, "seconds": time.perf_counter() - t})
+        if opt.resonance_shift:
+            worn = resonance_shift(model, law, h.W, opt, new=res).get("worn_hz")
+            rows[-1].update({"worn_resonance_hz": worn,
+                             "worn_detuning": None if worn is None else rows[-1]["frequency_hz"] / worn,
+                             "seconds": time.perf_counter() - t})
         if keep_states:
             rows[-1]["W"] = np.asarray(h.W, float).copy()
         if report is not None:
