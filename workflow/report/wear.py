@@ -142,8 +142,9 @@ def tip_cycles(study) -> tuple:
 
 def plot_wear_response(path: Path, response: dict) -> Path:
     """The wear response curve: worn volume and max depth at the worn steady state against
-    f / f_r (f_r the friction-damped resonance), and where the rows carry it the detuning the
-    worn blade sees (f over its own resonance); marches that did not reach a steady state hollow."""
+    f / f_r (f_r the friction-damped resonance), and where the rows carry it the worn blade's own
+    resonance against the excitation (below the diagonal the wear has pulled the resonance past
+    it); marches that did not reach a steady state hollow."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -155,10 +156,13 @@ def plot_wear_response(path: Path, response: dict) -> Path:
     r = np.array([x["detuning"] for x in rows])
     ok = np.array([x["steady"] for x in rows])
     panels = [("worn_volume_m3", 1e9, "worn volume (mm³)"), ("max_wear_m", 1e6, "max wear depth (µm, node-wise)")]
-    if any(x.get("worn_detuning") is not None for x in rows):
-        # where the worn blade's own resonance ends up: wear lowers it until the excitation sits above it
-        panels.append(("worn_detuning", 1.0, "f / f_r,worn (the worn blade's resonance)"))
+    worn_res = any(x.get("worn_resonance_hz") is not None for x in rows)
+    if worn_res:
+        # where the worn blade's own resonance ends up: below the diagonal it has passed the excitation
+        panels.append(("worn_resonance_hz", 1.0 / response["resonance_hz"], "worn resonance f_r,worn / f_r"))
     fig, axs = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4))
+    if worn_res:
+        axs[-1].plot(r, r, "--", color="0.5", lw=1, label="the excitation, f / f_r")
     for ax, (key, scale, label) in zip(axs, panels):
         y = np.array([np.nan if x.get(key) is None else scale * x[key] for x in rows])
         ax.plot(r, y, "-", color="C0", lw=1)
