@@ -22,7 +22,8 @@ at least ``--end-band`` [m] from the flanks' axial ends (the slot's end faces cu
 there: a corner of the contact, whose depth is a point value), the ℓ-filtered profile's RMS and
 maximum on each flank and over both (``profile_l2_m``: the root sum of the flanks' squares), and,
 with ``--shift`` rows, the worn − new resonance (relative). From a wear response curve: the worn
-volume, node-wise max depth and ℓ-filtered profile's L2 at each f / f_r every mesh has
+volume, node-wise max depth, ℓ-filtered profile's L2 and (``--shift`` runs) the detuning the worn
+blade sees at each f / f_r every mesh has
 (``response_worn_volume_m3@1`` …), and the curve's peak — the largest worn volume of a worn steady
 state over its points (``response_peak_volume_m3``) and where it lies (``response_peak_detuning``).
 
@@ -55,7 +56,7 @@ def _float(v):
 
 #: Measures of a wear response curve's point: (name, column of wear_response.csv)
 RESPONSE = (("response_worn_volume_m3", "worn_volume_m3"), ("response_max_wear_m", "max_wear_m"),
-            ("response_profile_l2_m", "profile_l2_m"))
+            ("response_profile_l2_m", "profile_l2_m"), ("response_worn_detuning", "worn_detuning"))
 
 
 def response_curves(folders) -> dict:
