@@ -23,8 +23,7 @@ there: a corner of the contact, whose depth is a point value), the ℓ-filtered 
 maximum on each flank and over both (``profile_l2_m``: the root sum of the flanks' squares), and,
 with ``--shift`` rows, the worn − new resonance (relative). From a wear response curve: the worn
 volume, node-wise max depth, ℓ-filtered profile's L2 and (``--shift`` runs) the detuning the worn
-blade sees at each f / f_r every mesh has
-(``response_worn_volume_m3@1`` …), and the curve's peak — the largest worn volume of a worn steady
+blade sees at each f / f_r every mesh has (``response_worn_volume_m3@1`` …), and the curve's peak — the largest worn volume of a worn steady
 state over its points (``response_peak_volume_m3``) and where it lies (``response_peak_detuning``).
 
 Writes ``flank_convergence.csv`` (one row a mesh) and ``flank_convergence.json`` (per measure:
@@ -59,20 +58,25 @@ RESPONSE = (("response_worn_volume_m3", "worn_volume_m3"), ("response_max_wear_m
             ("response_profile_l2_m", "profile_l2_m"), ("response_worn_detuning", "worn_detuning"))
 
 
-def response_curves(folders) -> dict:
-    """{"<pairs> pairs": rows} of every wear_response.csv in the folders, each row's detuning,
-    steady, worn volume and max depth read as numbers — for the figure."""
+def read_curves(folders) -> dict:
+    """{(grid, pairs): rows} of every wear_response.csv in the folders (csv rows as read): one
+    grid's points may come from several folders, a finer sampling run apart."""
     curves = {}
     for folder in map(Path, folders):
         path = folder / "wear_response.csv"
-        if not path.is_file():
-            continue
-        with open(path, newline="") as fh:
-            for r in csv.DictReader(fh):
-                curves.setdefault(int(r["pairs"]), []).append(
-                    {"detuning": float(r["detuning"]), "steady": r.get("steady") == "True",
-                     "worn_volume_m3": _float(r.get("worn_volume_m3")), "max_wear_m": _float(r.get("max_wear_m"))})
-    return {f"{p} pairs": curves[p] for p in sorted(curves)}
+        if path.is_file():
+            with open(path, newline="") as fh:
+                for r in csv.DictReader(fh):
+                    curves.setdefault((r["grid"], int(r["pairs"])), []).append(r)
+    return curves
+
+
+def figure_curves(curves: dict) -> dict:
+    """:func:`read_curves`' rows as {"<pairs> pairs": rows} of numbers, for the figure."""
+    return {f"{pairs} pairs": [{"detuning": float(r["detuning"]), "steady": r.get("steady") == "True",
+                                "worn_volume_m3": _float(r.get("worn_volume_m3")),
+                                "max_wear_m": _float(r.get("max_wear_m"))} for r in rows]
+            for (_, pairs), rows in sorted(curves.items(), key=lambda kv: kv[0][1])}
 
 
 def response_measures(rows: list[dict]) -> dict:
@@ -93,16 +97,11 @@ def response_measures(rows: list[dict]) -> dict:
 def mesh_rows(folders, end_band: float) -> list[dict]:
     """One dict a mesh (sorted by pairs) from the folders' flank_contact.csv and worn-AxC.npz,
     and their wear_response.csv."""
-    meshes, curves = {}, {}
+    meshes = {}
     for folder in map(Path, folders):
-        path, curve = folder / "flank_contact.csv", folder / "wear_response.csv"
-        if not (path.is_file() or curve.is_file()):
+        path = folder / "flank_contact.csv"
+        if not (path.is_file() or (folder / "wear_response.csv").is_file()):
             raise SystemExit(f"flank_convergence: no flank_contact.csv or wear_response.csv in {folder}")
-        if curve.is_file():
-            # one grid's points may come from several folders (a finer sampling run apart)
-            with open(curve, newline="") as fh:
-                for r in csv.DictReader(fh):
-                    curves.setdefault((r["grid"], int(r["pairs"])), []).append(r)
         if not path.is_file():
             continue
         with open(path, newline="") as fh:
@@ -115,7 +114,7 @@ def mesh_rows(folders, end_band: float) -> list[dict]:
                     m[f"{name}_flank{f}"] = _float(r.get(col))
                 if r.get("resonance_shift_rel") not in (None, ""):
                     m["resonance_shift_rel"] = _float(r["resonance_shift_rel"])
-    for (grid, pairs), rows in curves.items():
+    for (grid, pairs), rows in read_curves(folders).items():
         meshes.setdefault(grid, {"grid": grid, "pairs": pairs}).update(response_measures(rows))
     for m in meshes.values():
         if "folder" not in m:           # a response curve only: no held-amplitude worn state
@@ -168,11 +167,11 @@ def main(argv=None) -> int:
     write_rows(out / "flank_convergence.csv", [{k: m.get(k, "") for k in keys} for m in rows])
     s = summary(rows)
     write_json(out / "flank_convergence.json", s)
-    curves = response_curves(a.folders)
+    curves = read_curves(a.folders)
     if curves:
         from workflow.report.wear import plot_wear_response_meshes
 
-        plot_wear_response_meshes(out / "wear_response_meshes.png", curves)
+        plot_wear_response_meshes(out / "wear_response_meshes.png", figure_curves(curves))
     for k, v in s["measures"].items():
         order = "—" if v["observed_order"] is None else f"{v['observed_order']:.2f}"
         gci = "—" if v["gci"] is None else f"{v['gci']:.2%}"
