@@ -177,6 +177,39 @@ def test_fully_stuck_pair_keeps_its_reference():
     assert np.allclose(r.lam[:, 0, 1:], lam_u[:, 0, 1:] - ref)
 
 
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_pre_slip_force_on_the_cone_to_round_off_sticks(compiled, monkeypatch):
+    """A pair whose pre-slip force reaches the Coulomb cone to within the round-off of its
+    operands (λ_pre^T = λ_u^T − λ_x^T, two forces of 1e5 N here, whose last bit is 1.5e-11 N)
+    sticks — here 1e-10 N over the 5 N limit:
+    its reference stays bit-for-bit and its force is the predictor's, on the cone to round-off.
+    (Counted as slip, a reference moved by round-off each period wore a stuck interface at
+    ~1e-29 m/cycle.) Beyond the band — here 5e-6 N over the 5 N limit — it slips as before and
+    its reference moves by that much."""
+    from workflow.engine import contact
+
+    if not compiled:
+        monkeypatch.setattr(contact, "_one_pass_numba", None)
+    nit = 16
+    t = fourier.sample_times(nit)
+    ref = np.array([[1e5, 0.0]])
+    for excess in (2e-11, 1e-6):
+        lam_u = np.zeros((nit, 1, 3))
+        lam_u[:, 0, 0] = -10.0
+        lam_u[:, 0, 1] = 1e5 + 5.0 * (1.0 + excess) * np.cos(t)
+        r = dlft_pass(lam_u, 0.5, ref, periodic=False)
+        if excess < 1e-9:
+            touching = np.isin(np.arange(nit), (0, nit // 2))        # |cos| = 1: on the cone
+            assert np.array_equal(r.state[:, 0], np.where(touching, SLIP, STICK))
+            assert np.array_equal(r.lam_x_T[:, 0], np.broadcast_to(ref[0], (nit, 2)))
+            # over the cone by at most the band, 64 ε (‖λ_u^T‖ + ‖λ_x^T‖) = 2.8e-9 N here
+            assert r.lam[0, 0, 1] == pytest.approx(5.0, abs=64 * np.finfo(float).eps * 2e5)
+        else:
+            moved = r.lam_x_T[0, 0] - ref[0]
+            assert moved[0] == pytest.approx(5e-6, rel=1e-4) and moved[1] == 0.0
+            assert r.lam[0, 0, 1] == pytest.approx(5.0, abs=1e-10)
+
+
 def test_dlft_uses_anchor_displacement():
     law = ContactLaw(mu=[0.5], eps_n=1e3, eps_t=2e3, gap=[0.0])
     lam_u = np.zeros((4, 1, 3))

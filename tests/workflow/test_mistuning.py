@@ -305,11 +305,16 @@ def test_a_wear_step_whose_vibration_correction_fails_is_resolved_from_its_predi
     along the ε-path from the step's predictor (workflow.engine.wear.pseudotime._wear_step; the
     re-solve once started from x plus None and the march died with a TypeError). The corrections'
     linear solve is made to fail, so every step takes the re-solve; on this tuned lumped disk
-    (load 0.3, μ = 0.3, Nh = 1, 0.96 f₁) the pairs slip and wear, and the march ends with its
-    reason. (Lighter loads sit where which of the static friction problem's many solutions Newton
+    (load 0.3, μ = 0.25, Nh = 1, 0.96 f₁) the pairs slip and wear (6e-13 a cycle at the start),
+    the steps re-solve beyond the march's first and last solves, and the march ends with its
+    reason. The pairs slip persistently, which the march tells after two steps at the default
+    horizon (cycles_per_block / steady_tol, before any correction); a block of 1e8 cycles puts
+    the horizon past the steps whose corrections fail. (Lighter loads sit where which of the static friction problem's many solutions Newton
     lands on depends on rounding: at load 0.1 the pairs stuck on one BLAS thread and slipped on
     two; at 0.15 and 0.2 the march took 0.3 s on one thread count and 12–22 s on the other once
-    the relative coordinates were built pair block by pair block; at 0.3, 0.3 s on both.)"""
+    the relative coordinates were built pair block by pair block. At μ = 0.3 the pairs stick: what
+    wore there, 1e-25 a cycle, was a reference moved by round-off on the cone,
+    workflow.engine.contact._ROUND.)"""
     import workflow.engine.wear.pseudotime as pseudotime
     from workflow.engine.linear import first_excited_mode
     from workflow.engine.studies.wearstudy import WearOptions
@@ -321,12 +326,12 @@ def test_a_wear_step_whose_vibration_correction_fails_is_resolved_from_its_predi
     monkeypatch.setattr(WearProblem, "solve_hb", lambda self, *a, **k: resolves.append(1) or solve_hb(self, *a, **k))
     light = substructures(sector_bundle(N, amplitude=0.3), EO, blade_modes=50, disk_modes=50)
     cyc = cyclic_model(light, [0, 1, 2, 3, 4])
-    law = engine.contact_law(cyc, mu=0.3)
+    law = engine.contact_law(cyc, mu=0.25)
     w = 2 * np.pi * first_excited_mode(relative_coordinates(cyc))[0] * 0.96
     v = engine.Variant("hbm", 1, ms.time_samples(1, N, EO))
     disk = ms.worn_blades(WholeDiskCoordinates(light), ms.tiled_law(law, N, EO), v, w, light.pairs["area"],
-                          WearOptions(method="hbm", nh=1, nit=v.nit), n_sectors=N)
-    assert resolves and disk.history.reason and np.isfinite(disk.W).all() and disk.W.min() >= 0 and disk.W.max() > 0
+                          WearOptions(method="hbm", nh=1, nit=v.nit, cycles_per_block=1e8), n_sectors=N)
+    assert len(resolves) > 2 and disk.history.reason and np.isfinite(disk.W).all() and disk.W.min() >= 0 and disk.W.max() > 0
 
 
 def _blades(f0, level, zeta=0.004):

@@ -49,6 +49,13 @@ _TINY = 1e-300
 #: relative distance to the Coulomb cone within which a stuck instant is "touching"
 #: (takes the slip derivative); above the periodic-pass tolerance.
 _TOUCH = 1e-7
+#: a pre-slip force beyond the cone by less than this many ε_mach × (‖λ_pre^T‖'s operands, the
+#: predictor and the stick reference) is round-off, not slip: ``λ_pre^T = λ_u^T − λ_x^T`` is the
+#: difference of two forces of that size, each the sum of up to 2Nh+1 harmonics' terms. A pair
+#: that shook down onto the cone sits there to round-off; counted as slip it moved its reference
+#: by ~1e-18 of its displacement each period and wore a stuck interface at ~1e-29 m/cycle — a
+#: pseudo-time march then chased that "wear" over 1e19 cycles (quick sector at 0.98 f_r).
+_ROUND = 64.0 * float(np.finfo(float).eps)
 #: smallest singular value of I − ∂Φ/∂r (relative) for a periodic reference to count as isolated
 _ISOLATED = 1e-6
 
@@ -225,7 +232,8 @@ def _one_pass_numpy(lam_u, mu, ref, dlu, start):
         nT = np.sqrt(preT[:, 0] * preT[:, 0] + preT[:, 1] * preT[:, 1])
         sep = sep_all[k, ip]
         lim = limit_all[k, ip]
-        slip = (nT >= lim) & ~sep
+        rnd = _ROUND * (np.sqrt(np.sum(luTk * luTk, axis=1)) + np.sqrt(np.sum(lxT * lxT, axis=1)))
+        slip = (nT > lim + rnd) & ~sep
         stick = ~(slip | sep)
         # A pair that slipped while the periods settled ends *on* the cone
         # (shakedown): its forces are those of stick to O(δ), but its reference
@@ -295,7 +303,8 @@ def _one_pass_loops(lam_u, mu, ref, dlu, start):
             p0 = lam_u[k, i, 1] - l0
             p1 = lam_u[k, i, 2] - l1
             nT = np.sqrt(p0 * p0 + p1 * p1)
-            slip = (nT >= lim) and not sep
+            rnd = _ROUND * (np.sqrt(lam_u[k, i, 1] ** 2 + lam_u[k, i, 2] ** 2) + np.sqrt(l0 * l0 + l1 * l1))
+            slip = (nT > lim + rnd) and not sep
             stick = not (slip or sep)
             touch = stick and (nT >= lim * (1.0 - _TOUCH))
             if sep:
