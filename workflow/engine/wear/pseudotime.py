@@ -151,7 +151,8 @@ def _march_start(wp: WearProblem, x0, tol: float, track: int):
     hist = WearHistory(method="pseudo-time-ser", W=W, x=res0.x, steady=False, seconds=0.0, iterations=0,
                        hb_solves=1, jacobian_evaluations=res0.jacobian_evaluations + 1)
     _record(hist, wp, 0.0, res0.x, W, st.rate, track)
-    return res0.x, W, st, penetration_scale(wp, st), hist
+    hist.w_scale = penetration_scale(wp, st)
+    return res0.x, W, st, hist.w_scale, hist
 
 
 def _steady_at_start(hist: WearHistory, st: WearState, t0: float) -> WearHistory:

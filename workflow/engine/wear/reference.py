@@ -62,7 +62,7 @@ def march_reference(wp: WearProblem, x0, *, scheme: str = "explicit", cycles_per
     pen = penetration_scale(wp, st)
     x = res.x
     hist = WearHistory(method=f"reference-{scheme}", W=W, x=x, steady=False, seconds=0.0, iterations=0,
-                       hb_solves=0, jacobian_evaluations=0)
+                       hb_solves=0, jacobian_evaluations=0, w_scale=pen)
     cyc = 0.0
     _record(hist, wp, cyc, x, W, st.rate, track)
     reason = f"max blocks ({max_blocks})"

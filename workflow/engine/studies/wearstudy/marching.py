@@ -69,7 +69,8 @@ def _join(stages: list):
                       hb_solves=sum(h.hb_solves for h in stages),
                       jacobian_evaluations=sum(h.jacobian_evaluations for h in stages), final_rate=last.final_rate,
                       reason=last.reason if len(stages) == 1 else f"stage {len(stages)}: {last.reason}",
-                      persistent_slip=last.persistent_slip, vibration_lost=last.vibration_lost)
+                      persistent_slip=last.persistent_slip, vibration_lost=last.vibration_lost,
+                      w_scale=stages[0].w_scale)
     t = 0.0
     for h in stages:
         out.cycles += [t + c for c in h.cycles]
