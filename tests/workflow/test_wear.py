@@ -119,6 +119,43 @@ def _jenkins_pair(nit=64, nh=3):
     return HBProblem(Zr, Fr, ContactLaw(mu=np.full(2, mu), eps_n=kn, eps_t=k, gap=np.zeros(2)), nh, nit, "hbm")
 
 
+def _path(W_of_t, rate_of_t, t, w_scale):
+    """A wear path (:class:`WearHistory`) through the times t [cycles] (t[0] = 0)."""
+    from workflow.engine.wear.history import WearHistory
+
+    h = WearHistory(method="path", W=np.zeros(1), x=np.zeros(1), steady=False, seconds=0.0, iterations=0,
+                    hb_solves=0, jacobian_evaluations=0, w_scale=w_scale)
+    h.cycles, h.max_wear, h.max_rate = list(t), [float(W_of_t(c)) for c in t], [float(rate_of_t(c)) for c in t]
+    return h
+
+
+def test_persistent_slip_is_wear_that_has_settled_into_a_constant_pace():
+    """The persistent-slip verdict (history._trend) on wear paths of known form, steps growing
+    1.3× a step to 1e10 cycles, the W scale 2.5 µm: constant-rate wear is persistent once W has
+    grown by the scale over the last decade, not before (the slow start of a relief looks the
+    same); wear that accelerates (t^1.4) or decays (t^0.3), and a jump, in progress or ended,
+    are not."""
+    from workflow.engine.wear.history import _trend
+
+    t = np.concatenate([[0.0], 1e4 * 1.3 ** np.arange(60)])
+    t = t[t <= 1e10]
+    scale = 2.5e-6
+
+    def verdict(W, r, upto=None):
+        return _trend(_path(W, r, t if upto is None else t[t <= upto], scale))[0]
+
+    r0 = 1e-15                                                   # m/cycle: 10 µm at 1e10 cycles
+    assert verdict(lambda c: r0 * c, lambda c: r0)
+    assert not verdict(lambda c: r0 * c, lambda c: r0, upto=2e9)          # 2 µm: not yet by the scale
+    assert not verdict(lambda c: 1e-19 * c ** 1.4, lambda c: 1.4e-19 * c ** 0.4)      # 10 µm at 1e10
+    assert verdict(lambda c: 1e-16 * c ** 1.1, lambda c: 1.1e-16 * c ** 0.1)     # within the pace band
+    assert not verdict(lambda c: 1e-8 * c ** 0.3, lambda c: 3e-9 * max(c, 1.0) ** -0.7)
+    jump = lambda c: r0 * c + 2e-5 * np.clip((c - 4e9) / 2e9, 0.0, 1.0)       # 20 µm within 2e9 cycles
+    jump_rate = lambda c: r0 + (1e-14 if 4e9 <= c <= 6e9 else 0.0)
+    assert not verdict(jump, jump_rate)                                           # ended
+    assert not verdict(jump, jump_rate, upto=5.5e9)                               # in progress
+
+
 @pytest.mark.parametrize("march", ["pseudo-time", "explicit", "implicit"])
 def test_persistent_gross_slip_wears_at_a_constant_rate_and_has_no_steady_state(march):
     """Under a dead normal load the worn Jenkins pairs sink as a body: their contact forces
