@@ -268,7 +268,7 @@ def _one_pass_loops(lam_u, mu, ref, dlu, start):
     Pure Python it is far too slow to use; compiled (``_one_pass_numba``) it
     removes the per-instant interpreter overhead that dominates the NumPy
     pass (~30 µs × nit). The NumPy version stays the fallback and the oracle.
-    One function on purpose (81 lines): it is the sequential physics of one
+    One function on purpose: it is the sequential physics of one
     period, compiled whole by numba; splitting it would put a call per
     instant and pair back into the hot loop.
     """

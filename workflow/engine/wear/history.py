@@ -13,8 +13,8 @@ import numpy as np
 
 from workflow.engine.wear.problem import WearProblem, WearState
 
-#: A march whose max W still grows as t^γ, γ ≥ this, over a decade of cycles has no
-#: worn steady state (:func:`_trend`); constant-rate wear has γ = 1.
+#: The first sign of persistent slip (:func:`_trend`): max W still growing as t^γ, γ ≥ this, over
+#: the last decade of cycles; constant-rate wear has γ = 1.
 PERSISTENT_GROWTH = 0.5
 #: … at a steady pace: the mean rate over the decade's later half within these shares of that
 #: over its earlier half (:func:`_pace`; constant-rate wear gives 1, t^γ 10^((γ−1)/2): within
@@ -55,7 +55,7 @@ class WearHistory:
     harmonic1     (k,) |first harmonic| of the tracked tangential DOF [m] (Fig. 12)
     W_history     (k, p) W at each iteration
     reason        why it stopped
-    persistent_slip  stopped because the wear rate does not decay (:func:`_trend`):
+    persistent_slip  stopped because the wear settled into a constant pace (:func:`_trend`):
                   no worn steady state at this load
     vibration_lost   stopped because no periodic vibration was found at the reached wear
                   (the whole solver cascade failed); ``finer_nh``: the same wear re-solved at
@@ -153,11 +153,10 @@ def _trend(hist: WearHistory) -> tuple[bool, str]:
     * the wear goes on at a steady pace: the mean rate over the decade's later half within
       :data:`PERSISTENT_RATE` × that over its earlier half (:func:`_pace`). Wear that
       accelerates is the vibration still growing with it, not a state it has settled in, and a
-      jump is a transient, in progress or ended. Measured on the quick sector: at 0.998 f_r max
+      jump is a transient, in progress or ended. Measured on the quick sector at 0.998 f_r: max
       W went 1.6 → 11.4 µm between 2.5e8 and 2.9e8 cycles, the largest rate up ~900× and back
-      (the resonance dragged through the excitation), and at 1.005 f_r max W grew as t^1.39 at
-      0.43 µm; both were called persistent on γ alone, and both reach a worn steady state when
-      marched on (11.7 and 0.55 µm).
+      (the resonance dragged through the excitation); called persistent on γ alone (0.94), it
+      reaches its worn steady state, 11.7 µm, when marched on.
     * max W has grown over the decade by at least the W scale of the dynamics (``hist.w_scale``,
       :func:`penetration_scale`), the wear that unloads a pair through the structure's own
       stiffness: less cannot have relieved a contact yet, and a constant pace then is the slow
