@@ -282,6 +282,11 @@ class Wear:
     response_detunings: list = param([], "", "the wear response curve: the worn steady state at each f / f_r "
                                              "(f_r the friction-damped resonance), e.g. [0.98, 0.99, 1.0, 1.01]; "
                                              "[]: none (one pseudo-time march a point)", min=0.5, max=2.0)
+    response_refine: int = param(4, "", "the wear response curve's peak: bisections of its cliff, the neighbouring "
+                                        "points between which the wear starts to drag the resonance through the "
+                                        "excitation (f / f_r,worn crosses 1; needs resonance_shift), each one "
+                                        "more march; the bracket shrinks 2× a bisection (docs/wear.md)",
+                                 min=0, max=20)
     resonance_shift: bool = param(True, "", "find the friction-damped resonance of the worn and the new model "
                                             "(worn − new shift in summary.json; two FRF searches)")
     control: str = param("force", "", "what the wear study holds: \"force\" (the scene's excitation, the "

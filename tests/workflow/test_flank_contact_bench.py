@@ -154,6 +154,24 @@ def test_the_convergence_summary_reads_wear_response_curves(tmp_path):
     assert s["response_max_wear_m@1"]["values"] == [pytest.approx(1e-6), pytest.approx(1e-6)]
     assert s["response_worn_volume_m3@1.01"]["values"] == [None, 1e-11]
     assert s["response_worn_volume_m3@1.01"]["change_last"] is None
+    assert all(m["response_cliff_low"] is None for m in meshes)      # no worn detunings: no cliff
     fc.main([str(tmp_path), "--out", str(tmp_path / "out")])
     assert (tmp_path / "out" / "wear_response_meshes.png").stat().st_size > 0
     assert json.loads((tmp_path / "out" / "flank_convergence.json").read_text())["pairs"] == [100, 400]
+
+
+def test_a_bisected_cliff_enters_the_peak_and_the_bracket_not_the_points(tmp_path):
+    """Points a mesh's bisection of its cliff added (``refined``) lie at that mesh's own f / f_r:
+    they enter its peak and its cliff's bracket, not the per-point measures the meshes share."""
+    from workflow.bench import flank_convergence as fc
+    from workflow.io import write_rows
+
+    rows = [{"grid": "a", "pairs": 100, "detuning": r, "steady": True, "worn_volume_m3": v, "max_wear_m": 1e4 * v,
+             "profile_l2_m": 1e3 * v, "worn_detuning": wd, "refined": ref}
+            for r, v, wd, ref in ((0.995, 0.1e-9, 0.9952, False), (0.9965, 0.2e-9, 0.9972, True),
+                                  (0.99725, 1.4e-9, 1.0019, True), (0.998, 1.3e-9, 1.0026, False))]
+    write_rows(tmp_path / "wear_response.csv", rows)
+    (m,) = fc.mesh_rows([tmp_path], end_band=0.002)
+    assert (m["response_cliff_low"], m["response_cliff_high"]) == (0.9965, 0.99725)
+    assert m["response_peak_volume_m3"] == 1.4e-9 and m["response_peak_detuning"] == 0.99725
+    assert "response_worn_volume_m3@0.99725" not in m and m["response_worn_volume_m3@0.998"] == 1.3e-9

@@ -212,3 +212,41 @@ def test_the_scene_checks_the_mission():
         with pytest.raises(SceneError, match=match):
             resolve_section("wear", params.Wear, raw)
     assert resolve_section("wear", params.Wear, {"operating_point": "resonance"}).dwell_tol > 0
+
+
+def test_the_wear_response_cliff_is_pad_b_slip_onset():
+    """The wear response curve of the two-pad model has its cliff where pad B starts to slip on
+    the new blade: below it both pads stick (the tied linear response, no wear, the worn detuning
+    the point's own, < 1); above it B slips, wears to lift-off (W = N₀/k_n) and leaves the mass on
+    k + k_t with C stuck, whose resonance lies ~4 % below — the wear has dragged it through the
+    excitation (worn detuning > 1). B's slip onset in closed form: k_t |X| = μ N_B with
+    X = 1 N / |k + 2k_t − ω² + iωc| (its lower root). The AFT sees the tangential force at nit
+    samples a period only, so it finds the onset where the sampled peak reaches μ N_B: between
+    the closed form's frequency and the one where k_t |X| cos(π/nit) = μ N_B. The bisected bracket
+    must straddle that interval, 2⁻⁸ of the sampled one wide."""
+    from scipy.optimize import brentq
+
+    from workflow import engine
+    from workflow.engine.studies.wearresponse import wear_response
+
+    nit = 128
+    model = pad_model()
+    resp = wear_response(model, engine.contact_law(model, mu=0.5), options(resonance_shift=True, nit=nit),
+                         [0.99, 1.0], refine=8)
+    kt, c = 0.1 * K, 2 * ZETA * np.sqrt(1.2 * K)
+
+    def onset(force):                 # ω [rad/s] below the tied resonance where k_t|X| = force
+        return brentq(lambda w: kt / np.hypot(1.2 * K - w * w, c * w) - force, 0.9 * np.sqrt(1.2 * K),
+                      np.sqrt(1.2 * K))
+
+    f_r = 2 * np.pi * resp["resonance_hz"]
+    exact, sampled = onset(0.5 * LOADS[0]) / f_r, onset(0.5 * LOADS[0] / np.cos(np.pi / nit)) / f_r
+    lo, hi = resp["peak"]["cliff"]
+    assert hi - lo == pytest.approx(0.01 / 2 ** 8, rel=1e-9)
+    assert lo < sampled and hi >= exact
+    for row in resp["rows"]:
+        if row["detuning"] <= lo:
+            assert row["max_wear_m"] == 0.0 and row["worn_detuning"] == pytest.approx(row["detuning"], rel=1e-12)
+        else:
+            assert row["max_wear_m"] == pytest.approx(DELTA, rel=LIFT_TOL) and row["worn_detuning"] > 1.03
+    assert resp["peak"]["worn_volume_m3"] == pytest.approx(DELTA * 1e-6, rel=LIFT_TOL)

@@ -186,3 +186,67 @@ def test_each_point_of_the_wear_response_curve_says_where_its_worn_resonance_is(
     assert stuck["worn_detuning"] == pytest.approx(0.95, rel=1e-12)
     assert worn["max_wear_m"] == pytest.approx(o.delta0, rel=1e-4)
     assert worn["worn_resonance_hz"] is None and worn["worn_detuning"] is None
+
+
+def _cliff_curve(r_c=0.99737, v_top=1.3e-9, drag=0.003):
+    """A wear response curve with a cliff at r_c, as the quick sector's: below it the worn blade's
+    resonance stays above the excitation (worn detuning r / (1 − 1e-4·(r − 0.99)/0.01) < 1) and the
+    worn volume is small; from r_c on the wear drags the resonance `drag` below its new value
+    (worn detuning r / (1 − drag) > 1) and the volume falls from v_top at the cliff as 1/(1 + 300(r − r_c))."""
+    def point(r):
+        above = r >= r_c
+        return {"detuning": r, "steady": True, "max_wear_m": 1e-5 if above else 1e-6, "refined": True,
+                "worn_detuning": r / (1.0 - drag) if above else r / (1.0 + 3e-4),
+                "worn_volume_m3": v_top / (1.0 + 300.0 * (r - r_c)) if above else 0.2 * v_top}
+    return point
+
+
+def test_the_cliff_of_a_wear_response_curve_is_bracketed_and_halved():
+    """:func:`cliff` finds the neighbours across which the worn detuning crosses 1, and
+    :func:`bisect_cliff` halves that bracket a march at a time around the true cliff r_c: after n
+    bisections it is (0.998 − 0.995)/2ⁿ wide and holds r_c; the volume at its upper end rises
+    towards the curve's maximum v_top (the limit r → r_c from above), its last step the
+    difference of two points of the closed-form curve."""
+    from workflow.engine.studies.wearresponse import bisect_cliff, cliff, peak
+
+    r_c, v_top = 0.99737, 1.3e-9
+    point = _cliff_curve(r_c, v_top)
+    sampled = [dict(point(r), refined=False) for r in (0.99, 0.995, 0.998, 1.0, 1.005)]
+    assert cliff(sampled) == (0.995, 0.998)
+    assert peak(sampled, 0)["change_last"] is None and peak(sampled, 0)["detuning"] == 0.998
+    for n in (1, 4, 8):
+        rows = bisect_cliff(sampled, point, n)
+        lo, hi = cliff(rows)
+        assert len(rows) == len(sampled) + n and sum(r["refined"] for r in rows) == n
+        assert hi - lo == pytest.approx(0.003 / 2 ** n, rel=1e-9) and lo < r_c <= hi
+        pk = peak(rows, n)
+        assert pk["cliff"] == [lo, hi] and pk["detuning"] == hi
+        assert pk["worn_volume_m3"] == pytest.approx(v_top / (1 + 300 * (hi - r_c)), rel=1e-12)
+        v = pk["upper_volumes"]
+        assert v[0] == point(0.998)["worn_volume_m3"] and all(b > a for a, b in zip(v, v[1:]))
+        assert v[-1] < v_top and (v_top - v[-1]) / v_top <= 300 * 0.003 / 2 ** n
+        if len(v) > 1:
+            assert pk["change_last"] == pytest.approx((v[-1] - v[-2]) / v[-1], rel=1e-12)
+        # the curve is convex above the cliff: the chord's slope carried across the bracket
+        # under-reads what the bracket hides by less than the curve's own slope at the cliff
+        hidden = (v_top - pk["worn_volume_m3"]) / pk["worn_volume_m3"]
+        assert 0.0 < pk["hidden_rel"] <= 300.0 * (hi - lo) * v_top / pk["worn_volume_m3"]
+        assert pk["hidden_rel"] <= hidden * (hi - lo) / (hi - r_c) + 1e-15
+
+
+def test_a_cliff_is_not_guessed_where_a_side_is_unknown_or_no_crossing():
+    """No bracket where the worn detuning never crosses 1, nor across a point whose worn
+    resonance was not found or whose march did not reach a worn steady state; of two crossings,
+    the one whose upper point wore more."""
+    from workflow.engine.studies.wearresponse import bisect_cliff, cliff
+
+    def row(r, wd, v=1e-10):
+        return {"detuning": r, "worn_detuning": wd, "worn_volume_m3": v, "steady": True, "max_wear_m": 0.0}
+
+    assert cliff([row(0.99, 0.99), row(1.0, 0.999), row(1.01, 0.9999)]) is None
+    assert cliff([row(0.99, 0.99), row(1.0, None), row(1.01, 1.01)]) is None
+    assert cliff([row(0.99, 0.99), dict(row(1.0, 1.002), steady=False), row(1.01, 1.01)]) is None
+    assert cliff([row(0.99, 0.99), row(0.995, 1.001, 1e-10), row(0.997, 0.9991), row(0.998, 1.002, 5e-10)]) \
+        == (0.997, 0.998)
+    rows = [row(0.99, 0.99), row(1.0, 0.999)]
+    assert bisect_cliff(rows, lambda r: pytest.fail("no march without a cliff"), 3) == rows

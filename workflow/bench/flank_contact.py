@@ -27,7 +27,8 @@ steady state at each r × the grid's own friction-damped resonance, under the sc
 force (``--set 'wear.control="force"'``) or with the tip held at ``--tip``; ``wear_response.csv``
 (one row per grid and point, with the ℓ-filtered profile's L2 over both flanks) and each point's
 worn depth in ``response-AxC.npz`` (``W`` (r, p) [m], ``detunings``); with ``--shift`` each
-point's worn friction-damped resonance and the detuning the worn blade sees (``worn_detuning``).
+point's worn friction-damped resonance and the detuning the worn blade sees (``worn_detuning``),
+and then ``wear.response_refine`` bisections of the curve's cliff (rows ``refined``).
 
 ``--set`` overrides scene keys; ``contact.stiffness_n``/``stiffness_t`` give every grid's model the
 interface layer of :mod:`reduction.layer` before both the static state and the march; with
@@ -186,7 +187,8 @@ def response(model, tip: float, sets, detunings, ell: float, shift: bool = False
     scene = _scene(tip, sets)
     m, law, _, opt = wear_setup(model, scene, scene["contact_convergence"])
     res = wear_response(m, law, replace(opt, resonance_shift=shift), detunings, keep_states=True,
-                        report=lambda msg: print(msg, file=sys.stderr, flush=True))
+                        report=lambda msg: print(msg, file=sys.stderr, flush=True),
+                        refine=scene["wear"].response_refine)
     rows = []
     for r in res["rows"]:
         fl = wear_measures(r["W"], model.position, model.area, model.flank, ell)["flanks"].values()

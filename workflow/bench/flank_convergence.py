@@ -24,7 +24,10 @@ maximum on each flank and over both (``profile_l2_m``: the root sum of the flank
 with ``--shift`` rows, the worn − new resonance (relative). From a wear response curve: the worn
 volume, node-wise max depth, ℓ-filtered profile's L2 and (``--shift`` runs) the detuning the worn
 blade sees at each f / f_r every mesh has (``response_worn_volume_m3@1`` …), and the curve's peak — the largest worn volume of a worn steady
-state over its points (``response_peak_volume_m3``) and where it lies (``response_peak_detuning``).
+state over its points (``response_peak_volume_m3``) and where it lies (``response_peak_detuning``),
+with the cliff's bracket (``response_cliff_low``, ``response_cliff_high``:
+:func:`workflow.engine.studies.wearresponse.cliff`; a bisection's points enter the peak and the
+bracket only, being their own mesh's).
 
 Writes ``flank_convergence.csv`` (one row a mesh) and ``flank_convergence.json`` (per measure:
 values, ``change_last``, ``observed_order``, ``gci``) to ``--out``, and with response curves
@@ -83,14 +86,20 @@ def response_measures(rows: list[dict]) -> dict:
     """One mesh's wear response curve (its wear_response.csv rows) as measures: each point's
     (``name@r``) and the curve's peak — the largest worn volume of a worn steady state and its
     f / f_r (none when no point reached one)."""
+    from workflow.engine.studies.wearresponse import cliff
+
     out = {}
     for r in rows:
-        for name, col in RESPONSE:
-            out[f"{name}@{float(r['detuning']):g}"] = _float(r.get(col))
+        if r.get("refined") != "True":          # a bisection's point is its own mesh's: no other has it
+            for name, col in RESPONSE:
+                out[f"{name}@{float(r['detuning']):g}"] = _float(r.get(col))
     steady = [r for r in rows if r.get("steady") == "True" and _float(r.get("worn_volume_m3")) is not None]
     top = max(steady, key=lambda r: _float(r["worn_volume_m3"]), default=None)
     out["response_peak_volume_m3"] = None if top is None else _float(top["worn_volume_m3"])
     out["response_peak_detuning"] = None if top is None else _float(top["detuning"])
+    bracket = cliff([{"detuning": float(r["detuning"]), "worn_detuning": _float(r.get("worn_detuning")),
+                      "worn_volume_m3": _float(r.get("worn_volume_m3"))} for r in rows])
+    out["response_cliff_low"], out["response_cliff_high"] = bracket or (None, None)
     return out
 
 

@@ -140,6 +140,23 @@ def tip_cycles(study) -> tuple:
     return tip(study.base.x), {m: tip(h.x) for m, h in study.histories.items()}
 
 
+def peak_line(peak: dict) -> str:
+    """One line on where a wear response curve peaks (``peak`` of
+    :func:`workflow.engine.studies.wearresponse.wear_response`): the largest worn volume, the
+    cliff's bracket and how far its last bisection moved the volume."""
+    line = (f"the largest worn volume {peak['worn_volume_m3']:.4g} m³ at f/f_r = {peak['detuning']:.6g} "
+            f"(max W {peak['max_wear_m']:.4g} m)")
+    if peak["cliff"] is None:
+        return line + "; no cliff between the points (the worn detuning f/f_r,worn never crosses 1)"
+    lo, hi = peak["cliff"]
+    line += f"; the cliff between f/f_r = {lo:.6g} and {hi:.6g} ({peak['refined']} bisections)"
+    if peak["change_last"] is not None:
+        line += f", the last moved its upper end's volume by {peak['change_last']:+.2%}"
+    if peak["hidden_rel"] is not None:
+        line += f"; the bracket may hide {peak['hidden_rel']:.2%} more (the slope above it carried across)"
+    return line
+
+
 def plot_wear_response(path: Path, response: dict) -> Path:
     """The wear response curve: worn volume and max depth at the worn steady state against
     f / f_r (f_r the friction-damped resonance), and where the rows carry it the worn blade's own
@@ -169,6 +186,12 @@ def plot_wear_response(path: Path, response: dict) -> Path:
         ax.plot(r[ok], y[ok], "o", color="C0", label="worn steady state")
         if (~ok).any():
             ax.plot(r[~ok], y[~ok], "o", mfc="none", color="C3", label="not steady (where the march stopped)")
+        refined = np.array([bool(x.get("refined")) for x in rows])
+        if refined.any():
+            ax.plot(r[refined], y[refined], "x", color="k", label="bisecting the cliff")
+        cliff = (response.get("peak") or {}).get("cliff")
+        if cliff is not None:
+            ax.axvspan(*cliff, color="C1", alpha=0.3, lw=0, label="the cliff's bracket")
         finish_axes(ax, f"f / f_r (f_r = {response['resonance_hz']:.4g} Hz)", label)
     return write_figure(fig, path)
 

@@ -85,14 +85,15 @@ def run_wear(model, scene, out: Path, log) -> dict:
                "energy_per_cycle_J": study.energy_per_cycle_J, "resonance_shift": study.resonance_shift}
     if w.response_detunings:
         from workflow.engine.studies.wearresponse import wear_response
-        from workflow.report.wear import plot_wear_response
+        from workflow.report.wear import peak_line, plot_wear_response
 
-        resp = wear_response(model, law_of(scene, model), options(scene), w.response_detunings)
+        resp = wear_response(model, law_of(scene, model), options(scene), w.response_detunings,
+                             refine=w.response_refine)
         write_rows(out / "wear_response.csv", resp["rows"])
         summary["response"] = {**resp, "csv": "wear_response.csv",
                                "figure": plot_wear_response(out / "wear_response.png", resp).name}
         log.info(f"wear response curve: {len(resp['rows'])} points around f_r = {resp['resonance_hz']:.6g} Hz, "
-                 f"{sum(r['steady'] for r in resp['rows'])} steady, {resp['seconds']:.1f} s")
+                 f"{sum(r['steady'] for r in resp['rows'])} steady, {resp['seconds']:.1f} s; {peak_line(resp['peak'])}")
     if study.profile_max_rel_diff is not None:
         summary["profile_max_rel_diff"] = study.profile_max_rel_diff
         summary["cpu_ratio_pseudo_over_reference"] = study.cpu_ratio_pseudo_over_reference
