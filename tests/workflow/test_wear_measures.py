@@ -234,18 +234,24 @@ def test_the_cliff_of_a_wear_response_curve_is_bracketed_and_halved():
         assert pk["hidden_rel"] <= hidden * (hi - lo) / (hi - r_c) + 1e-15
 
 
-def test_a_cliff_is_not_guessed_where_a_side_is_unknown_or_no_crossing():
-    """No bracket where the worn detuning never crosses 1, nor across a point whose worn
-    resonance was not found or whose march did not reach a worn steady state; of two crossings,
-    the one whose upper point wore more."""
-    from workflow.engine.studies.wearresponse import bisect_cliff, cliff
+def test_a_cliff_is_not_guessed_across_unknown_sides_or_without_a_crossing():
+    """No bracket where the worn detuning never crosses 1; a point whose worn resonance was not
+    found or whose march did not reach a worn steady state has no side: the bracket spans it,
+    names it, and is not bisected at it again; of two crossings, the one whose upper point wore
+    more."""
+    from workflow.engine.studies.wearresponse import bisect_cliff, cliff, peak
 
     def row(r, wd, v=1e-10):
         return {"detuning": r, "worn_detuning": wd, "worn_volume_m3": v, "steady": True, "max_wear_m": 0.0}
 
     assert cliff([row(0.99, 0.99), row(1.0, 0.999), row(1.01, 0.9999)]) is None
-    assert cliff([row(0.99, 0.99), row(1.0, None), row(1.01, 1.01)]) is None
-    assert cliff([row(0.99, 0.99), dict(row(1.0, 1.002), steady=False), row(1.01, 1.01)]) is None
+    unknown = [row(0.99, 0.99), dict(row(1.0, 1.002), steady=False), row(1.01, 1.01)]
+    assert cliff([row(0.99, 0.99), row(1.0, None), row(1.01, 1.01)]) == (0.99, 1.01)
+    assert cliff(unknown) == (0.99, 1.01)
+    assert peak(unknown, 0)["unknown_inside"] == [1.0]
+    # its middle is the point whose side is unknown: marching it again tells nothing
+    assert bisect_cliff(unknown, lambda r: pytest.fail("the same march again"), 3) == unknown
+    assert peak([dict(row(1.0, 1.002), steady=False)], 0)["detuning"] is None
     assert cliff([row(0.99, 0.99), row(0.995, 1.001, 1e-10), row(0.997, 0.9991), row(0.998, 1.002, 5e-10)]) \
         == (0.997, 0.998)
     rows = [row(0.99, 0.99), row(1.0, 0.999)]

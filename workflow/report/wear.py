@@ -144,6 +144,8 @@ def peak_line(peak: dict) -> str:
     """One line on where a wear response curve peaks (``peak`` of
     :func:`workflow.engine.studies.wearresponse.wear_response`): the largest worn volume, the
     cliff's bracket and how far its last bisection moved the volume."""
+    if peak["detuning"] is None:
+        return "no point reached a worn steady state"
     line = (f"the largest worn volume {peak['worn_volume_m3']:.4g} m³ at f/f_r = {peak['detuning']:.6g} "
             f"(max W {peak['max_wear_m']:.4g} m)")
     if peak["cliff"] is None:
@@ -152,6 +154,9 @@ def peak_line(peak: dict) -> str:
     line += f"; the cliff between f/f_r = {lo:.6g} and {hi:.6g} ({peak['refined']} bisections)"
     if peak["change_last"] is not None:
         line += f", the last moved its upper end's volume by {peak['change_last']:+.2%}"
+    if peak["unknown_inside"]:
+        line += (f"; inside it f/f_r = {', '.join(f'{r:.6g}' for r in peak['unknown_inside'])} stopped short of a "
+                 "worn steady state (its side unknown)")
     if peak["hidden_rel"] is not None:
         line += f"; the bracket may hide {peak['hidden_rel']:.2%} more (the slope above it carried across)"
     return line

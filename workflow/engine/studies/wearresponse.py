@@ -50,14 +50,18 @@ def wear_response(model, law, opt, detunings, keep_states: bool = False, report=
 
 def bisect_cliff(rows, point, n: int) -> list:
     """``rows`` and up to ``n`` more, each ``point(r)`` (a row, ``refined`` true) at the middle of
-    the current :func:`cliff`, sorted by detuning: the bracket halves with each (fewer where the
-    cliff is lost: no crossing, or a worn resonance not found)."""
+    the current :func:`cliff`, sorted by detuning: the bracket halves with each. Fewer where the
+    cliff is lost (no crossing) or its middle is a point already marched whose side is unknown
+    (:func:`cliff`): marching it again would tell nothing new."""
     rows = sorted(rows, key=lambda row: row["detuning"])
     for _ in range(n):
         bracket = cliff(rows)
         if bracket is None:
             break
-        rows = sorted([*rows, point(0.5 * (bracket[0] + bracket[1]))], key=lambda row: row["detuning"])
+        mid = 0.5 * (bracket[0] + bracket[1])
+        if any(row["detuning"] == mid for row in rows):
+            break
+        rows = sorted([*rows, point(mid)], key=lambda row: row["detuning"])
     return rows
 
 
@@ -88,53 +92,60 @@ def _point(model, law, opt, r: float, res: dict, keep_states: bool, report, refi
 def cliff(rows) -> tuple[float, float] | None:
     """(r_lo, r_hi): the neighbouring detunings of ``rows`` (each with ``detuning`` and
     ``worn_detuning``) between which the worn detuning crosses 1 — below r_lo's worn blade kept
-    its resonance above the excitation, at r_hi the wear dragged it below. Of several crossings
-    the one whose upper point wore the most; None without a crossing. A point whose worn
+    its resonance above the excitation, at r_hi the wear dragged it below. A point whose worn
     resonance was not found, or whose march stopped short of a worn steady state, has its side of
-    the cliff unknown: no bracket ends on it."""
-    def side(row):
-        return row.get("worn_detuning") if row.get("steady", True) else None
-
-    rows = sorted(rows, key=lambda row: row["detuning"])
+    the cliff unknown: it is passed over (it may lie inside the bracket, :func:`peak` names it).
+    Of several crossings the one whose upper point wore the most; None without a crossing."""
+    known = sorted((row for row in rows if _side(row) is not None), key=lambda row: row["detuning"])
     best = None
-    for a, b in zip(rows, rows[1:]):
-        da, db = side(a), side(b)
-        if da is None or db is None or not (da < 1.0 <= db):
+    for a, b in zip(known, known[1:]):
+        if not _side(a) < 1.0 <= _side(b):
             continue
         if best is None or (b.get("worn_volume_m3") or 0.0) > (best[1].get("worn_volume_m3") or 0.0):
             best = (a, b)
     return None if best is None else (best[0]["detuning"], best[1]["detuning"])
 
 
+def _side(row):
+    """A point's worn detuning f / f_r,worn, None where its side of the cliff is unknown."""
+    return row.get("worn_detuning") if row.get("steady", True) else None
+
+
 def peak(rows, bisections: int) -> dict:
-    """Where the curve's worn volume is largest: {"detuning", "worn_volume_m3", "max_wear_m",
-    "steady", "cliff" ([r_lo, r_hi] or None), "bisections" (asked), "refined" (made),
+    """Where the curve's worn volume is largest: {"detuning", "worn_volume_m3", "max_wear_m" (of
+    the worn steady states; None without one), "cliff" ([r_lo, r_hi] or None), "bisections"
+    (asked), "refined" (made),
     "upper_volumes", "change_last", "hidden_rel"}. ``upper_volumes`` [m³]: the worn volume at the
     cliff's upper end, each time a refined point moved it (the first the sampled one): the sequence
     that tends to the curve's maximum as the bracket shrinks; ``change_last`` its last step
     relative to its last value (None before a refined point has moved the upper end);
     ``hidden_rel``: how much more the curve may wear inside the bracket, relative to its upper end
     — the slope of the two lowest points above the cliff carried across the bracket (a linear
-    estimate; None with one point above it)."""
+    estimate; None with one point above it); ``unknown_inside``: the detunings inside the bracket
+    whose side is unknown (a march that stopped short of a worn steady state, a worn resonance not
+    found)."""
     def volume(row):
         return row.get("worn_volume_m3") or 0.0
 
-    top = max(rows, key=volume)
+    # a march stopped short of a worn steady state gives no worn state, however deep
+    top = max((row for row in rows if row["steady"]), key=volume, default=None)
     bracket = cliff(rows)
-    uppers, hidden = [], None
+    uppers, hidden, unknown = [], None, []
     if bracket is not None:
         hi = bracket[1]
-        first = min((row for row in rows if not row.get("refined") and row["detuning"] >= hi),
-                    key=lambda row: row["detuning"])
-        moved = sorted((row for row in rows if row.get("refined") and row["detuning"] >= hi),
-                       key=lambda row: -row["detuning"])
-        uppers = [volume(row) for row in [first, *moved]]
-        above = sorted((row for row in rows if row["detuning"] >= hi), key=lambda row: row["detuning"])
+        unknown = [row["detuning"] for row in rows if bracket[0] < row["detuning"] < hi]
+        above = sorted((row for row in rows if row["detuning"] >= hi and _side(row) is not None),
+                       key=lambda row: row["detuning"])
+        sampled = [row for row in above if not row.get("refined")]
+        moved = sorted((row for row in above if row.get("refined")), key=lambda row: -row["detuning"])
+        uppers = [volume(row) for row in sampled[:1] + moved]
         if len(above) > 1 and volume(above[0]) > 0:
             slope = (volume(above[0]) - volume(above[1])) / (above[1]["detuning"] - above[0]["detuning"])
             hidden = max(slope, 0.0) * (hi - bracket[0]) / volume(above[0])
     change = (uppers[-1] - uppers[-2]) / uppers[-1] if len(uppers) > 1 and uppers[-1] > 0 else None
-    return {"detuning": top["detuning"], "worn_volume_m3": top.get("worn_volume_m3"), "max_wear_m": top["max_wear_m"],
-            "steady": top["steady"], "cliff": None if bracket is None else list(bracket), "bisections": bisections,
+    return {"detuning": None if top is None else top["detuning"],
+            "worn_volume_m3": None if top is None else top.get("worn_volume_m3"),
+            "max_wear_m": None if top is None else top["max_wear_m"],
+            "cliff": None if bracket is None else list(bracket), "bisections": bisections,
             "refined": sum(bool(row.get("refined")) for row in rows), "upper_volumes": uppers, "change_last": change,
-            "hidden_rel": hidden}
+            "hidden_rel": hidden, "unknown_inside": unknown}
