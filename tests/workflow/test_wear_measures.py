@@ -236,19 +236,24 @@ def test_the_cliff_of_a_wear_response_curve_is_bracketed_and_halved():
 
 def test_a_cliff_is_not_guessed_across_unknown_sides_or_without_a_crossing():
     """No bracket where the worn detuning never crosses 1; a point whose worn resonance was not
-    found or whose march did not reach a worn steady state has no side: the bracket spans it,
-    names it, and is not bisected at it again; of two crossings, the one whose upper point wore
-    more."""
+    found, or whose march stopped short of a worn steady state with the resonance still above
+    the excitation, has no side: the bracket spans it, names it, and is not bisected at it again;
+    of two crossings, the one whose upper point wore more."""
     from workflow.engine.studies.wearresponse import bisect_cliff, cliff, peak
 
     def row(r, wd, v=1e-10):
         return {"detuning": r, "worn_detuning": wd, "worn_volume_m3": v, "steady": True, "max_wear_m": 0.0}
 
     assert cliff([row(0.99, 0.99), row(1.0, 0.999), row(1.01, 0.9999)]) is None
-    unknown = [row(0.99, 0.99), dict(row(1.0, 1.002), steady=False), row(1.01, 1.01)]
+    unknown = [row(0.99, 0.99), dict(row(1.0, 0.998), steady=False), row(1.01, 1.01)]
     assert cliff([row(0.99, 0.99), row(1.0, None), row(1.01, 1.01)]) == (0.99, 1.01)
     assert cliff(unknown) == (0.99, 1.01)
-    assert peak(unknown, 0)["unknown_inside"] == [1.0]
+    assert peak(unknown, 0)["unknown_inside"] == [1.0] and peak(unknown, 0)["not_steady"] == [1.0]
+    # stopped short with its resonance already dragged below the excitation: above the cliff,
+    # since more wear only lowers it further; its volume is no worn state
+    dragged = [row(0.99, 0.99, 1e-10), dict(row(1.0, 1.002, 9e-10), steady=False), row(1.01, 1.01, 2e-10)]
+    assert cliff(dragged) == (0.99, 1.0)
+    assert peak(dragged, 0)["detuning"] == 1.01 and peak(dragged, 0)["upper_volumes"] == [2e-10]
     # its middle is the point whose side is unknown: marching it again tells nothing
     assert bisect_cliff(unknown, lambda r: pytest.fail("the same march again"), 3) == unknown
     assert peak([dict(row(1.0, 1.002), steady=False)], 0)["detuning"] is None

@@ -157,6 +157,8 @@ def peak_line(peak: dict) -> str:
     if peak["unknown_inside"]:
         line += (f"; inside it f/f_r = {', '.join(f'{r:.6g}' for r in peak['unknown_inside'])} stopped short of a "
                  "worn steady state (its side unknown)")
+    if peak["not_steady"]:
+        line += f"; no worn steady state at f/f_r = {', '.join(f'{r:.6g}' for r in peak['not_steady'])}"
     if peak["hidden_rel"] is not None:
         line += f"; the bracket may hide {peak['hidden_rel']:.2%} more (the slope above it carried across)"
     return line

@@ -92,9 +92,8 @@ def _point(model, law, opt, r: float, res: dict, keep_states: bool, report, refi
 def cliff(rows) -> tuple[float, float] | None:
     """(r_lo, r_hi): the neighbouring detunings of ``rows`` (each with ``detuning`` and
     ``worn_detuning``) between which the worn detuning crosses 1 — below r_lo's worn blade kept
-    its resonance above the excitation, at r_hi the wear dragged it below. A point whose worn
-    resonance was not found, or whose march stopped short of a worn steady state, has its side of
-    the cliff unknown: it is passed over (it may lie inside the bracket, :func:`peak` names it).
+    its resonance above the excitation, at r_hi the wear dragged it below. A point whose side is
+    unknown (:func:`_side`) is passed over (it may lie inside the bracket, :func:`peak` names it).
     Of several crossings the one whose upper point wore the most; None without a crossing."""
     known = sorted((row for row in rows if _side(row) is not None), key=lambda row: row["detuning"])
     best = None
@@ -107,8 +106,13 @@ def cliff(rows) -> tuple[float, float] | None:
 
 
 def _side(row):
-    """A point's worn detuning f / f_r,worn, None where its side of the cliff is unknown."""
-    return row.get("worn_detuning") if row.get("steady", True) else None
+    """A point's worn detuning f / f_r,worn, None where its side of the cliff is unknown: its worn
+    resonance not found, or its march stopped short of a worn steady state with the resonance
+    still above the excitation (more wear could drag it through). Stopped with the resonance
+    already below the excitation, the point is above the cliff whatever it wears on: wear only
+    lowers the resonance further."""
+    wd = row.get("worn_detuning")
+    return wd if wd is not None and (row.get("steady", True) or wd >= 1.0) else None
 
 
 def peak(rows, bisections: int) -> dict:
@@ -116,14 +120,15 @@ def peak(rows, bisections: int) -> dict:
     the worn steady states; None without one), "cliff" ([r_lo, r_hi] or None), "bisections"
     (asked), "refined" (made),
     "upper_volumes", "change_last", "hidden_rel"}. ``upper_volumes`` [m³]: the worn volume at the
-    cliff's upper end, each time a refined point moved it (the first the sampled one): the sequence
+    cliff's upper end (worn steady states), each time a refined point moved it (the first the
+    sampled one): the sequence
     that tends to the curve's maximum as the bracket shrinks; ``change_last`` its last step
     relative to its last value (None before a refined point has moved the upper end);
     ``hidden_rel``: how much more the curve may wear inside the bracket, relative to its upper end
     — the slope of the two lowest points above the cliff carried across the bracket (a linear
     estimate; None with one point above it); ``unknown_inside``: the detunings inside the bracket
-    whose side is unknown (a march that stopped short of a worn steady state, a worn resonance not
-    found)."""
+    whose side is unknown; ``not_steady``: every detuning whose march stopped short of a worn
+    steady state (next to the cliff, a pair that wears on at a constant pace)."""
     def volume(row):
         return row.get("worn_volume_m3") or 0.0
 
@@ -134,7 +139,7 @@ def peak(rows, bisections: int) -> dict:
     if bracket is not None:
         hi = bracket[1]
         unknown = [row["detuning"] for row in rows if bracket[0] < row["detuning"] < hi]
-        above = sorted((row for row in rows if row["detuning"] >= hi and _side(row) is not None),
+        above = sorted((row for row in rows if row["detuning"] >= hi and row["steady"] and _side(row) is not None),
                        key=lambda row: row["detuning"])
         sampled = [row for row in above if not row.get("refined")]
         moved = sorted((row for row in above if row.get("refined")), key=lambda row: -row["detuning"])
@@ -148,4 +153,5 @@ def peak(rows, bisections: int) -> dict:
             "max_wear_m": None if top is None else top["max_wear_m"],
             "cliff": None if bracket is None else list(bracket), "bisections": bisections,
             "refined": sum(bool(row.get("refined")) for row in rows), "upper_volumes": uppers, "change_last": change,
-            "hidden_rel": hidden, "unknown_inside": unknown}
+            "hidden_rel": hidden, "unknown_inside": unknown,
+            "not_steady": [row["detuning"] for row in rows if not row["steady"]]}
