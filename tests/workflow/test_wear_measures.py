@@ -245,6 +245,8 @@ def test_a_cliff_is_not_guessed_across_unknown_sides_or_without_a_crossing():
         return {"detuning": r, "worn_detuning": wd, "worn_volume_m3": v, "steady": True, "max_wear_m": 0.0}
 
     assert cliff([row(0.99, 0.99), row(1.0, 0.999), row(1.01, 0.9999)]) is None
+    assert "does not cross 1" in peak([row(0.99, 0.99), row(1.0, 0.999)], 0)["no_cliff"]
+    assert "resonance_shift off" in peak([row(0.99, None), row(1.0, None)], 0)["no_cliff"]
     unknown = [row(0.99, 0.99), dict(row(1.0, 0.998), steady=False), row(1.01, 1.01)]
     assert cliff([row(0.99, 0.99), row(1.0, None), row(1.01, 1.01)]) == (0.99, 1.01)
     assert cliff(unknown) == (0.99, 1.01)

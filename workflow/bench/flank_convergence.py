@@ -98,7 +98,8 @@ def response_measures(rows: list[dict]) -> dict:
     out["response_peak_volume_m3"] = None if top is None else _float(top["worn_volume_m3"])
     out["response_peak_detuning"] = None if top is None else _float(top["detuning"])
     bracket = cliff([{"detuning": float(r["detuning"]), "worn_detuning": _float(r.get("worn_detuning")),
-                      "worn_volume_m3": _float(r.get("worn_volume_m3"))} for r in rows])
+                      "worn_volume_m3": _float(r.get("worn_volume_m3")), "steady": r.get("steady") == "True"}
+                     for r in rows])
     out["response_cliff_low"], out["response_cliff_high"] = bracket or (None, None)
     return out
 

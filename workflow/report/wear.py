@@ -149,7 +149,7 @@ def peak_line(peak: dict) -> str:
     line = (f"the largest worn volume {peak['worn_volume_m3']:.4g} m³ at f/f_r = {peak['detuning']:.6g} "
             f"(max W {peak['max_wear_m']:.4g} m)")
     if peak["cliff"] is None:
-        return line + "; no cliff between the points (the worn detuning f/f_r,worn never crosses 1)"
+        return line + f"; no cliff located: {peak['no_cliff']}"
     lo, hi = peak["cliff"]
     line += f"; the cliff between f/f_r = {lo:.6g} and {hi:.6g} ({peak['refined']} bisections)"
     if peak["change_last"] is not None:

@@ -116,19 +116,20 @@ def _side(row):
 
 
 def peak(rows, bisections: int) -> dict:
-    """Where the curve's worn volume is largest: {"detuning", "worn_volume_m3", "max_wear_m" (of
-    the worn steady states; None without one), "cliff" ([r_lo, r_hi] or None), "bisections"
-    (asked), "refined" (made),
-    "upper_volumes", "change_last", "hidden_rel"}. ``upper_volumes`` [m³]: the worn volume at the
-    cliff's upper end (worn steady states), each time a refined point moved it (the first the
-    sampled one): the sequence
-    that tends to the curve's maximum as the bracket shrinks; ``change_last`` its last step
-    relative to its last value (None before a refined point has moved the upper end);
-    ``hidden_rel``: how much more the curve may wear inside the bracket, relative to its upper end
-    — the slope of the two lowest points above the cliff carried across the bracket (a linear
-    estimate; None with one point above it); ``unknown_inside``: the detunings inside the bracket
-    whose side is unknown; ``not_steady``: every detuning whose march stopped short of a worn
-    steady state (next to the cliff, a pair that wears on at a constant pace)."""
+    """Where the curve's worn volume is largest, over its worn steady states: {"detuning",
+    "worn_volume_m3", "max_wear_m" (None without one), "cliff" ([r_lo, r_hi] or None),
+    "no_cliff" (why there is none, else None), "bisections" (asked), "refined" (made),
+    "upper_volumes", "change_last", "hidden_rel", "unknown_inside", "not_steady"}.
+
+    ``upper_volumes`` [m³]: the worn volume of the lowest worn steady state above the cliff, each
+    time a refined point moved it (the first the sampled one): the sequence that tends to the
+    curve's maximum as the bracket shrinks; ``change_last`` its last step relative to its last
+    value (None before a refined point has moved it); ``hidden_rel``: how much more the curve may
+    wear inside the bracket, relative to that lowest worn steady state — the slope of the two
+    lowest above the cliff carried across the bracket (a linear estimate; None with one);
+    ``unknown_inside``: the detunings inside the bracket whose side is unknown (:func:`_side`);
+    ``not_steady``: every detuning whose march stopped short of a worn steady state (next to the
+    cliff, a pair that wears on at a constant pace)."""
     def volume(row):
         return row.get("worn_volume_m3") or 0.0
 
@@ -148,10 +149,14 @@ def peak(rows, bisections: int) -> dict:
             slope = (volume(above[0]) - volume(above[1])) / (above[1]["detuning"] - above[0]["detuning"])
             hidden = max(slope, 0.0) * (hi - bracket[0]) / volume(above[0])
     change = (uppers[-1] - uppers[-2]) / uppers[-1] if len(uppers) > 1 and uppers[-1] > 0 else None
+    no_cliff = None
+    if bracket is None:
+        no_cliff = ("no worn resonances (resonance_shift off)" if all(r.get("worn_detuning") is None for r in rows)
+                    else "the worn detuning f / f_r,worn does not cross 1 between the points")
     return {"detuning": None if top is None else top["detuning"],
             "worn_volume_m3": None if top is None else top.get("worn_volume_m3"),
             "max_wear_m": None if top is None else top["max_wear_m"],
-            "cliff": None if bracket is None else list(bracket), "bisections": bisections,
+            "cliff": None if bracket is None else list(bracket), "no_cliff": no_cliff, "bisections": bisections,
             "refined": sum(bool(row.get("refined")) for row in rows), "upper_volumes": uppers, "change_last": change,
             "hidden_rel": hidden, "unknown_inside": unknown,
             "not_steady": [row["detuning"] for row in rows if not row["steady"]]}
