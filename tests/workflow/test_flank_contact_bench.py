@@ -55,25 +55,28 @@ def test_the_bench_keeps_each_worn_state_with_the_rows_it_reports(tmp_path):
         assert float(r["scar_area_m2"]) == pytest.approx(scar, rel=1e-12)
         assert 0 <= float(r["worn_open_share"]) <= 1
 
-    # the wear response curve under the scene's force: each point's worn state kept with its row;
-    # at the grid's own friction-damped resonance the blade wears deeper than 0.5 % below it
+    # the wear response curve under the scene's force: each point's worn state kept with its row,
+    # the cliff's bisection's too; at the grid's own friction-damped resonance the blade wears
+    # deeper than 0.5 % below it
     curve = tmp_path / "curve"
     flank_contact.main(["--grids", "4x2", "--grading", "0.5", "--models", str(models), "--response", "1,0.995",
-                        "--shift", "--set", 'wear.control="force"', "--out", str(curve)])
+                        "--shift", "--set", 'wear.control="force"', "--set", "wear.response_refine=1",
+                        "--out", str(curve)])
     pts = list(csv.DictReader(open(curve / "wear_response.csv")))
     z = np.load(curve / "response-4x2.npz")
-    assert [float(r["detuning"]) for r in pts] == [0.995, 1.0] and list(z["detunings"]) == [0.995, 1.0]
+    assert [float(r["detuning"]) for r in pts] == [0.995, 0.9975, 1.0] == list(z["detunings"])
+    assert [r["refined"] for r in pts] == ["False", "True", "False"]
     for r, W in zip(pts, z["W"]):
         assert r["control"] == "force" and r["steady"] == "True"
         # the csv keeps 9 significant digits
         assert float(r["frequency_hz"]) == pytest.approx(float(r["detuning"]) * float(r["resonance_hz"]), rel=1e-8)
         assert float(r["max_wear_m"]) == pytest.approx(W.max(), rel=1e-8)
         assert float(r["worn_volume_m3"]) == pytest.approx(W @ z["area"], rel=1e-8)
-    assert float(pts[1]["worn_volume_m3"]) > float(pts[0]["worn_volume_m3"]) > 0
+    assert float(pts[-1]["worn_volume_m3"]) > float(pts[0]["worn_volume_m3"]) > 0
     # wear lowers the resonance, so the worn blade sees a higher detuning than the new one; worn at
     # its new peak it wears until that peak has passed below the excitation
     assert all(float(r["worn_detuning"]) > float(r["detuning"]) for r in pts)
-    assert float(pts[1]["worn_detuning"]) > 1.0
+    assert float(pts[-1]["worn_detuning"]) > 1.0
 
 
 def test_a_worn_state_of_other_pairs_is_refused(tmp_path):
